@@ -1,0 +1,1 @@
+"""The ``dualpixel`` command line: a thin layer over the library API."""

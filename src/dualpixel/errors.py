@@ -1,0 +1,61 @@
+"""Typed errors and the one validation helper used at every public boundary.
+
+Messages always say what was expected and what came, and name the parameter or file.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+__all__ = [
+    "DualPixelError",
+    "InputFileError",
+    "ParameterError",
+    "check_range",
+]
+
+
+class DualPixelError(Exception):
+    """Base class of every error this package raises on purpose."""
+
+
+class ParameterError(DualPixelError, ValueError):
+    """A parameter is outside its allowed range or of the wrong kind."""
+
+
+class InputFileError(DualPixelError, ValueError):
+    """An input file is missing, unreadable or has the wrong content; the message names the file."""
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = Path(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+def check_range(
+    name: str,
+    value: float,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_inclusive: bool = True,
+    high_inclusive: bool = True,
+) -> float:
+    """Return ``value`` as a float if it lies in the interval, else raise :class:`ParameterError`.
+
+    >>> check_range("beta", 0.2, 0.0, 1.0, low_inclusive=False)
+    0.2
+    """
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise ParameterError(f"{name} must be finite, got {value!r}")
+    above = number >= low if low_inclusive else number > low
+    below = number <= high if high_inclusive else number < high
+    if not (above and below):
+        interval = f"{'[' if low_inclusive else '('}{low:g}, {high:g}{']' if high_inclusive else ')'}"
+        raise ParameterError(f"{name} must be in {interval}, got {value!r}")
+    return number

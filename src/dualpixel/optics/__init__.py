@@ -1,0 +1,40 @@
+"""Optics of dual-pixel image formation (paper Sec. 2): thin lens, DP PSFs, distortion, noise."""
+
+from dualpixel.optics.distortion import (
+    DISTORTION_PRESETS,
+    DivisionDistortion,
+    distort_image,
+    distort_points,
+    undistort_points,
+)
+from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, add_noise, sample_noise_sigma
+from dualpixel.optics.psf import (
+    PSF_MODELS,
+    DPKernels,
+    PSFParams,
+    dp_psf,
+    kernel_size,
+)
+from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
+from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
+
+__all__ = [
+    "CAMERA_PRESETS",
+    "DISTORTION_PRESETS",
+    "PAPER_NOISE_SIGMAS",
+    "PAPER_PSF_BANK",
+    "PSF_MODELS",
+    "DPKernels",
+    "DivisionDistortion",
+    "PSFBank",
+    "PSFParams",
+    "ThinLensCamera",
+    "add_noise",
+    "coc_radius",
+    "distort_image",
+    "distort_points",
+    "dp_psf",
+    "kernel_size",
+    "sample_noise_sigma",
+    "undistort_points",
+]

@@ -1,0 +1,300 @@
+"""Dual-pixel point spread functions (paper Sec. 2.2, Eq. 2-4) and the baselines of the ablation.
+
+Every model is a pure torch function of a batch of signed CoC radii ``r`` of shape ``(K,)`` that
+returns left and right kernels of shape ``(K, S, S)`` on the radii's device and dtype. Pixel
+``(S // 2, S // 2)`` is the kernel centre; x grows to the right (columns), y downwards (rows).
+
+Conventions shared by all models:
+
+* Each view sums to 1/2 and the combined PSF ``H = H_l + H_r`` sums to 1.
+* ``H_r`` is ``H_l`` mirrored about the vertical axis (``torch.flip(H_l, (-1,))``).
+* For ``r > 0`` (behind the focal plane) ``H_l`` falls off towards the right, so the left view is
+  displaced to the left; for ``r < 0`` the views swap. ``r = 0`` is a delta in both views.
+* The disk ``C`` (and our Butterworth term) is integrated over each pixel, so kernels change
+  continuously with ``r``: a sub-pixel radius gives a delta that spreads smoothly as ``r`` grows.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal, NamedTuple
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from dualpixel.errors import ParameterError, check_range
+
+__all__ = [
+    "PSF_MODELS",
+    "DPKernels",
+    "PSFModel",
+    "PSFParams",
+    "butterworth_combined_psf",
+    "disk_psf",
+    "dp_psf",
+    "gaussian_psf",
+    "kernel_size",
+    "punnappurath_left_psf",
+    "split_views",
+]
+
+PSFModel = Literal["ours", "punnappurath", "disk", "gaussian"]
+PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
+
+#: Standard deviation of the Gaussian baseline PSF, as a fraction of |r|.
+GAUSSIAN_SIGMA_PER_RADIUS = 0.5
+
+
+@dataclass(frozen=True)
+class PSFParams:
+    """Parameters of our DP PSF model (Eq. 2-4).
+
+    Args:
+        n: Butterworth order, in [1, 30].
+        alpha: cutoff factor, D_o = alpha * 2|r|; alpha = 1 puts the 3 dB point at the disk's
+            diameter. In (0, 2].
+        beta: lower bound of the rescaled Butterworth term (depletion at the centre), in (0, 1].
+        kappa: Gaussian smoothing, std = kappa * |r|, in [0, 1).
+    """
+
+    n: float = 3.0
+    alpha: float = 0.4
+    beta: float = 0.2
+    kappa: float = 0.14
+
+    def __post_init__(self) -> None:
+        check_range("n", self.n, 1.0, 30.0)
+        check_range("alpha", self.alpha, 0.0, 2.0, low_inclusive=False)
+        check_range("beta", self.beta, 0.0, 1.0, low_inclusive=False)
+        check_range("kappa", self.kappa, 0.0, 1.0, high_inclusive=False)
+
+    def as_dict(self) -> dict[str, float]:
+        return {"n": self.n, "alpha": self.alpha, "beta": self.beta, "kappa": self.kappa}
+
+
+class DPKernels(NamedTuple):
+    """Left and right DP kernels, ``(S, S)`` or ``(K, S, S)`` torch tensors."""
+
+    left: torch.Tensor
+    right: torch.Tensor
+
+    @property
+    def combined(self) -> torch.Tensor:
+        """H = H_l + H_r (sums to 1)."""
+        return self.left + self.right
+
+    def numpy(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(left, right, combined) as NumPy arrays of the kernels' dtype."""
+        return tuple(t.detach().cpu().numpy() for t in (self.left, self.right, self.combined))
+
+
+def kernel_size(max_radius: float, model: PSFModel = "ours", kappa: float = 0.14) -> int:
+    """Smallest odd kernel size that holds the model's support for |r| <= ``max_radius``."""
+    spread = GAUSSIAN_SIGMA_PER_RADIUS if model == "gaussian" else kappa
+    half = math.ceil(abs(max_radius) * (1.0 + 3.0 * spread) + 1.0)
+    return 2 * half + 1
+
+
+def _as_radii(radius: float | Sequence[float] | np.ndarray | torch.Tensor, dtype, device):
+    if isinstance(radius, torch.Tensor):
+        radii = radius.to(dtype=dtype if dtype is not None else radius.dtype, device=device)
+    else:
+        radii = torch.as_tensor(
+            np.asarray(radius, dtype=np.float64), dtype=dtype or torch.float32, device=device
+        )
+    if not radii.dtype.is_floating_point:
+        raise ParameterError(f"radius must be floating point, got dtype {radii.dtype}")
+    if not bool(torch.isfinite(radii).all()):
+        raise ParameterError("radius must be finite")
+    return radii
+
+
+def _grid(size: int, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Pixel offsets (x, y) from the kernel centre, each (S, S)."""
+    axis = torch.arange(size, dtype=like.dtype, device=like.device) - size // 2
+    y, x = torch.meshgrid(axis, axis, indexing="ij")
+    return x, y
+
+
+#: Sub-samples per pixel side used to integrate the disk and Butterworth terms over each pixel.
+SUPERSAMPLING = 4
+
+
+def _subpixel_radius(size: int, like: torch.Tensor) -> torch.Tensor:
+    """Distance from the kernel centre of each sub-pixel sample, ``(S * ss, S * ss)``."""
+    ss = SUPERSAMPLING
+    axis = (torch.arange(size * ss, dtype=like.dtype, device=like.device) + 0.5) / ss
+    axis = axis - size / 2.0
+    y, x = torch.meshgrid(axis, axis, indexing="ij")
+    return torch.sqrt(x**2 + y**2)
+
+
+def _pixel_integral(samples: torch.Tensor) -> torch.Tensor:
+    """Average ``(K, S * ss, S * ss)`` sub-pixel samples over each pixel: ``(K, S, S)``."""
+    return F.avg_pool2d(samples[:, None], SUPERSAMPLING)[:, 0]
+
+
+def _disk_samples(radius: torch.Tensor, rho: torch.Tensor) -> torch.Tensor:
+    """Disk of radius |r| at sub-pixel samples, its edge anti-aliased over one sub-pixel.
+
+    Radii below half a sub-pixel are raised to it, so r = 0 keeps its mass: a delta.
+    """
+    smallest = 0.5 / SUPERSAMPLING
+    edge = (radius.abs().clamp_min(smallest)[:, None, None] - rho) * SUPERSAMPLING + 0.5
+    return edge.clamp(0.0, 1.0)
+
+
+def disk_psf(radius: torch.Tensor, size: int) -> torch.Tensor:
+    """Disk C of radius |r| (Eq. 3) integrated over each pixel, unnormalised, ``(K,) -> (K, S, S)``.
+
+    A radius below half a pixel leaves all weight in the centre pixel (a delta).
+    """
+    return _pixel_integral(_disk_samples(radius, _subpixel_radius(size, radius)))
+
+
+def _normalise(kernels: torch.Tensor, total: float = 1.0) -> torch.Tensor:
+    return kernels * (total / kernels.sum(dim=(-2, -1), keepdim=True))
+
+
+def _gaussian_blur(kernels: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
+    """Blur each kernel ``(K, S, S)`` with its own isotropic Gaussian of std ``sigma[k]``."""
+    count, size, _ = kernels.shape
+    t = torch.arange(size, dtype=kernels.dtype, device=kernels.device) - size // 2
+    # A vanishing sigma gives a delta (exp(-inf) off-centre), so the blur fades out continuously.
+    variance = 2.0 * sigma.clamp_min(1e-6)[:, None] ** 2
+    taps = torch.exp(-(t[None, :] ** 2) / variance)
+    taps = taps / taps.sum(dim=1, keepdim=True)
+    out = F.conv2d(kernels[None], taps[:, None, :, None], padding="same", groups=count)
+    return F.conv2d(out, taps[:, None, None, :], padding="same", groups=count)[0]
+
+
+def butterworth_combined_psf(radius: torch.Tensor, params: PSFParams, size: int) -> torch.Tensor:
+    r"""Combined DP PSF of our model before the left/right split (Eq. 2-3), sums to 1.
+
+    .. math:: B = \left(1 + (D_o / \rho)^{2n}\right)^{-1}, \quad D_o = 2 \alpha |r|, \quad
+              H = G_{\kappa |r|} \ast \left((\beta + (1 - \beta) B) \circ C\right)
+
+    B (a high-pass, 0 at the centre, 1 far out) is rescaled affinely from [0, 1] to [beta, 1].
+    Computed as a logistic function of log-distances, which cannot overflow for large n, and
+    integrated over each pixel (``SUPERSAMPLING``^2 samples) so small radii are not aliased.
+    """
+    rho = _subpixel_radius(size, radius)
+    cutoff = 2.0 * params.alpha * radius.abs()[:, None, None]
+    tiny = torch.finfo(radius.dtype).tiny
+    butterworth = torch.sigmoid(
+        2.0 * params.n * (torch.log(rho + tiny) - torch.log(cutoff + tiny))
+    )
+    rescaled = params.beta + (1.0 - params.beta) * butterworth
+    combined = _pixel_integral(rescaled * _disk_samples(radius, rho))
+    if params.kappa > 0:
+        combined = _gaussian_blur(combined, params.kappa * radius.abs())
+    return _normalise(combined)
+
+
+def gaussian_psf(radius: torch.Tensor, size: int) -> torch.Tensor:
+    """Isotropic Gaussian of std ``GAUSSIAN_SIGMA_PER_RADIUS * |r|`` (a delta at r = 0), sums to 1."""
+    delta = torch.zeros(radius.shape[0], size, size, dtype=radius.dtype, device=radius.device)
+    delta[:, size // 2, size // 2] = 1.0
+    return _normalise(_gaussian_blur(delta, GAUSSIAN_SIGMA_PER_RADIUS * radius.abs()))
+
+
+def split_views(combined: torch.Tensor, radius: torch.Tensor) -> DPKernels:
+    """Split a left-right symmetric combined PSF into DP views with a linear ramp (Eq. 4).
+
+    ``H_l = H o M`` with ``M(x) = clip(1/2 - sign(r) x / (2 e), 0, 1)``: a constant decay across
+    the kernel, falling towards the right for r > 0. The ramp spans the kernel's own horizontal
+    extent, ``e = 2 sigma_x + 1/2`` with ``sigma_x`` the RMS horizontal radius of ``H`` (``e`` is
+    ``|r| + 1/2`` for a uniform disk), so the views' centroids ``-/+ sigma_x^2 / e`` separate
+    monotonically as the kernel widens. ``H_l`` is scaled to sum to exactly 1/2 and ``H_r`` is its
+    mirror; because ``M(x) + M(-x) = 1``, ``H_l + H_r`` equals ``H``.
+    """
+    x, _ = _grid(combined.shape[-1], radius)
+    weight = combined / combined.sum(dim=(-2, -1), keepdim=True)
+    sigma_x = torch.sqrt((weight * x**2).sum(dim=(-2, -1)))
+    extent = 2.0 * (2.0 * sigma_x + 0.5)[:, None, None]
+    ramp = (0.5 - torch.sign(radius)[:, None, None] * x / extent).clamp(0.0, 1.0)
+    left = _normalise(combined * ramp, 0.5)
+    return DPKernels(left, torch.flip(left, dims=(-1,)))
+
+
+def punnappurath_left_psf(radius: torch.Tensor, size: int) -> torch.Tensor:
+    """Left PSF of Punnappurath et al., ICCP 2020 (the paper's Fig. 5, middle), sums to 1/2.
+
+    The disk C weighted at each pixel by the sum of C shifted horizontally by t = 0 .. 2|r| + 1
+    pixels (its overlap with translated copies). The shift is chosen so that the weight grows
+    towards the same side as our model's left PSF (the left for r > 0). Because 2|r| + 1 spans the
+    whole disk, the sum over shifts is a cumulative sum of C along each row.
+    """
+    disk = disk_psf(radius, size)
+    towards_left = torch.flip(torch.cumsum(torch.flip(disk, (-1,)), dim=-1), (-1,))
+    towards_right = torch.cumsum(disk, dim=-1)
+    weight = torch.where((radius >= 0)[:, None, None], towards_left, towards_right)
+    return _normalise(disk * weight, 0.5)
+
+
+_CHUNK = 32  # radii per batch of supersampled grids: bounds memory for large kernels
+
+
+def _model_kernels(radii: torch.Tensor, params: PSFParams, model: str, size: int) -> DPKernels:
+    if model == "punnappurath":
+        left = punnappurath_left_psf(radii, size)
+        return DPKernels(left, torch.flip(left, dims=(-1,)))
+    if model == "ours":
+        combined = butterworth_combined_psf(radii, params, size)
+    elif model == "disk":
+        combined = _normalise(disk_psf(radii, size))
+    else:
+        combined = gaussian_psf(radii, size)
+    return split_views(combined, radii)
+
+
+def dp_psf(
+    radius: float | Sequence[float] | np.ndarray | torch.Tensor,
+    params: PSFParams | None = None,
+    *,
+    model: PSFModel = "ours",
+    size: int | None = None,
+    dtype: torch.dtype | None = None,
+    device: torch.device | str | None = None,
+) -> DPKernels:
+    """Left and right DP PSFs for signed CoC radii (paper Eq. 2-4, or a baseline model).
+
+    Args:
+        radius: a float (returns ``(S, S)`` kernels) or a 1-D batch ``(K,)`` (returns
+            ``(K, S, S)``) of signed CoC radii in pixels; NumPy, list or torch.
+        params: shape parameters of our model (ignored by the baselines); paper defaults if None.
+        model: "ours" (Butterworth, Eq. 2-4), "punnappurath" (ICCP 2020), "disk" or "gaussian";
+            the disk and Gaussian are split into views with the same ramp as ours.
+        size: odd kernel size; by default just large enough for the largest |r|.
+        dtype: torch float dtype (default: the radius tensor's, else float32).
+        device: torch device (default: the radius tensor's, else CPU).
+
+    Returns:
+        :class:`DPKernels` (left, right; ``.combined`` and ``.numpy()`` available).
+
+    >>> k = dp_psf(5.0)
+    >>> round(float(k.left.sum()), 6), round(float(k.combined.sum()), 6)
+    (0.5, 1.0)
+    """
+    if model not in PSF_MODELS:
+        raise ParameterError(f"model must be one of {', '.join(PSF_MODELS)}, got {model!r}")
+    params = params or PSFParams()
+    if device is None and isinstance(radius, torch.Tensor):
+        device = radius.device
+    radii = _as_radii(radius, dtype, device)
+    scalar = radii.ndim == 0
+    radii = radii.reshape(-1)
+    needed = kernel_size(float(radii.abs().max()) if radii.numel() else 0.0, model, params.kappa)
+    if size is None:
+        size = needed
+    elif size < 1 or size % 2 == 0:
+        raise ParameterError(f"size must be a positive odd integer, got {size!r}")
+
+    chunks = [_model_kernels(chunk, params, model, size) for chunk in radii.split(_CHUNK)]
+    kernels = DPKernels(*(torch.cat(views) for views in zip(*chunks)))
+    if scalar:
+        kernels = DPKernels(kernels.left[0], kernels.right[0])
+    return kernels

@@ -1,0 +1,61 @@
+"""The bank of PSF shapes used for synthesis (paper Sec. 5, supplement S2)."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable, Iterator, Sequence
+
+import numpy as np
+
+from dualpixel.errors import ParameterError
+from dualpixel.optics.psf import PSFParams
+
+__all__ = ["PAPER_PSF_BANK", "PSFBank"]
+
+
+class PSFBank(Sequence[PSFParams]):
+    """An ordered set of :class:`PSFParams` to draw from reproducibly.
+
+    >>> len(PAPER_PSF_BANK)
+    48
+    >>> PAPER_PSF_BANK.sample(seed=0) == PAPER_PSF_BANK.sample(seed=0)
+    True
+    """
+
+    def __init__(self, params: Iterable[PSFParams]) -> None:
+        self._params = tuple(params)
+        if not self._params:
+            raise ParameterError("a PSF bank needs at least one parameter set")
+
+    @classmethod
+    def from_grid(
+        cls,
+        n: Sequence[float],
+        alpha: Sequence[float],
+        beta: Sequence[float],
+        kappa: Sequence[float],
+    ) -> PSFBank:
+        """Every combination of the given values (the paper's bank is a 3 x 4 x 4 x 1 grid)."""
+        return cls(PSFParams(*values) for values in itertools.product(n, alpha, beta, kappa))
+
+    def __len__(self) -> int:
+        return len(self._params)
+
+    def __getitem__(self, index):  # type: ignore[override]
+        return self._params[index]
+
+    def __iter__(self) -> Iterator[PSFParams]:
+        return iter(self._params)
+
+    def sample(
+        self, rng: np.random.Generator | None = None, *, seed: int | None = None
+    ) -> PSFParams:
+        """Draw one parameter set uniformly, from ``rng`` or a fresh generator seeded by ``seed``."""
+        generator = rng if rng is not None else np.random.default_rng(seed)
+        return self._params[int(generator.integers(len(self._params)))]
+
+
+#: n in {3, 6, 9}, alpha in {0.4, 0.6, 0.8, 1.0}, beta in {0.1, 0.2, 0.3, 0.4}, kappa = 0.14.
+PAPER_PSF_BANK = PSFBank.from_grid(
+    n=(3, 6, 9), alpha=(0.4, 0.6, 0.8, 1.0), beta=(0.1, 0.2, 0.3, 0.4), kappa=(0.14,)
+)

@@ -1,0 +1,137 @@
+"""Thin-lens circle of confusion (paper Sec. 2.1, Eq. 1).
+
+Units. The paper gives its five camera sets {f, F, s} without units or pixel pitch. We follow the
+authors' generator: ``focal_length`` and ``focus_distance`` are in the same unit as depth (metres
+for SYNTHIA and our procedural scenes), the camera is a *virtual* one, and Eq. 1 gives the CoC
+radius on the virtual sensor in that unit. ``pixel_pitch`` (same unit) turns it into pixels. The
+presets use ``pixel_pitch = 0.5``, which reproduces the CoC sizes of the authors' generator (it
+omits the factor 1/2 of Eq. 1, i.e. it reads the diameter as the radius in pixels). Every radius is
+clamped to ``max_coc_radius`` pixels (40 by default, as in the authors' experiments).
+
+Sign convention: positive behind the focal plane (d > s), negative in front (d < s), zero at focus.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TypeVar
+
+import numpy as np
+import torch
+
+from dualpixel.errors import ParameterError, check_range
+
+__all__ = ["CAMERA_PRESETS", "ThinLensCamera", "coc_radius", "validate_depth"]
+
+ArrayT = TypeVar("ArrayT", np.ndarray, torch.Tensor)
+
+
+@dataclass(frozen=True)
+class ThinLensCamera:
+    """A thin-lens camera (paper Eq. 1). Lengths share the depth map's unit; see module docstring.
+
+    Args:
+        focal_length: f, > 0.
+        f_number: F, > 0; the aperture diameter is q = f / F.
+        focus_distance: s, > f.
+        pixel_pitch: sensor pixel size, > 0; the CoC in pixels is r / pixel_pitch.
+        max_coc_radius: |r| is clamped to this many pixels, > 0.
+        name: a label for manifests and figures.
+    """
+
+    focal_length: float
+    f_number: float
+    focus_distance: float
+    pixel_pitch: float = 0.5
+    max_coc_radius: float = 40.0
+    name: str = "custom"
+
+    def __post_init__(self) -> None:
+        check_range("focal_length", self.focal_length, 0.0, low_inclusive=False)
+        check_range("f_number", self.f_number, 0.0, low_inclusive=False)
+        check_range("pixel_pitch", self.pixel_pitch, 0.0, low_inclusive=False)
+        check_range("max_coc_radius", self.max_coc_radius, 0.0, low_inclusive=False)
+        if not float(self.focus_distance) > float(self.focal_length):
+            raise ParameterError(
+                f"focus_distance must be greater than focal_length ({self.focal_length:g}), "
+                f"got {self.focus_distance!r}"
+            )
+
+    @property
+    def sensor_distance(self) -> float:
+        """s' = f s / (s - f), the lens-to-sensor distance."""
+        return self.focal_length * self.focus_distance / (self.focus_distance - self.focal_length)
+
+    @property
+    def aperture_diameter(self) -> float:
+        """q = f / F."""
+        return self.focal_length / self.f_number
+
+    @property
+    def coc_scale(self) -> float:
+        """(q / 2) (s' / s) / pixel_pitch: the CoC radius in pixels of a point at infinity."""
+        return 0.5 * self.aperture_diameter * self.sensor_distance / self.focus_distance / (
+            self.pixel_pitch
+        )
+
+    def coc_radius(self, depth: ArrayT) -> ArrayT:
+        """Signed CoC radius in pixels for a depth map (NumPy or torch); see :func:`coc_radius`."""
+        return coc_radius(depth, self)
+
+
+def validate_depth(depth: np.ndarray | torch.Tensor, name: str = "depth") -> None:
+    """Raise :class:`ParameterError` unless every depth value is finite and > 0."""
+    values = depth if isinstance(depth, torch.Tensor) else torch.from_numpy(np.asarray(depth))
+    finite = torch.isfinite(values)
+    if not bool(finite.all()):
+        bad = int((~finite).sum())
+        raise ParameterError(f"{name} must be finite and > 0; it has {bad} NaN or infinite values")
+    if not bool((values > 0).all()):
+        bad = int((values <= 0).sum())
+        raise ParameterError(
+            f"{name} must be finite and > 0; it has {bad} zero or negative values "
+            f"(minimum {float(values.min()):g})"
+        )
+
+
+def coc_radius(depth: ArrayT, camera: ThinLensCamera, *, clamp: bool = True) -> ArrayT:
+    r"""Signed circle-of-confusion radius in pixels (paper Eq. 1).
+
+    .. math:: r = \frac{q}{2} \frac{s'}{s} \frac{d - s}{d}
+
+    Args:
+        depth: distances d > 0, any shape, NumPy array or torch tensor (same unit as the camera).
+        camera: the thin-lens camera.
+        clamp: clamp |r| to ``camera.max_coc_radius``.
+
+    Returns:
+        r in pixels, same type, shape, dtype and device as ``depth``.
+
+    Raises:
+        ParameterError: depth with NaN, inf, zero or negative values.
+
+    >>> cam = ThinLensCamera(4.0, 5.0, 6.0)
+    >>> float(coc_radius(np.array([6.0]), cam)[0])
+    0.0
+    """
+    validate_depth(depth)
+    radius = camera.coc_scale * (depth - camera.focus_distance) / depth
+    if clamp:
+        limit = camera.max_coc_radius
+        radius = radius.clamp(-limit, limit) if isinstance(radius, torch.Tensor) else np.clip(
+            radius, -limit, limit
+        )
+    return radius
+
+
+#: The paper's five camera sets {f, F, s} (Sec. 5), in order; distortion presets match by index.
+CAMERA_PRESETS: dict[str, ThinLensCamera] = {
+    camera.name: camera
+    for camera in (
+        ThinLensCamera(4, 5, 6, name="set0"),
+        ThinLensCamera(5, 8, 6, name="set1"),
+        ThinLensCamera(7, 5, 8, name="set2"),
+        ThinLensCamera(10, 13, 12, name="set3"),
+        ThinLensCamera(22, 10, 30, name="set4"),
+    )
+}

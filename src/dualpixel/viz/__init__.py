@@ -1,0 +1,1 @@
+"""Figures: what a picture says better than numbers."""
