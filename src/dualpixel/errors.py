@@ -56,6 +56,7 @@ def check_range(
     above = number >= low if low_inclusive else number > low
     below = number <= high if high_inclusive else number < high
     if not (above and below):
-        interval = f"{'[' if low_inclusive else '('}{low:g}, {high:g}{']' if high_inclusive else ')'}"
+        opening, closing = "[" if low_inclusive else "(", "]" if high_inclusive else ")"
+        interval = f"{opening}{low:g}, {high:g}{closing}"
         raise ParameterError(f"{name} must be in {interval}, got {value!r}")
     return number

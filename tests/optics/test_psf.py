@@ -44,7 +44,7 @@ def test_sign_of_radius_swaps_the_views(model):
 def test_centroids_separate_monotonically_and_coincide_at_focus(model):
     radii = np.arange(0.0, 20.01, 0.25)
     k = dp_psf(radii, model=model, size=71, dtype=torch.float64)
-    separation = np.array([centroid_x(r) - centroid_x(l) for l, r in zip(k.left, k.right)])
+    separation = np.array([centroid_x(rk) - centroid_x(lk) for lk, rk in zip(k.left, k.right)])
     assert abs(separation[0]) < 1e-12  # r = 0: both views are the same delta
     assert np.all(np.diff(separation) >= -1e-9)
     assert np.all(np.diff(separation[radii >= 1.0]) > 0)

@@ -129,10 +129,11 @@ def distort_image(
         The distorted image(s), same shape, dtype and device.
     """
     if image.ndim not in (3, 4):
-        raise ParameterError(f"image must be (C, H, W) or (B, C, H, W), got shape {tuple(image.shape)}")
+        raise ParameterError(
+            f"image must be (C, H, W) or (B, C, H, W), got shape {tuple(image.shape)}"
+        )
     batched = image if image.ndim == 4 else image[None]
     height, width = batched.shape[-2:]
-    cx, cy, half_diag = _centre_and_scale(width, height)
     distortion.check_monotone(1.0 + 1e-6)
     work_dtype = torch.float64 if image.dtype == torch.float64 else torch.float32
     ys = torch.arange(height, dtype=work_dtype, device=image.device)

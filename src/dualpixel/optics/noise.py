@@ -61,4 +61,6 @@ def add_noise(
     if model == "poisson-gaussian":
         variance = (sigma**2) * image.clamp_min(0.0) + read_noise**2
         return image + torch.sqrt(variance) * gaussian
-    raise ParameterError(f"noise model must be 'multiplicative' or 'poisson-gaussian', got {model!r}")
+    raise ParameterError(
+        f"noise model must be 'multiplicative' or 'poisson-gaussian', got {model!r}"
+    )

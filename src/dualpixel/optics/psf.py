@@ -195,7 +195,7 @@ def butterworth_combined_psf(radius: torch.Tensor, params: PSFParams, size: int)
 
 
 def gaussian_psf(radius: torch.Tensor, size: int) -> torch.Tensor:
-    """Isotropic Gaussian of std ``GAUSSIAN_SIGMA_PER_RADIUS * |r|`` (a delta at r = 0), sums to 1."""
+    """Isotropic Gaussian, std ``GAUSSIAN_SIGMA_PER_RADIUS * |r|`` (a delta at r = 0), sums to 1."""
     delta = torch.zeros(radius.shape[0], size, size, dtype=radius.dtype, device=radius.device)
     delta[:, size // 2, size // 2] = 1.0
     return _normalise(_gaussian_blur(delta, GAUSSIAN_SIGMA_PER_RADIUS * radius.abs()))

@@ -50,7 +50,7 @@ class PSFBank(Sequence[PSFParams]):
     def sample(
         self, rng: np.random.Generator | None = None, *, seed: int | None = None
     ) -> PSFParams:
-        """Draw one parameter set uniformly, from ``rng`` or a fresh generator seeded by ``seed``."""
+        """Draw one parameter set uniformly from ``rng``, or from a generator seeded by ``seed``."""
         generator = rng if rng is not None else np.random.default_rng(seed)
         return self._params[int(generator.integers(len(self._params)))]
 

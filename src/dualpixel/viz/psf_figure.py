@@ -8,11 +8,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from dualpixel.io.atomic import atomic_path  # noqa: E402
-from dualpixel.optics.psf import DPKernels, PSFParams, dp_psf, kernel_size  # noqa: E402
+from dualpixel.io.atomic import atomic_path
+from dualpixel.optics.psf import DPKernels, PSFParams, dp_psf, kernel_size
 
 __all__ = ["psf_figure_kernels", "render_psf_figure"]
 
