@@ -22,7 +22,7 @@ demo: $(STAMP)
 	$(BIN)/dualpixel psf --output $(OUT)/psf_figure.png --save $(OUT)/psf_kernels.npz
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/ruff check src tests $(wildcard benchmarks)
 
 test: $(STAMP) lint
 	$(BIN)/python -m pytest -n 2 -q tests
