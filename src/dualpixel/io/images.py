@@ -1,0 +1,129 @@
+"""Reading and writing images and depth maps, with errors that name the file and the problem."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+# OpenCV reads OpenEXR only when this is set before it is imported.
+os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
+import cv2
+
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.atomic import atomic_path
+
+__all__ = [
+    "decode_synthia_depth",
+    "read_depth",
+    "read_rgb",
+    "read_synthia_depth",
+    "write_png",
+]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+DEPTH_SUFFIXES = (".png", ".npy", ".exr", ".tif", ".tiff")
+
+
+def _imread(path: Path) -> np.ndarray:
+    if not path.is_file():
+        raise InputFileError(path, "file not found")
+    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if data is None:
+        raise InputFileError(path, "cannot be decoded as an image (corrupt or unsupported format)")
+    return data
+
+
+def _unit_range(path: Path, data: np.ndarray) -> np.ndarray:
+    if data.dtype == np.uint8:
+        return data.astype(np.float32) / 255.0
+    if data.dtype == np.uint16:
+        return data.astype(np.float32) / 65535.0
+    raise InputFileError(path, f"expected an 8- or 16-bit image, got dtype {data.dtype}")
+
+
+def read_rgb(path: str | Path) -> np.ndarray:
+    """Read an 8- or 16-bit RGB image as float32 ``(H, W, 3)`` in [0, 1] (alpha dropped)."""
+    path = Path(path)
+    data = _imread(path)
+    if data.ndim != 3 or data.shape[2] not in (3, 4):
+        shape = "x".join(map(str, data.shape))
+        raise InputFileError(path, f"expected an RGB image with 3 channels, got shape {shape}")
+    return _unit_range(path, cv2.cvtColor(data[:, :, :3], cv2.COLOR_BGR2RGB))
+
+
+def decode_synthia_depth(bgr: np.ndarray, *, max_depth: float = 250.0) -> np.ndarray:
+    """SYNTHIA-SF depth in metres: 1000 (R + 256 G + 65536 B) / (2^24 - 1), clipped at max_depth.
+
+    ``bgr`` is an 8-bit image as OpenCV reads it (B, G, R channel order).
+    """
+    values = bgr.astype(np.float64)
+    red, green, blue = values[..., 2], values[..., 1], values[..., 0]
+    depth = 1000.0 * (red + 256.0 * green + 65536.0 * blue) / (2**24 - 1)
+    return np.minimum(depth, max_depth).astype(np.float32)
+
+
+def read_synthia_depth(path: str | Path, *, max_depth: float = 250.0) -> np.ndarray:
+    """Read a SYNTHIA-SF ``DepthLeft`` PNG as metres, float32 ``(H, W)``."""
+    path = Path(path)
+    data = _imread(path)
+    if data.dtype != np.uint8 or data.ndim != 3 or data.shape[2] < 3:
+        raise InputFileError(
+            path, f"expected SYNTHIA's 8-bit RGB-encoded depth, got {data.dtype} {data.shape}"
+        )
+    return decode_synthia_depth(data[:, :, :3], max_depth=max_depth)
+
+
+def read_depth(path: str | Path, *, png_scale: float = 0.001) -> np.ndarray:
+    """Read a depth map as float32 ``(H, W)``: ``.npy`` (as stored), ``.exr``/float TIFF (as
+    stored) or a 16-bit PNG times ``png_scale`` (default: millimetres to metres)."""
+    path = Path(path)
+    if path.suffix.lower() == ".npy":
+        if not path.is_file():
+            raise InputFileError(path, "file not found")
+        try:
+            depth = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as error:
+            raise InputFileError(path, f"cannot be read as a NumPy array ({error})") from None
+    else:
+        depth = _imread(path)
+        if path.suffix.lower() == ".png":
+            if depth.dtype != np.uint16:
+                raise InputFileError(
+                    path, f"depth PNG must be 16-bit (one channel), got {depth.dtype}"
+                )
+            depth = depth.astype(np.float32) * png_scale
+    if depth.ndim == 3 and depth.shape[2] >= 1:
+        depth = depth[:, :, 0]
+    if depth.ndim != 2:
+        raise InputFileError(path, f"depth must be a single-channel map, got shape {depth.shape}")
+    depth = depth.astype(np.float32)
+    if not np.isfinite(depth).all():
+        raise InputFileError(path, f"depth has {int((~np.isfinite(depth)).sum())} NaN/inf values")
+    if (depth <= 0).any():
+        raise InputFileError(
+            path, f"depth has {int((depth <= 0).sum())} zero or negative values (must be > 0)"
+        )
+    return depth
+
+
+def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16) -> None:
+    """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer data) as PNG, atomically."""
+    if bit_depth not in (8, 16):
+        raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
+    if np.issubdtype(image.dtype, np.floating):
+        peak = 255 if bit_depth == 8 else 65535
+        image = np.rint(np.clip(image, 0.0, 1.0) * peak)
+    data = image.astype(np.uint8 if bit_depth == 8 else np.uint16)
+    if data.ndim == 3:
+        data = cv2.cvtColor(data, cv2.COLOR_RGB2BGR)
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), data):
+            raise InputFileError(path, "could not be written")
+
+
+def save_npy(path: str | Path, array: np.ndarray) -> None:
+    """Save a NumPy array atomically."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+        np.save(handle, array)

@@ -1,0 +1,288 @@
+"""Writing synthetic DP datasets in the DPDD layout the authors used, resumable and reproducible.
+
+Layout under the output folder, for each split (train / test) and output sequence ``seq_NNN``::
+
+    {split}_c/source/seq_NNN/NAME.png    combined blurred image (left + right) / 2
+    {split}_l/source/seq_NNN/NAME.png    left view  (at the combined image's brightness, x2)
+    {split}_r/source/seq_NNN/NAME.png    right view (likewise)
+    {split}_c/target/seq_NNN/NAME.png    sharp all-in-focus target
+    {split}_c/defocus/seq_NNN/NAME.npy   signed CoC radius in pixels, float32
+    manifest.jsonl                       one JSON line per finished frame
+    dataset.json                         configuration, input, version, status
+
+Each input sequence gives one output sequence per camera set (the paper: five), numbered as the
+authors did: ``seq = camera_index * n_inputs + input_index + 1``. With noise off,
+``combined == (left + right) / 2`` on disk up to integer rounding (the combined value is
+``ceil((left + right) / 2)`` of the stored integers).
+
+Robustness: every file is written atomically; a frame counts as done only once its manifest line
+is written after its files; a rerun skips done frames and finishes the rest; ``dataset.json`` says
+``"status": "complete"`` only when every frame is done. An output folder made with another
+configuration is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from dualpixel import __version__
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.atomic import atomic_path
+from dualpixel.io.images import save_npy, write_png
+from dualpixel.optics.noise import NoiseModel
+from dualpixel.optics.psf import PSF_MODELS, PSFModel
+from dualpixel.optics.thin_lens import CAMERA_PRESETS
+from dualpixel.synthesis.frame import SequenceRecipe, draw_recipe, synthesize_frame
+from dualpixel.synthesis.inputs import (
+    InputFormat,
+    InputFrame,
+    InputSequence,
+    discover_sequences,
+    load_frame,
+)
+
+__all__ = ["SynthConfig", "synthesize_dataset"]
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """Everything that determines a synthetic dataset's content (saved in ``dataset.json``)."""
+
+    cameras: tuple[str, ...] = tuple(CAMERA_PRESETS)
+    psf_model: PSFModel = "ours"
+    max_layers: int = 500
+    bit_depth: int = 16
+    noise: bool = True
+    noise_model: NoiseModel = "multiplicative"
+    distortion: bool = True
+    seed: int = 0
+    max_depth: float = 250.0
+    depth_scale: float = 0.001
+    split: str = "train"
+
+    def __post_init__(self) -> None:
+        unknown = [c for c in self.cameras if c not in CAMERA_PRESETS]
+        if unknown or not self.cameras:
+            raise ParameterError(
+                f"cameras must be a non-empty subset of {', '.join(CAMERA_PRESETS)}, got "
+                f"{', '.join(self.cameras) or 'none'}"
+            )
+        if self.psf_model not in PSF_MODELS:
+            raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}")
+        if self.bit_depth not in (8, 16):
+            raise ParameterError(f"bit_depth must be 8 or 16, got {self.bit_depth}")
+        if not 1 <= self.max_layers <= 100000:
+            raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
+
+    def as_dict(self) -> dict:
+        data = asdict(self)
+        data["cameras"] = list(self.cameras)
+        return data
+
+
+@dataclass(frozen=True)
+class FrameJob:
+    """One output frame: inputs, recipe and where it goes."""
+
+    frame: InputFrame
+    split: str
+    sequence: int  # output sequence number (seq_NNN)
+    index: int  # frame index within the sequence
+    recipe: SequenceRecipe = field(compare=False)
+    noise_seed: int = 0
+
+    @property
+    def key(self) -> str:
+        return f"{self.split}/seq_{self.sequence:03d}/{self.frame.name}"
+
+    def paths(self, root: Path) -> dict[str, Path]:
+        seq = f"seq_{self.sequence:03d}"
+        name = self.frame.name
+        return {
+            "combined": root / f"{self.split}_c" / "source" / seq / f"{name}.png",
+            "left": root / f"{self.split}_l" / "source" / seq / f"{name}.png",
+            "right": root / f"{self.split}_r" / "source" / seq / f"{name}.png",
+            "target": root / f"{self.split}_c" / "target" / seq / f"{name}.png",
+            "defocus": root / f"{self.split}_c" / "defocus" / seq / f"{name}.npy",
+        }
+
+
+def plan_jobs(sequences: list[InputSequence], config: SynthConfig) -> list[FrameJob]:
+    """Every output frame, with the recipe of its sequence drawn from the seed."""
+    jobs = []
+    for cam_index, camera in enumerate(config.cameras):
+        for seq_index, sequence in enumerate(sequences):
+            number = cam_index * len(sequences) + seq_index + 1
+            recipe = draw_recipe(
+                (config.seed, seq_index, cam_index), camera, psf_model=config.psf_model,
+                distortion=config.distortion, noise=config.noise,
+                noise_model=config.noise_model, max_layers=config.max_layers,
+            )
+            for index, frame in enumerate(sequence.frames):
+                noise_seed = int(np.random.SeedSequence((config.seed, number, index))
+                                 .generate_state(1)[0])
+                jobs.append(FrameJob(frame, sequence.split, number, index, recipe, noise_seed))
+    return jobs
+
+
+def _quantise(image: torch.Tensor, bit_depth: int) -> np.ndarray:
+    peak = 255 if bit_depth == 8 else 65535
+    array = image.permute(1, 2, 0).cpu().numpy().astype(np.float64)
+    return np.rint(np.clip(array, 0.0, 1.0) * peak).astype(np.int64)
+
+
+def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
+            device: str = "cpu") -> dict:
+    """Synthesise and write one frame; return its manifest record."""
+    rgb, depth = load_frame(job.frame, fmt, max_depth=config.max_depth,
+                            depth_scale=config.depth_scale)
+    result = synthesize_frame(rgb, depth, job.recipe, noise_seed=job.noise_seed, device=device)
+    paths = job.paths(root)
+    left = _quantise(result.left, config.bit_depth)
+    right = _quantise(result.right, config.bit_depth)
+    combined = (left + right + 1) // 2  # (left + right) / 2 of the stored integers, rounded up
+    for name, data in (("left", left), ("right", right), ("combined", combined)):
+        write_png(paths[name], data, bit_depth=config.bit_depth)
+    write_png(paths["target"], _quantise(result.target, config.bit_depth),
+              bit_depth=config.bit_depth)
+    save_npy(paths["defocus"], result.defocus.cpu().numpy().astype(np.float32))
+    return {
+        "key": job.key,
+        "input": {"rgb": str(job.frame.rgb), "depth": str(job.frame.depth)},
+        "outputs": {name: str(path.relative_to(root)) for name, path in paths.items()},
+        "split": job.split,
+        "sequence": job.sequence,
+        "frame": job.index,
+        "noise_seed": job.noise_seed,
+        "seed": config.seed,
+        **job.recipe.describe(),
+        "version": __version__,
+    }
+
+
+def _worker(args: tuple) -> dict:
+    torch.set_num_threads(1)
+    return run_job(*args)
+
+
+def _read_manifest(path: Path) -> dict[str, dict]:
+    """Records of finished frames; a torn last line (interrupted append) is ignored."""
+    records: dict[str, dict] = {}
+    if path.is_file():
+        for line in path.read_text().splitlines():
+            try:
+                record = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            records[record["key"]] = record
+    return records
+
+
+def _check_or_write_description(root: Path, description: dict) -> None:
+    path = root / "dataset.json"
+    if path.is_file():
+        try:
+            existing = json.loads(path.read_text())
+        except json.JSONDecodeError:
+            raise InputFileError(path, "is corrupt; remove the output folder and rerun") from None
+        mine = {k: description[k] for k in ("config", "input", "format")}
+        theirs = {k: existing.get(k) for k in mine}
+        if mine != theirs:
+            differ = sorted(
+                key for key in set(mine["config"]) | set(theirs["config"] or {})
+                if mine["config"].get(key) != (theirs["config"] or {}).get(key)
+            ) + [k for k in ("input", "format") if mine[k] != theirs[k]]
+            raise InputFileError(
+                root, "holds a dataset made with a different configuration (differs in "
+                f"{', '.join(differ)}); choose another output folder"
+            )
+    _write_json(path, description)
+
+
+def _write_json(path: Path, data: dict) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2) + "\n")
+
+
+def _completed(jobs: list[FrameJob], root: Path, fmt: InputFormat, config: SynthConfig,
+               workers: int, device: str) -> Iterator[dict]:
+    if workers <= 1:
+        for job in jobs:
+            yield run_job(job, root, fmt, config, device)
+        return
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = [pool.submit(_worker, (job, root, fmt, config, device)) for job in jobs]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def synthesize_dataset(
+    input_dir: str | Path,
+    fmt: InputFormat,
+    output_dir: str | Path,
+    config: SynthConfig | None = None,
+    *,
+    workers: int = 1,
+    device: str = "cpu",
+    progress: bool = True,
+    limit: int | None = None,
+) -> dict:
+    """Synthesise a whole dataset (see the module docstring); resumes an interrupted run.
+
+    Args:
+        input_dir: SYNTHIA-SF root or RGB-D folder.
+        fmt: "synthia" or "rgbd".
+        output_dir: dataset root.
+        config: content settings; defaults to all five cameras, noise and distortion on.
+        workers: frames rendered in parallel processes.
+        device: torch device for rendering ("cpu", "cuda").
+        progress: show a progress bar.
+        limit: stop after this many new frames (leaves the dataset incomplete; for tests).
+
+    Returns:
+        The ``dataset.json`` description (with ``status`` and frame counts).
+    """
+    config = config or SynthConfig()
+    root = Path(output_dir)
+    sequences = discover_sequences(input_dir, fmt, split=config.split)
+    jobs = plan_jobs(sequences, config)
+    root.mkdir(parents=True, exist_ok=True)
+    description = {
+        "config": config.as_dict(),
+        "input": str(Path(input_dir).resolve()),
+        "format": fmt,
+        "version": __version__,
+        "frames_total": len(jobs),
+        "status": "incomplete",
+    }
+    _check_or_write_description(root, description)
+    manifest_path = root / "manifest.jsonl"
+    done = _read_manifest(manifest_path)
+    pending = [job for job in jobs if job.key not in done]
+    if limit is not None:
+        pending = pending[:limit]
+    already = sum(job.key in done for job in jobs)
+    bar = tqdm(total=len(jobs), initial=already, desc="synthesising frames", unit="frame",
+               disable=not progress)
+    with open(manifest_path, "a", encoding="utf-8") as manifest:
+        for record in _completed(pending, root, fmt, config, workers, device):
+            manifest.write(json.dumps(record, sort_keys=True) + "\n")
+            manifest.flush()
+            os.fsync(manifest.fileno())
+            done[record["key"]] = record
+            bar.update(1)
+    bar.close()
+    finished = sum(job.key in done for job in jobs)
+    description.update(frames_done=finished,
+                       status="complete" if finished == len(jobs) else "incomplete")
+    _write_json(root / "dataset.json", description)
+    return description

@@ -1,0 +1,160 @@
+"""One synthetic DP frame: CoC -> layered DP views -> radial distortion -> noise (paper Sec. 3).
+
+A :class:`SequenceRecipe` fixes what the paper keeps constant over a sequence (camera, PSF shape,
+distortion set, noise strength); :func:`draw_recipe` draws it reproducibly from a seed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from dualpixel.errors import ParameterError
+from dualpixel.optics.distortion import DISTORTION_PRESETS, DivisionDistortion, distort_image
+from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, add_noise
+from dualpixel.optics.psf import PSF_MODELS, PSFModel, PSFParams
+from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
+from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
+from dualpixel.synthesis.renderer import render_dp_views
+
+__all__ = ["DPFrame", "SequenceRecipe", "draw_recipe", "synthesize_frame"]
+
+
+@dataclass(frozen=True)
+class SequenceRecipe:
+    """Everything that stays fixed over one synthetic sequence."""
+
+    camera: ThinLensCamera
+    psf: PSFParams
+    distortion: DivisionDistortion | None
+    noise_sigma: float | None
+    psf_model: PSFModel = "ours"
+    noise_model: NoiseModel = "multiplicative"
+    max_layers: int = 500
+
+    def describe(self) -> dict:
+        """A JSON-ready description for manifests."""
+        camera = self.camera
+        return {
+            "camera": {
+                "name": camera.name, "focal_length": camera.focal_length,
+                "f_number": camera.f_number, "focus_distance": camera.focus_distance,
+                "pixel_pitch": camera.pixel_pitch, "max_coc_radius": camera.max_coc_radius,
+            },
+            "psf_model": self.psf_model,
+            "psf": self.psf.as_dict(),
+            "distortion": None if self.distortion is None else {
+                "name": self.distortion.name, "coefficients": list(self.distortion.coefficients)
+            },
+            "noise_model": self.noise_model,
+            "noise_sigma": self.noise_sigma,
+            "max_layers": self.max_layers,
+        }
+
+
+def draw_recipe(
+    seed: int | tuple[int, ...],
+    camera: str | ThinLensCamera,
+    *,
+    bank: PSFBank = PAPER_PSF_BANK,
+    psf_model: PSFModel = "ours",
+    distortion: bool = True,
+    noise: bool = True,
+    noise_model: NoiseModel = "multiplicative",
+    noise_sigmas: tuple[float, ...] = PAPER_NOISE_SIGMAS,
+    max_layers: int = 500,
+) -> SequenceRecipe:
+    """Draw a sequence's PSF shape and noise strength from ``seed`` for a camera.
+
+    A preset camera ``setK`` gets the matching distortion preset ``setK`` (supplement S3).
+    """
+    if psf_model not in PSF_MODELS:
+        raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}, got {psf_model!r}")
+    if isinstance(camera, str):
+        if camera not in CAMERA_PRESETS:
+            raise ParameterError(
+                f"camera must be one of {', '.join(CAMERA_PRESETS)}, got {camera!r}"
+            )
+        camera = CAMERA_PRESETS[camera]
+    rng = np.random.default_rng(seed)
+    psf = bank.sample(rng)
+    sigma = float(noise_sigmas[int(rng.integers(len(noise_sigmas)))])
+    return SequenceRecipe(
+        camera=camera,
+        psf=psf,
+        distortion=DISTORTION_PRESETS.get(camera.name) if distortion else None,
+        noise_sigma=sigma if noise else None,
+        psf_model=psf_model,
+        noise_model=noise_model,
+        max_layers=max_layers,
+    )
+
+
+@dataclass
+class DPFrame:
+    """A synthetic frame, torch tensors with values in [0, 1] (defocus in pixels).
+
+    ``left`` and ``right`` are at the brightness of the combined image (DPDD convention), so
+    ``combined = (left + right) / 2``; the paper's half-brightness views are ``left / 2``.
+    """
+
+    left: torch.Tensor  # (3, H, W)
+    right: torch.Tensor  # (3, H, W)
+    combined: torch.Tensor  # (3, H, W)
+    target: torch.Tensor  # (3, H, W), the sharp all-in-focus image
+    defocus: torch.Tensor  # (H, W), signed CoC radius in pixels
+    info: dict = field(default_factory=dict)
+
+
+def _noisy_view(view: torch.Tensor, recipe: SequenceRecipe, seed: int) -> torch.Tensor:
+    generator = torch.Generator(device=view.device).manual_seed(seed)
+    # Noise is added to the paper's half-brightness view I_l = view / 2 (Eq. 7).
+    half = add_noise(view / 2.0, recipe.noise_sigma, generator=generator, model=recipe.noise_model)
+    return 2.0 * half
+
+
+def synthesize_frame(
+    rgb: np.ndarray | torch.Tensor,
+    depth: np.ndarray | torch.Tensor,
+    recipe: SequenceRecipe,
+    *,
+    noise_seed: int = 0,
+    device: str | torch.device = "cpu",
+) -> DPFrame:
+    """Synthesise DP views for one all-in-focus frame.
+
+    Args:
+        rgb: ``(H, W, 3)`` NumPy or ``(3, H, W)`` torch image in [0, 1].
+        depth: ``(H, W)`` depth, same unit as the camera, finite and > 0.
+        recipe: camera, PSF, distortion and noise of the sequence.
+        noise_seed: seed of this frame's noise; the views draw independent noise from it.
+        device: where to compute ("cpu", "cuda", ...).
+
+    Returns:
+        A :class:`DPFrame` on ``device``.
+    """
+    image = torch.as_tensor(rgb, dtype=torch.float32, device=device)
+    if isinstance(rgb, np.ndarray):
+        image = image.permute(2, 0, 1)
+    depth_t = torch.as_tensor(depth, dtype=torch.float32, device=device)
+    if image.ndim != 3 or image.shape[0] != 3 or depth_t.shape != image.shape[1:]:
+        raise ParameterError(
+            f"rgb and depth must be the same size; got rgb {tuple(image.shape)} and depth "
+            f"{tuple(depth_t.shape)}"
+        )
+    coc = coc_radius(depth_t, recipe.camera)
+    left, right = render_dp_views(
+        image, coc, recipe.psf, model=recipe.psf_model, max_layers=recipe.max_layers
+    )
+    target, defocus = image, coc
+    if recipe.distortion is not None:
+        stack = distort_image(torch.stack((left, right, target)), recipe.distortion)
+        left, right, target = stack[0], stack[1], stack[2]
+        defocus = distort_image(coc[None], recipe.distortion)[0]
+    if recipe.noise_sigma is not None and recipe.noise_sigma > 0:
+        left = _noisy_view(left, recipe, noise_seed * 2)
+        right = _noisy_view(right, recipe, noise_seed * 2 + 1)
+    left, right, target = (t.clamp(0.0, 1.0) for t in (left, right, target))
+    return DPFrame(left, right, (left + right) / 2.0, target, defocus)

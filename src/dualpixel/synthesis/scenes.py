@@ -1,0 +1,207 @@
+"""Procedural RGB-D sequences: a 3-D "dead leaves" world, the built-in default input.
+
+Textured planar shapes ("leaves") at random depths in front of and behind the focal planes of the
+camera presets occlude each other (painter's algorithm, far to near) in front of a slanted ground /
+back plane. Textures are crops of the natural photographs that scikit-image ships and procedural
+dead-leaves textures, which keep natural image statistics (the reason dead-leaves data is used to
+train restoration networks). Over a sequence the camera pans (parallax: near leaves move more) and
+each leaf drifts and moves in depth, smoothly. Depth is exact, in metres, per frame.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from dualpixel.errors import check_range
+
+__all__ = ["SceneConfig", "render_scene_sequence", "write_scene_folder"]
+
+_PHOTOS = ("astronaut", "coffee", "chelsea", "rocket", "brick", "grass", "gravel", "camera")
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Size and content of a procedural sequence (depths in metres)."""
+
+    width: int = 320
+    height: int = 240
+    frames: int = 4
+    leaves: int = 28
+    near: float = 0.5
+    far: float = 60.0
+    plane_far: float = 150.0
+    plane_near: float = 4.0
+    camera_speed: float = 6.0  # px per frame for a surface at 1 m ... scaled by 1/depth
+    leaf_speed: float = 2.0  # px per frame
+
+    def __post_init__(self) -> None:
+        check_range("width", self.width, 16, 16384)
+        check_range("height", self.height, 16, 16384)
+        check_range("frames", self.frames, 1, 100000)
+        check_range("leaves", self.leaves, 0, 10000)
+        check_range("near", self.near, 0.0, self.far, low_inclusive=False)
+        check_range("plane_near", self.plane_near, 0.0, self.plane_far, low_inclusive=False)
+
+
+@functools.lru_cache(maxsize=1)
+def _photographs() -> tuple[np.ndarray, ...]:
+    """The bundled scikit-image photographs as float32 RGB (grey ones kept grey; tinted later)."""
+    import skimage.data
+
+    photos = []
+    for name in _PHOTOS:
+        image = getattr(skimage.data, name)()
+        if image.ndim == 2:
+            image = np.repeat(image[:, :, None], 3, axis=2)
+        photos.append(np.ascontiguousarray(image[:, :, :3], dtype=np.float32) / 255.0)
+    return tuple(photos)
+
+
+def _dead_leaves_texture(rng: np.random.Generator, height: int, width: int) -> np.ndarray:
+    """A 2-D dead-leaves texture: opaque disks with power-law radii and random colours."""
+    canvas = np.empty((height, width, 3), np.float32)
+    canvas[:] = rng.uniform(0.05, 0.95, 3)
+    r_min, r_max = 2.0, max(height, width) / 3.0
+    for _ in range(height * width // 40 + 50):
+        # density ~ r^-3 (scale invariance), sampled by inverting its CDF
+        u = rng.uniform()
+        radius = (r_min**-2 - u * (r_min**-2 - r_max**-2)) ** -0.5
+        centre = (int(rng.integers(width)), int(rng.integers(height)))
+        colour = tuple(float(c) for c in rng.uniform(0.02, 0.98, 3))
+        cv2.circle(canvas, centre, int(round(radius)), colour, -1, lineType=cv2.LINE_AA)
+    return canvas
+
+
+def _texture(rng: np.random.Generator, height: int, width: int) -> np.ndarray:
+    """A texture patch: a randomly scaled, tinted crop of a photograph, or dead leaves."""
+    if rng.uniform() < 0.35:
+        return _dead_leaves_texture(rng, height, width)
+    photo = _photographs()[int(rng.integers(len(_PHOTOS)))]
+    scale = max(height / photo.shape[0], width / photo.shape[1]) * rng.uniform(1.0, 2.0)
+    resized = cv2.resize(photo, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    y0 = int(rng.integers(resized.shape[0] - height + 1))
+    x0 = int(rng.integers(resized.shape[1] - width + 1))
+    crop = resized[y0 : y0 + height, x0 : x0 + width]
+    tint = rng.uniform(0.6, 1.2, 3).astype(np.float32)
+    return np.clip(crop * tint, 0.0, 1.0)
+
+
+def _leaf_mask(rng: np.random.Generator, size: int) -> np.ndarray:
+    """A random convex-ish shape (ellipse, rectangle or polygon) in a ``size`` square, bool."""
+    mask = np.zeros((size, size), np.uint8)
+    centre = size / 2.0
+    kind = int(rng.integers(3))
+    if kind == 0:
+        axes = (int(size * rng.uniform(0.25, 0.5)), int(size * rng.uniform(0.2, 0.5)))
+        cv2.ellipse(mask, (size // 2, size // 2), axes, float(rng.uniform(0, 180)), 0, 360, 1, -1)
+    else:
+        corners = 4 if kind == 1 else int(rng.integers(5, 9))
+        angles = np.sort(rng.uniform(0, 2 * np.pi, corners)) if kind == 2 else (
+            np.arange(4) * np.pi / 2 + rng.uniform(0, np.pi / 2)
+        )
+        radii = size * rng.uniform(0.3, 0.5, corners)
+        points = np.stack((centre + radii * np.cos(angles), centre + radii * np.sin(angles)), 1)
+        cv2.fillPoly(mask, [np.round(points).astype(np.int32)], 1)
+    return mask.astype(bool)
+
+
+@dataclass
+class _Leaf:
+    texture: np.ndarray
+    mask: np.ndarray
+    x: float
+    y: float
+    depth: float
+    vx: float
+    vy: float
+    depth_rate: float  # relative change of depth per frame
+
+
+def _plane_depth(config: SceneConfig, horizon: float) -> np.ndarray:
+    """Depth of a slanted plane: inverse depth is linear in the row (perspective of a plane)."""
+    rows = np.arange(config.height, dtype=np.float64)[:, None]
+    t = np.clip((rows - horizon) / max(config.height - horizon, 1.0), 0.0, 1.0)
+    inverse = (1 - t) / config.plane_far + t / config.plane_near
+    return np.broadcast_to(1.0 / inverse, (config.height, config.width)).astype(np.float32)
+
+
+def render_scene_sequence(seed: int, config: SceneConfig) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Render one sequence: a list of ``(rgb float32 (H, W, 3) in [0, 1], depth float32 (H, W))``.
+
+    The same ``seed`` and ``config`` always give the same frames.
+    """
+    rng = np.random.default_rng(seed)
+    height, width = config.height, config.width
+    pan = config.camera_speed * rng.uniform(-1, 1, 2) * np.array([1.0, 0.3])
+    margin = int(abs(pan).max() * config.frames / config.plane_near) + 8
+    background = _texture(rng, height + 2 * margin, width + 2 * margin)
+    horizon = rng.uniform(-0.3, 0.5) * height
+    plane = _plane_depth(config, horizon)
+    leaves = []
+    for _ in range(config.leaves):
+        size = int(rng.uniform(0.12, 0.55) * min(height, width)) + 8
+        leaves.append(_Leaf(
+            texture=_texture(rng, size, size),
+            mask=_leaf_mask(rng, size),
+            x=rng.uniform(-0.2, 1.2) * width - size / 2,
+            y=rng.uniform(-0.2, 1.2) * height - size / 2,
+            depth=float(np.exp(rng.uniform(np.log(config.near), np.log(config.far)))),
+            vx=config.leaf_speed * rng.normal(),
+            vy=config.leaf_speed * rng.normal() * 0.5,
+            depth_rate=rng.normal(0, 0.02),
+        ))
+    frames = []
+    for t in range(config.frames):
+        # the back plane scrolls with the camera at the parallax of its mean depth
+        shift = pan * t / float(np.mean(plane))
+        ox, oy = int(round(margin + shift[0])), int(round(margin + shift[1]))
+        rgb = background[oy : oy + height, ox : ox + width].copy()
+        depth = plane.copy()
+        placed = []
+        for leaf in leaves:
+            d = leaf.depth * (1.0 + leaf.depth_rate) ** t
+            x = leaf.x + (leaf.vx + pan[0] / d) * t
+            y = leaf.y + (leaf.vy + pan[1] / d) * t
+            placed.append((d, int(round(x)), int(round(y)), leaf))
+        for d, x, y, leaf in sorted(placed, key=lambda item: -item[0]):  # far to near
+            size = leaf.mask.shape[0]
+            x0, y0, x1, y1 = max(x, 0), max(y, 0), min(x + size, width), min(y + size, height)
+            if x0 >= x1 or y0 >= y1:
+                continue
+            mask = leaf.mask[y0 - y : y1 - y, x0 - x : x1 - x]
+            rgb[y0:y1, x0:x1][mask] = leaf.texture[y0 - y : y1 - y, x0 - x : x1 - x][mask]
+            depth[y0:y1, x0:x1][mask] = d
+        frames.append((np.ascontiguousarray(rgb), depth))
+    return frames
+
+
+def write_scene_folder(
+    output: str | Path, sequences: int, config: SceneConfig, *, seed: int = 0,
+    progress: bool = True,
+) -> list[Path]:
+    """Write procedural sequences as an RGB-D folder: ``seq_NNN/rgb/*.png`` (8-bit) and
+    ``seq_NNN/depth/*.npy`` (float32 metres). Sequence k uses seed ``(seed, k)``; files are
+    written atomically and existing complete sequences are kept."""
+    from tqdm import tqdm
+
+    from dualpixel.io.images import save_npy, write_png
+
+    root = Path(output)
+    folders = []
+    for k in tqdm(range(sequences), desc="rendering scenes", unit="seq", disable=not progress):
+        folder = root / f"seq_{k:03d}"
+        folders.append(folder)
+        names = [f"frame_{t:04d}" for t in range(config.frames)]
+        if all((folder / "depth" / f"{n}.npy").is_file() and (folder / "rgb" / f"{n}.png")
+               .is_file() for n in names):
+            continue
+        sequence_seed = int(np.random.SeedSequence((seed, k)).generate_state(1)[0])
+        for name, (rgb, depth) in zip(names, render_scene_sequence(sequence_seed, config)):
+            write_png(folder / "rgb" / f"{name}.png", rgb, bit_depth=8)
+            save_npy(folder / "depth" / f"{name}.npy", depth)
+    return folders

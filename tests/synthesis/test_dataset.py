@@ -1,0 +1,193 @@
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.errors import InputFileError
+from dualpixel.io.images import decode_synthia_depth, read_synthia_depth
+from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
+from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
+
+SMALL = SceneConfig(width=64, height=48, frames=2, leaves=6)
+FAST = {"cameras": ("set0", "set4"), "max_layers": 40}
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("scenes")
+    write_scene_folder(root, 2, SMALL, seed=7, progress=False)
+    return root
+
+
+def tree_bytes(root: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+        if p.is_file() and p.suffix in (".png", ".npy")
+    }
+
+
+def read16(path: Path) -> np.ndarray:
+    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    assert data is not None and data.dtype == np.uint16
+    return data.astype(np.int64)
+
+
+def test_layout_manifest_and_combined_is_mean_of_views(scene_dir, tmp_path):
+    out = tmp_path / "ds"
+    summary = synthesize_dataset(scene_dir, "rgbd", out, SynthConfig(noise=False, **FAST),
+                                 progress=False)
+    assert summary["status"] == "complete" and summary["frames_done"] == 2 * 2 * 2
+    records = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
+    assert len(records) == 8
+    # seq numbering as the authors': camera-major, 1-based; one camera and PSF per sequence
+    assert {r["sequence"] for r in records} == {1, 2, 3, 4}
+    by_seq = {}
+    for r in records:
+        by_seq.setdefault(r["sequence"], set()).add(json.dumps([r["camera"], r["psf"]]))
+        for key in ("camera", "psf", "distortion", "noise_sigma", "seed", "version", "input"):
+            assert key in r
+    assert all(len(v) == 1 for v in by_seq.values())
+    for r in records:
+        left, right = read16(out / r["outputs"]["left"]), read16(out / r["outputs"]["right"])
+        combined = read16(out / r["outputs"]["combined"])
+        assert np.abs(2 * combined - (left + right)).max() <= 1
+        target = read16(out / r["outputs"]["target"])
+        defocus = np.load(out / r["outputs"]["defocus"])
+        assert defocus.dtype == np.float32 and defocus.shape == target.shape[:2]
+    for folder in ("train_c/source", "train_l/source", "train_r/source", "train_c/target",
+                   "train_c/defocus"):
+        assert (out / folder / "seq_001").is_dir()
+
+
+def test_same_seed_gives_bit_identical_files(scene_dir, tmp_path):
+    config = SynthConfig(seed=3, **FAST)
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "a", config, progress=False)
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "b", config, progress=False, workers=2)
+    assert tree_bytes(tmp_path / "a") == tree_bytes(tmp_path / "b")
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "c", SynthConfig(seed=4, **FAST),
+                       progress=False)
+    assert tree_bytes(tmp_path / "a") != tree_bytes(tmp_path / "c")
+
+
+def test_interrupted_run_resumes_to_the_same_dataset(scene_dir, tmp_path):
+    config = SynthConfig(seed=5, **FAST)
+    partial = synthesize_dataset(scene_dir, "rgbd", tmp_path / "r", config, progress=False,
+                                 limit=3)
+    assert partial["status"] == "incomplete" and partial["frames_done"] == 3
+    described = json.loads((tmp_path / "r" / "dataset.json").read_text())
+    assert described["status"] == "incomplete"
+    # a torn manifest line (killed mid-append) is not taken as a finished frame
+    with open(tmp_path / "r" / "manifest.jsonl", "a") as handle:
+        handle.write('{"key": "train/seq_00')
+    done = synthesize_dataset(scene_dir, "rgbd", tmp_path / "r", config, progress=False)
+    assert done["status"] == "complete" and done["frames_done"] == 8
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "full", config, progress=False)
+    assert tree_bytes(tmp_path / "r") == tree_bytes(tmp_path / "full")
+    assert not list((tmp_path / "r").rglob("*.partial*"))
+
+
+def test_output_folder_with_other_configuration_is_refused(scene_dir, tmp_path):
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "d", SynthConfig(**FAST), progress=False,
+                       limit=1)
+    with pytest.raises(InputFileError, match=r"different configuration \(differs in seed\)"):
+        synthesize_dataset(scene_dir, "rgbd", tmp_path / "d", SynthConfig(seed=9, **FAST),
+                           progress=False)
+
+
+def make_rgbd(root: Path, names=("a", "b"), size=(40, 30)) -> Path:
+    (root / "rgb").mkdir(parents=True)
+    (root / "depth").mkdir()
+    for name in names:
+        cv2.imwrite(str(root / "rgb" / f"{name}.png"), np.full((size[1], size[0], 3), 128,
+                                                                np.uint8))
+        np.save(root / "depth" / f"{name}.npy", np.full((size[1], size[0]), 5.0, np.float32))
+    return root
+
+
+@pytest.mark.parametrize(
+    ("breakage", "culprit", "message"),
+    [
+        ("size", "depth/b.npy", "depth is 20x10 but b.png is 40x30"),
+        ("missing", "rgb/b.png", "has no depth map"),
+        ("extra", "depth/c.npy", "has no RGB frame"),
+        ("nan", "depth/b.npy", "NaN/inf"),
+        ("negative", "depth/b.npy", "zero or negative"),
+        ("corrupt", "rgb/b.png", "cannot be decoded"),
+        ("grey", "rgb/b.png", "expected an RGB image"),
+        ("depth8", "depth/b.png", "must be 16-bit"),
+    ],
+)
+def test_bad_input_names_the_file(tmp_path, breakage, culprit, message):
+    root = make_rgbd(tmp_path / "in")
+    if breakage == "size":
+        np.save(root / "depth" / "b.npy", np.full((10, 20), 5.0, np.float32))
+    elif breakage == "missing":
+        (root / "depth" / "b.npy").unlink()
+    elif breakage == "extra":
+        np.save(root / "depth" / "c.npy", np.full((30, 40), 5.0, np.float32))
+    elif breakage in ("nan", "negative"):
+        depth = np.full((30, 40), 5.0, np.float32)
+        depth[3, 4] = np.nan if breakage == "nan" else -1.0
+        np.save(root / "depth" / "b.npy", depth)
+    elif breakage == "corrupt":
+        (root / "rgb" / "b.png").write_bytes(b"\x89PNG\r\n\x1a\nthis is not a png")
+    elif breakage == "grey":
+        cv2.imwrite(str(root / "rgb" / "b.png"), np.zeros((30, 40), np.uint8))
+    elif breakage == "depth8":
+        (root / "depth" / "b.npy").unlink()
+        cv2.imwrite(str(root / "depth" / "b.png"), np.full((30, 40), 9, np.uint8))
+    with pytest.raises(InputFileError, match=message) as error:
+        synthesize_dataset(root, "rgbd", tmp_path / "out", SynthConfig(**FAST), progress=False)
+    assert str(error.value).startswith(str(root / culprit))
+    status = tmp_path / "out" / "dataset.json"
+    assert not status.exists() or json.loads(status.read_text())["status"] == "incomplete"
+
+
+def test_synthia_depth_decoding_from_an_encoded_png(tmp_path):
+    metres = np.array([[0.5, 7.25, 120.0], [249.0, 300.0, 1000.0]])
+    code = np.round(metres / 1000.0 * (2**24 - 1)).astype(np.int64)
+    bgr = np.stack((code // 65536, (code // 256) % 256, code % 256), axis=-1).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "d.png"), bgr)
+    depth = read_synthia_depth(tmp_path / "d.png", max_depth=250.0)
+    expected = np.minimum(metres, 250.0)
+    np.testing.assert_allclose(depth, expected, atol=1e-4)
+    np.testing.assert_allclose(decode_synthia_depth(bgr, max_depth=1000.0), metres, atol=1e-4)
+
+
+def test_synthia_layout_and_split(tmp_path):
+    for seq in ("SEQ1", "SEQ3"):
+        for sub in ("RGBLeft", "DepthLeft"):
+            (tmp_path / "in" / seq / sub).mkdir(parents=True)
+        cv2.imwrite(str(tmp_path / "in" / seq / "RGBLeft" / "0000.png"),
+                    np.full((24, 32, 3), 90, np.uint8))
+        code = np.full((24, 32), int(20.0 / 1000 * (2**24 - 1)))
+        bgr = np.stack((code // 65536, (code // 256) % 256, code % 256), -1).astype(np.uint8)
+        cv2.imwrite(str(tmp_path / "in" / seq / "DepthLeft" / "0000.png"), bgr)
+    summary = synthesize_dataset(tmp_path / "in", "synthia", tmp_path / "out",
+                                 SynthConfig(cameras=("set2",)), progress=False)
+    assert summary["status"] == "complete"
+    assert (tmp_path / "out" / "train_c" / "source" / "seq_001" / "0000.png").is_file()
+    assert (tmp_path / "out" / "test_c" / "source" / "seq_002" / "0000.png").is_file()
+
+
+def test_scenes_then_synth_end_to_end_through_the_cli(tmp_path):
+    runner = CliRunner()
+    scenes = runner.invoke(cli, ["scenes", "--output", str(tmp_path / "sc"), "--sequences", "1",
+                                 "--frames", "3", "--size", "72x40", "--seed", "2"])
+    assert scenes.exit_code == 0, scenes.output
+    assert len(list((tmp_path / "sc" / "seq_000" / "depth").glob("*.npy"))) == 3
+    synth = runner.invoke(cli, ["synth", "--input", str(tmp_path / "sc"), "--output",
+                                str(tmp_path / "ds"), "--cameras", "set1,set3", "--layers", "64",
+                                "--bit-depth", "8"])
+    assert synth.exit_code == 0, synth.output
+    assert "complete: 6/6 frames" in synth.output
+    left = cv2.imread(str(tmp_path / "ds" / "train_l" / "source" / "seq_002" / "frame_0002.png"),
+                      cv2.IMREAD_UNCHANGED)
+    assert left.dtype == np.uint8 and left.shape == (40, 72, 3)
+    bad = runner.invoke(cli, ["synth", "--input", str(tmp_path / "nowhere"), "--output",
+                              str(tmp_path / "x")])
+    assert bad.exit_code == 2 and "nowhere" in bad.output

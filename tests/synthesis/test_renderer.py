@@ -1,0 +1,128 @@
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from dualpixel.optics.psf import PSFParams
+from dualpixel.optics.thin_lens import CAMERA_PRESETS
+from dualpixel.synthesis.convolution import convolve_same
+from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
+from dualpixel.synthesis.renderer import quantise_layers, render_dp_views
+
+H, W = 96, 128
+
+
+def textured(seed=0):
+    rng = np.random.default_rng(seed)
+    noise = rng.uniform(0, 1, (H // 4, W // 4, 3)).astype(np.float32)
+    return torch.from_numpy(cv2.resize(noise, (W, H), interpolation=cv2.INTER_CUBIC)).permute(2, 0, 1)
+
+
+def test_uniform_scene_renders_uniform_for_any_depth():
+    rng = np.random.default_rng(1)
+    blocks = rng.uniform(-25, 25, (6, 8)).astype(np.float32)
+    coc = torch.from_numpy(cv2.resize(blocks, (W, H), interpolation=cv2.INTER_NEAREST))
+    coc += torch.linspace(-3, 3, W)[None]  # plus a ramp: many layers, sharp and soft edges
+    colour = torch.tensor([0.2, 0.5, 0.9])[:, None, None].expand(3, H, W).contiguous()
+    for model in ("ours", "punnappurath", "disk", "gaussian"):
+        left, right = render_dp_views(colour, coc, model=model)
+        assert float((left - colour).abs().max()) < 1e-5, model
+        assert float((right - colour).abs().max()) < 1e-5, model
+
+
+def test_in_focus_plane_gives_identical_views_and_target():
+    camera = CAMERA_PRESETS["set1"]
+    depth = np.full((H, W), camera.focus_distance, np.float32)
+    rgb = textured().permute(1, 2, 0).numpy()
+    for distortion in (False, True):
+        recipe = draw_recipe(0, "set1", noise=False, distortion=distortion)
+        frame = synthesize_frame(rgb, depth, recipe)
+        assert torch.equal(frame.left, frame.right)
+        assert float((frame.left - frame.target).abs().max()) < 1e-6
+        assert float(frame.defocus.abs().max()) == 0.0
+
+
+def horizontal_shift(reference: torch.Tensor, moved: torch.Tensor) -> float:
+    """Sub-pixel x displacement of ``moved`` relative to ``reference`` (phase correlation)."""
+    a = reference.mean(0).double().numpy()
+    b = moved.mean(0).double().numpy()
+    window = cv2.createHanningWindow((W, H), cv2.CV_64F)
+    (dx, _dy), _ = cv2.phaseCorrelate(a, b, window)
+    return dx
+
+
+@pytest.mark.parametrize("model", ["ours", "punnappurath"])
+def test_views_shift_in_opposite_directions_growing_with_defocus(model):
+    image = textured(2)
+    shifts = {}
+    for radius in (-12.0, -6.0, 6.0, 12.0):
+        left, right = render_dp_views(image, torch.full((H, W), radius), model=model)
+        shifts[radius] = (horizontal_shift(image, left), horizontal_shift(image, right))
+    for radius, (left_dx, right_dx) in shifts.items():
+        # behind focus (r > 0) the left view moves left and the right view right; in front, swapped
+        assert np.sign(left_dx) == -np.sign(radius) and np.sign(right_dx) == np.sign(radius)
+        assert left_dx == pytest.approx(-right_dx, abs=0.3)
+    assert abs(shifts[12.0][1]) > abs(shifts[6.0][1]) > 0.5
+    assert abs(shifts[-12.0][1]) > abs(shifts[-6.0][1]) > 0.5
+
+
+def two_planes(fg_radius: float, bg_radius: float):
+    background, foreground = torch.tensor([0.1, 0.2, 0.8]), torch.tensor([0.9, 0.6, 0.1])
+    inside = torch.zeros(H, W, dtype=torch.bool)
+    inside[30:66, 40:88] = True
+    image = torch.where(inside, foreground[:, None, None], background[:, None, None])
+    coc = torch.where(inside, torch.tensor(fg_radius), torch.tensor(bg_radius))
+    return image, coc, inside, background, foreground
+
+
+def test_blurred_foreground_spreads_over_sharp_background():
+    image, coc, inside, background, foreground = two_planes(-8.0, 0.0)
+    left, right = render_dp_views(image, coc, PSFParams(alpha=1.0))
+    for view in (left, right):
+        ring = view[:, 30:66, 30:38]  # background pixels within the blur radius of the edge
+        assert float((ring - background[:, None, None]).abs().amax()) > 0.1
+        far = view[:, 5:15, 5:25]
+        torch.testing.assert_close(far, background[:, None, None].expand_as(far))
+    # the foreground's own interior stays its colour
+    centre = left[:, 45:51, 60:68]
+    torch.testing.assert_close(centre, foreground[:, None, None].expand_as(centre), atol=1e-5,
+                               rtol=0)
+
+
+def test_blurred_background_does_not_bleed_over_sharp_foreground():
+    image, coc, inside, background, foreground = two_planes(0.0, 10.0)
+    left, right = render_dp_views(image, coc)
+    for view in (left, right):
+        # the sharp foreground is untouched, right up to its edge
+        fg = view[:, inside]
+        torch.testing.assert_close(fg, foreground[:, None].expand_as(fg), atol=1e-5, rtol=0)
+        # and no foreground colour leaks into the blurred background next to it
+        bg = view[:, ~inside]
+        torch.testing.assert_close(bg, background[:, None].expand_as(bg), atol=1e-5, rtol=0)
+
+
+def test_naive_hard_mask_rendering_differs_at_occlusions():
+    """The authors' approach (blur the whole image per layer, then hard-mask) cannot spread a
+    blurred foreground over the background; ours does."""
+    image, coc, inside, background, _ = two_planes(-8.0, 0.0)
+    ours, _ = render_dp_views(image, coc)
+    kernels = torch.stack(list(__import__("dualpixel").optics.dp_psf(-8.0))) * 2
+    naive = torch.where(inside, convolve_same(image, kernels)[0], image)
+    ring = (slice(None), slice(30, 66), slice(32, 38))
+    assert float((naive[ring] - background[:, None, None]).abs().max()) < 1e-6
+    assert float((ours[ring] - background[:, None, None]).abs().max()) > 0.1
+
+
+def test_layers_are_bounded_and_keep_exact_values():
+    coc = torch.linspace(-40, 40, 2000).reshape(40, 50)
+    labels, layer_coc = quantise_layers(coc, 500)
+    assert layer_coc.numel() <= 500 and int(labels.max()) == layer_coc.numel() - 1
+    flat, values = quantise_layers(torch.full((4, 4), 2.5), 500)
+    assert values.tolist() == [2.5]
+
+
+def test_direct_and_fft_convolution_agree():
+    planes, kernels = torch.rand(4, 37, 45, dtype=torch.float64), torch.rand(2, 11, 11,
+                                                                            dtype=torch.float64)
+    torch.testing.assert_close(convolve_same(planes, kernels, method="direct"),
+                               convolve_same(planes, kernels, method="fft"))
