@@ -15,7 +15,8 @@ H, W = 96, 128
 def textured(seed=0):
     rng = np.random.default_rng(seed)
     noise = rng.uniform(0, 1, (H // 4, W // 4, 3)).astype(np.float32)
-    return torch.from_numpy(cv2.resize(noise, (W, H), interpolation=cv2.INTER_CUBIC)).permute(2, 0, 1)
+    smooth = cv2.resize(noise, (W, H), interpolation=cv2.INTER_CUBIC)
+    return torch.from_numpy(smooth).permute(2, 0, 1)
 
 
 def test_uniform_scene_renders_uniform_for_any_depth():
@@ -76,7 +77,7 @@ def two_planes(fg_radius: float, bg_radius: float):
 
 
 def test_blurred_foreground_spreads_over_sharp_background():
-    image, coc, inside, background, foreground = two_planes(-8.0, 0.0)
+    image, coc, _inside, background, foreground = two_planes(-8.0, 0.0)
     left, right = render_dp_views(image, coc, PSFParams(alpha=1.0))
     for view in (left, right):
         ring = view[:, 30:66, 30:38]  # background pixels within the blur radius of the edge
@@ -117,7 +118,7 @@ def test_layers_are_bounded_and_keep_exact_values():
     coc = torch.linspace(-40, 40, 2000).reshape(40, 50)
     labels, layer_coc = quantise_layers(coc, 500)
     assert layer_coc.numel() <= 500 and int(labels.max()) == layer_coc.numel() - 1
-    flat, values = quantise_layers(torch.full((4, 4), 2.5), 500)
+    _flat, values = quantise_layers(torch.full((4, 4), 2.5), 500)
     assert values.tolist() == [2.5]
 
 

@@ -83,7 +83,9 @@ def discover_sequences(
     if fmt == "synthia":
         folders = sorted(p for p in root.iterdir() if (p / "RGBLeft").is_dir())
         if not folders:
-            raise InputFileError(root, "holds no SYNTHIA-SF sequence (SEQn/RGBLeft, SEQn/DepthLeft)")
+            raise InputFileError(
+                root, "holds no SYNTHIA-SF sequence (SEQn/RGBLeft, SEQn/DepthLeft)"
+            )
         return [
             _pair(p.name, "test" if p.name in SYNTHIA_TEST_SEQUENCES else "train",
                   p / "RGBLeft", p / "DepthLeft")

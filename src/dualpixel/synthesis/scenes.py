@@ -73,7 +73,7 @@ def _dead_leaves_texture(rng: np.random.Generator, height: int, width: int) -> n
         radius = (r_min**-2 - u * (r_min**-2 - r_max**-2)) ** -0.5
         centre = (int(rng.integers(width)), int(rng.integers(height)))
         colour = tuple(float(c) for c in rng.uniform(0.02, 0.98, 3))
-        cv2.circle(canvas, centre, int(round(radius)), colour, -1, lineType=cv2.LINE_AA)
+        cv2.circle(canvas, centre, round(radius), colour, -1, lineType=cv2.LINE_AA)
     return canvas
 
 
@@ -159,7 +159,7 @@ def render_scene_sequence(seed: int, config: SceneConfig) -> list[tuple[np.ndarr
     for t in range(config.frames):
         # the back plane scrolls with the camera at the parallax of its mean depth
         shift = pan * t / float(np.mean(plane))
-        ox, oy = int(round(margin + shift[0])), int(round(margin + shift[1]))
+        ox, oy = round(margin + shift[0]), round(margin + shift[1])
         rgb = background[oy : oy + height, ox : ox + width].copy()
         depth = plane.copy()
         placed = []
@@ -167,7 +167,7 @@ def render_scene_sequence(seed: int, config: SceneConfig) -> list[tuple[np.ndarr
             d = leaf.depth * (1.0 + leaf.depth_rate) ** t
             x = leaf.x + (leaf.vx + pan[0] / d) * t
             y = leaf.y + (leaf.vy + pan[1] / d) * t
-            placed.append((d, int(round(x)), int(round(y)), leaf))
+            placed.append((d, round(x), round(y), leaf))
         for d, x, y, leaf in sorted(placed, key=lambda item: -item[0]):  # far to near
             size = leaf.mask.shape[0]
             x0, y0, x1, y1 = max(x, 0), max(y, 0), min(x + size, width), min(y + size, height)
