@@ -20,6 +20,9 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/dualpixel psf --output $(OUT)/psf_figure.png --save $(OUT)/psf_kernels.npz
+	$(BIN)/dualpixel scenes --output $(OUT)/scenes --sequences 2 --frames 4 --size 320x240 --seed 0
+	$(BIN)/dualpixel synth --input $(OUT)/scenes --format rgbd --output $(OUT)/dataset --workers 2
+	$(BIN)/dualpixel preview --dataset $(OUT)/dataset --output $(OUT)/dataset_preview.png --rows 5
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests $(wildcard benchmarks)

@@ -191,3 +191,22 @@ def test_scenes_then_synth_end_to_end_through_the_cli(tmp_path):
     bad = runner.invoke(cli, ["synth", "--input", str(tmp_path / "nowhere"), "--output",
                               str(tmp_path / "x")])
     assert bad.exit_code == 2 and "nowhere" in bad.output
+
+
+def test_preview_and_custom_noise_sigmas_through_the_cli(scene_dir, tmp_path):
+    runner = CliRunner()
+    synth = runner.invoke(cli, ["synth", "--input", str(scene_dir), "--output",
+                                str(tmp_path / "ds"), "--cameras", "set2", "--layers", "32",
+                                "--noise-sigmas", "0.01,0.02"])
+    assert synth.exit_code == 0, synth.output
+    records = [json.loads(x) for x in (tmp_path / "ds" / "manifest.jsonl").read_text().split("\n")
+               if x]
+    assert {r["noise_sigma"] for r in records} <= {0.01, 0.02}
+    shown = runner.invoke(cli, ["preview", "--dataset", str(tmp_path / "ds"), "--output",
+                                str(tmp_path / "p.png")])
+    assert shown.exit_code == 0, shown.output
+    image = cv2.imread(str(tmp_path / "p.png"))
+    assert image is not None and image.shape[1] > 800
+    missing = runner.invoke(cli, ["preview", "--dataset", str(tmp_path), "--output",
+                                  str(tmp_path / "q.png")])
+    assert missing.exit_code == 2 and "manifest.jsonl" in missing.output

@@ -113,6 +113,9 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--noise/--no-noise", default=True, help="Signal-dependent noise (Sec. 2.3).")
 @click.option("--noise-model", type=click.Choice(["multiplicative", "poisson-gaussian"]),
               default="multiplicative", help="The paper's formula, or Foi et al.'s model.")
+@click.option("--noise-sigmas", default=None,
+              help="Noise strengths to draw from, comma-separated [default: the paper's "
+                   "0.05, 0.055, ..., 0.5].")
 @click.option("--distortion/--no-distortion", default=True, help="Radial distortion (Eq. 5).")
 @click.option("--psf-model", type=click.Choice(["ours", "punnappurath", "disk", "gaussian"]),
               default="ours", help="DP PSF model (the others for the paper's ablations).")
@@ -124,20 +127,38 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--device", default="cpu", help="torch device, e.g. cpu or cuda.")
 @click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
 def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bit_depth: str,
-          noise: bool, noise_model: str, distortion: bool, psf_model: str, split: str,
-          max_depth: float, depth_scale: float, seed: int, device: str, workers: int) -> None:
+          noise: bool, noise_model: str, noise_sigmas: str | None, distortion: bool,
+          psf_model: str, split: str, max_depth: float, depth_scale: float, seed: int,
+          device: str, workers: int) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
+    from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 
+    sigmas = PAPER_NOISE_SIGMAS
+    if noise_sigmas:
+        sigmas = tuple(_float_list(None, None, noise_sigmas))
     config = SynthConfig(
         cameras=tuple(c.strip() for c in cameras.split(",") if c.strip()),
         psf_model=psf_model, max_layers=layers, bit_depth=int(bit_depth), noise=noise,
-        noise_model=noise_model, distortion=distortion, seed=seed, max_depth=max_depth,
-        depth_scale=depth_scale, split=split,
+        noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
+        max_depth=max_depth, depth_scale=depth_scale, split=split,
     )
     summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device)
     click.echo(f"{summary['status']}: {summary['frames_done']}/{summary['frames_total']} frames "
                f"in {output}")
+
+
+@cli.command(context_settings=CONTEXT)
+@click.option("--dataset", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Dataset folder written by `dualpixel synth`.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
+              default=Path("preview.png"), help="PNG contact sheet to write.")
+@click.option("--rows", type=click.IntRange(1), default=5, help="Sequences to show.")
+def preview(dataset: Path, output: Path, rows: int) -> None:
+    """Show a synthetic dataset: target, left, right, combined and defocus per sequence."""
+    from dualpixel.viz.dataset_preview import render_dataset_preview
+
+    click.echo(f"wrote {render_dataset_preview(dataset, output, rows=rows)}")
 
 
 if __name__ == "__main__":  # pragma: no cover

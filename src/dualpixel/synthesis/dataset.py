@@ -38,7 +38,7 @@ from dualpixel import __version__
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import save_npy, write_png
-from dualpixel.optics.noise import NoiseModel
+from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
 from dualpixel.optics.psf import PSF_MODELS, PSFModel
 from dualpixel.optics.thin_lens import CAMERA_PRESETS
 from dualpixel.synthesis.frame import SequenceRecipe, draw_recipe, synthesize_frame
@@ -63,6 +63,7 @@ class SynthConfig:
     bit_depth: int = 16
     noise: bool = True
     noise_model: NoiseModel = "multiplicative"
+    noise_sigmas: tuple[float, ...] = PAPER_NOISE_SIGMAS
     distortion: bool = True
     seed: int = 0
     max_depth: float = 250.0
@@ -80,12 +81,17 @@ class SynthConfig:
             raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}")
         if self.bit_depth not in (8, 16):
             raise ParameterError(f"bit_depth must be 8 or 16, got {self.bit_depth}")
+        if not self.noise_sigmas or min(self.noise_sigmas) < 0:
+            raise ParameterError(
+                f"noise_sigmas must be non-negative values, got {self.noise_sigmas}"
+            )
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
 
     def as_dict(self) -> dict:
         data = asdict(self)
         data["cameras"] = list(self.cameras)
+        data["noise_sigmas"] = list(self.noise_sigmas)
         return data
 
 
@@ -125,7 +131,8 @@ def plan_jobs(sequences: list[InputSequence], config: SynthConfig) -> list[Frame
             recipe = draw_recipe(
                 (config.seed, seq_index, cam_index), camera, psf_model=config.psf_model,
                 distortion=config.distortion, noise=config.noise,
-                noise_model=config.noise_model, max_layers=config.max_layers,
+                noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
+                max_layers=config.max_layers,
             )
             for index, frame in enumerate(sequence.frames):
                 noise_seed = int(np.random.SeedSequence((config.seed, number, index))
