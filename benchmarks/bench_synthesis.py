@@ -10,6 +10,7 @@ blurred masks and works only inside each layer's support. Prints seconds per fra
 from __future__ import annotations
 
 import argparse
+import resource
 import time
 
 import torch
@@ -66,11 +67,12 @@ def main() -> None:
     naive = _timed(lambda: naive_render(image, coc, params, args.layers), args.device)
     print(f"naive (whole frame per layer, hard mask):  {naive:.2f} s/frame")
     print(f"ratio ours / naive: {ours / naive:.2f}")
-    if args.device == "cpu" or args.device.startswith("cuda"):
-        peak = (torch.cuda.max_memory_allocated() / 2**20 if args.device.startswith("cuda")
-                else None)
-        if peak is not None:
-            print(f"peak GPU memory: {peak:.0f} MiB")
+    frame_mib = image.numel() * image.element_size() / 2**20
+    print(f"peak process memory (both renderers): "
+          f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB "
+          f"(one float32 RGB frame is {frame_mib:.0f} MiB)")
+    if args.device.startswith("cuda"):
+        print(f"peak GPU memory: {torch.cuda.max_memory_allocated() / 2**20:.0f} MiB")
 
 
 if __name__ == "__main__":

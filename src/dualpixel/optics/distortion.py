@@ -85,14 +85,19 @@ def _centre_and_scale(width: int, height: int) -> tuple[float, float, float]:
     return (width - 1) / 2.0, (height - 1) / 2.0, 0.5 * (width**2 + height**2) ** 0.5
 
 
+def _polar(points: torch.Tensor, width: int, height: int):
+    """(centre, offset from it, half-diagonal-normalised radius) of pixel coordinates."""
+    cx, cy, half_diag = _centre_and_scale(width, height)
+    centre = points.new_tensor([cx, cy])
+    offset = points - centre
+    return centre, offset, offset.norm(dim=-1, keepdim=True) / half_diag
+
+
 def distort_points(
     points: torch.Tensor, distortion: DivisionDistortion, width: int, height: int
 ) -> torch.Tensor:
     """Map undistorted pixel coordinates ``(..., 2)`` (x, y) to distorted ones (Eq. 5)."""
-    cx, cy, half_diag = _centre_and_scale(width, height)
-    centre = points.new_tensor([cx, cy])
-    offset = points - centre
-    radius_u = offset.norm(dim=-1, keepdim=True) / half_diag
+    centre, offset, radius_u = _polar(points, width, height)
     return centre + offset / distortion.denominator(radius_u)
 
 
@@ -100,10 +105,7 @@ def undistort_points(
     points: torch.Tensor, distortion: DivisionDistortion, width: int, height: int
 ) -> torch.Tensor:
     """Map distorted pixel coordinates ``(..., 2)`` back to undistorted ones (inverse of Eq. 5)."""
-    cx, cy, half_diag = _centre_and_scale(width, height)
-    centre = points.new_tensor([cx, cy])
-    offset = points - centre
-    radius_d = offset.norm(dim=-1, keepdim=True) / half_diag
+    centre, offset, radius_d = _polar(points, width, height)
     radius_u = distortion.undistorted_radius(radius_d)
     scale = torch.where(radius_d > 0, radius_u / radius_d.clamp_min(1e-30), 1.0)
     return centre + offset * scale

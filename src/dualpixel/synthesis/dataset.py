@@ -50,7 +50,7 @@ from dualpixel.synthesis.inputs import (
     load_frame,
 )
 
-__all__ = ["SynthConfig", "synthesize_dataset"]
+__all__ = ["SynthConfig", "read_manifest", "synthesize_dataset"]
 
 
 @dataclass(frozen=True)
@@ -181,7 +181,7 @@ def _worker(args: tuple) -> dict:
     return run_job(*args)
 
 
-def _read_manifest(path: Path) -> dict[str, dict]:
+def read_manifest(path: Path) -> dict[str, dict]:
     """Records of finished frames; a torn last line (interrupted append) is ignored."""
     records: dict[str, dict] = {}
     if path.is_file():
@@ -273,7 +273,7 @@ def synthesize_dataset(
     }
     _check_or_write_description(root, description)
     manifest_path = root / "manifest.jsonl"
-    done = _read_manifest(manifest_path)
+    done = read_manifest(manifest_path)
     pending = [job for job in jobs if job.key not in done]
     if limit is not None:
         pending = pending[:limit]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import matplotlib
@@ -14,6 +13,7 @@ import numpy as np
 from dualpixel.errors import InputFileError
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import read_rgb
+from dualpixel.synthesis.dataset import read_manifest
 
 __all__ = ["render_dataset_preview"]
 
@@ -25,12 +25,8 @@ def render_dataset_preview(dataset: str | Path, output: str | Path, *, rows: int
     manifest = root / "manifest.jsonl"
     if not manifest.is_file():
         raise InputFileError(manifest, "not found: is this a dataset written by `dualpixel synth`?")
-    records = {}
-    for line in manifest.read_text().splitlines():
-        try:
-            record = json.loads(line)
-        except json.JSONDecodeError:
-            continue
+    records: dict[int, dict] = {}
+    for record in read_manifest(manifest).values():
         records.setdefault(record["sequence"], record)
     chosen = [records[k] for k in sorted(records)[:rows]]
     if not chosen:
