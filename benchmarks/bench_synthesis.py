@@ -51,10 +51,17 @@ def main() -> None:
     parser.add_argument("--layers", type=int, default=500)
     parser.add_argument("--width", type=int, default=1920)
     parser.add_argument("--height", type=int, default=1080)
+    parser.add_argument("--full-range", action="store_true",
+                        help="replace the scene's depth by a ramp over every CoC: all layers used")
     args = parser.parse_args()
 
     rgb, depth = render_scene_sequence(0, SceneConfig(width=args.width, height=args.height,
                                                       frames=1, leaves=40))[0]
+    if args.full_range:
+        import numpy as np
+
+        ramp = np.geomspace(0.3, 200.0, args.width * args.height, dtype=np.float32)
+        depth = ramp.reshape(args.height, args.width)
     image = torch.from_numpy(rgb).permute(2, 0, 1).to(args.device)
     coc = coc_radius(torch.from_numpy(depth).to(args.device), CAMERA_PRESETS["set2"])
     params = PSFParams(n=6, alpha=0.6, beta=0.2)
