@@ -210,3 +210,20 @@ def test_preview_and_custom_noise_sigmas_through_the_cli(scene_dir, tmp_path):
     missing = runner.invoke(cli, ["preview", "--dataset", str(tmp_path), "--output",
                                   str(tmp_path / "q.png")])
     assert missing.exit_code == 2 and "manifest.jsonl" in missing.output
+
+
+def test_exr_depth_is_read_or_refused_with_a_clear_reason(tmp_path):
+    from dualpixel.io.images import read_depth
+
+    depth = np.random.default_rng(0).uniform(1, 50, (20, 30)).astype(np.float32)
+    path = tmp_path / "d.exr"
+    try:
+        written = cv2.imwrite(str(path), depth)
+    except cv2.error:
+        written = False
+    if written:
+        np.testing.assert_allclose(read_depth(path), depth)
+    else:
+        path.write_bytes(b"v/1\x01 not really exr")
+        with pytest.raises(InputFileError, match=r"OpenEXR|cannot be decoded"):
+            read_depth(path)

@@ -29,7 +29,14 @@ DEPTH_SUFFIXES = (".png", ".npy", ".exr", ".tif", ".tiff")
 def _imread(path: Path) -> np.ndarray:
     if not path.is_file():
         raise InputFileError(path, "file not found")
-    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    try:
+        data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error:
+        data = None
+    if data is None and path.suffix.lower() == ".exr" and not cv2.haveImageReader(str(path)):
+        raise InputFileError(
+            path, "this OpenCV build cannot read OpenEXR; convert the depth maps to .npy"
+        )
     if data is None:
         raise InputFileError(path, "cannot be decoded as an image (corrupt or unsupported format)")
     return data
