@@ -16,6 +16,7 @@ from dualpixel.io.atomic import atomic_path
 
 __all__ = [
     "decode_synthia_depth",
+    "quantise",
     "read_depth",
     "read_rgb",
     "read_synthia_depth",
@@ -115,13 +116,20 @@ def read_depth(path: str | Path, *, png_scale: float = 0.001) -> np.ndarray:
     return depth
 
 
-def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16) -> None:
-    """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer data) as PNG, atomically."""
+def quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
+    """Float values in [0, 1] (clipped) to the nearest integer level of ``bit_depth``, int64."""
     if bit_depth not in (8, 16):
         raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
+    peak = 255 if bit_depth == 8 else 65535
+    return np.rint(np.clip(image.astype(np.float64), 0.0, 1.0) * peak).astype(np.int64)
+
+
+def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16) -> None:
+    """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer levels) as PNG, atomically."""
     if np.issubdtype(image.dtype, np.floating):
-        peak = 255 if bit_depth == 8 else 65535
-        image = np.rint(np.clip(image, 0.0, 1.0) * peak)
+        image = quantise(image, bit_depth)
+    elif bit_depth not in (8, 16):
+        raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
     data = image.astype(np.uint8 if bit_depth == 8 else np.uint16)
     if data.ndim == 3:
         data = cv2.cvtColor(data, cv2.COLOR_RGB2BGR)

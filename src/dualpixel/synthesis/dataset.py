@@ -37,7 +37,7 @@ from tqdm import tqdm
 from dualpixel import __version__
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.atomic import atomic_path
-from dualpixel.io.images import save_npy, write_png
+from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
 from dualpixel.optics.psf import PSF_MODELS, PSFModel
 from dualpixel.optics.thin_lens import CAMERA_PRESETS
@@ -142,9 +142,7 @@ def plan_jobs(sequences: list[InputSequence], config: SynthConfig) -> list[Frame
 
 
 def _quantise(image: torch.Tensor, bit_depth: int) -> np.ndarray:
-    peak = 255 if bit_depth == 8 else 65535
-    array = image.permute(1, 2, 0).cpu().numpy().astype(np.float64)
-    return np.rint(np.clip(array, 0.0, 1.0) * peak).astype(np.int64)
+    return quantise(image.permute(1, 2, 0).cpu().numpy(), bit_depth)
 
 
 def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
