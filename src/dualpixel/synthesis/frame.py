@@ -150,9 +150,10 @@ def synthesize_frame(
     )
     target, defocus = image, coc
     if recipe.distortion is not None:
-        stack = distort_image(torch.stack((left, right, target)), recipe.distortion)
-        left, right, target = stack[0], stack[1], stack[2]
-        defocus = distort_image(coc[None], recipe.distortion)[0]
+        # one warp for all planes: the inverse-distortion grid is computed once per frame
+        warped = distort_image(torch.cat((left, right, target, coc[None])), recipe.distortion)
+        left, right, target, defocus = warped.split((3, 3, 3, 1))
+        defocus = defocus[0]
     if recipe.noise_sigma is not None and recipe.noise_sigma > 0:
         left = _noisy_view(left, recipe, noise_seed * 2)
         right = _noisy_view(right, recipe, noise_seed * 2 + 1)

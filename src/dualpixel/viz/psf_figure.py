@@ -23,7 +23,7 @@ def psf_figure_kernels(
     """Kernels of both models for the figure, all at one size so they compare pixel for pixel."""
     size = kernel_size(max(abs(r) for r in radii), "ours", params.kappa)
     return {
-        "ours": dp_psf(list(radii), params, size=size, dtype=None),
+        "ours": dp_psf(list(radii), params, size=size),
         "punnappurath": dp_psf(list(radii), params, model="punnappurath", size=size),
     }
 
