@@ -163,3 +163,7 @@ def preview(dataset: Path, output: Path, rows: int) -> None:
 
 if __name__ == "__main__":  # pragma: no cover
     cli()
+
+
+# Commands defined in their own modules register themselves on ``cli`` when imported.
+from dualpixel.cli import training as _training  # noqa: E402, F401

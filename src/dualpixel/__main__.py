@@ -1,0 +1,6 @@
+"""``python -m dualpixel`` (and ``torchrun -m dualpixel train ...`` for multi-GPU training)."""
+
+from dualpixel.cli.main import cli
+
+if __name__ == "__main__":
+    cli()

@@ -1,0 +1,126 @@
+"""Training examples: random patches of DP sequences, cropped alike in every view and frame.
+
+Each item is a dict of float32 tensors ``left``, ``right``, ``target`` ``(T, 3, h, w)`` and
+``radial`` ``(T, 1, h, w)`` (the radial distance of the patch's pixels in the full image, Sec. 4).
+Randomness comes from the seed the sampler passes with the index (``dataset[(index, seed)]``), so a
+run is reproducible whatever the number of loader workers.
+
+Augmentation keeps the DP geometry valid: a horizontal flip mirrors the defocus disparity, so the
+left and right views swap; a vertical flip keeps them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy import ndimage
+from torch.utils.data import Dataset
+
+from dualpixel.data.layout import DPFramePaths, DPSequence
+from dualpixel.data.radial import radial_distance
+from dualpixel.errors import ParameterError
+from dualpixel.io.images import read_rgb
+
+__all__ = ["DPPatchDataset", "PatchConfig", "flip_horizontal", "sharpness"]
+
+
+@dataclass(frozen=True)
+class PatchConfig:
+    """How patches are drawn: size (``None`` = whole frames), frames per item, augmentation."""
+
+    patch_size: int | None = 512
+    frames: int = 1
+    flips: bool = True
+    min_sharpness: float = 0.0  # reject target patches flatter than this (mean Sobel magnitude)
+    max_tries: int = 10
+
+
+def sharpness(image: np.ndarray) -> float:
+    """Mean Sobel gradient magnitude of the grey image, a cheap flat-patch detector."""
+    grey = image.mean(axis=-1)
+    return float(np.hypot(ndimage.sobel(grey, 0), ndimage.sobel(grey, 1)).mean())
+
+
+def flip_horizontal(item: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """Mirror an item left-right: every image flips and the left and right views swap."""
+    flipped = {key: value.flip(-1) for key, value in item.items()}
+    flipped["left"], flipped["right"] = flipped["right"], flipped["left"]
+    return flipped
+
+
+class DPPatchDataset(Dataset):
+    """Random ``patch_size`` crops of ``frames`` consecutive frames from DP sequences.
+
+    Args:
+        sequences: from :func:`dualpixel.data.layout.discover_dp_dataset` (with targets).
+        config: patch settings.
+        cache: keep decoded frames in memory (small datasets, CPU training).
+    """
+
+    def __init__(self, sequences: list[DPSequence], config: PatchConfig, *, cache: bool = False):
+        if not sequences:
+            raise ParameterError("no sequences to draw patches from")
+        self.config = config
+        self.sequences = [s for s in sequences if len(s.frames) >= config.frames]
+        if not self.sequences:
+            raise ParameterError(f"no sequence has {config.frames} frames")
+        if config.patch_size is not None:
+            small = [s for s in self.sequences if min(s.height, s.width) < config.patch_size]
+            if small:
+                raise ParameterError(
+                    f"patch size {config.patch_size} exceeds {small[0].name} "
+                    f"({small[0].width}x{small[0].height})"
+                )
+        self._cache: dict[DPFramePaths, dict[str, np.ndarray]] | None = {} if cache else None
+
+    def __len__(self) -> int:
+        return len(self.sequences)
+
+    def _load(self, frame: DPFramePaths) -> dict[str, np.ndarray]:
+        if self._cache is not None and frame in self._cache:
+            return self._cache[frame]
+        images = {"left": read_rgb(frame.left), "right": read_rgb(frame.right)}
+        if frame.target is not None:
+            images["target"] = read_rgb(frame.target)
+        if self._cache is not None:
+            self._cache[frame] = images
+        return images
+
+    def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
+        index, seed = key if isinstance(key, tuple) else (key, index_seed(key))
+        rng = np.random.default_rng(seed)
+        sequence = self.sequences[index]
+        start = int(rng.integers(len(sequence.frames) - self.config.frames + 1))
+        frames = [self._load(f) for f in sequence.frames[start : start + self.config.frames]]
+        size = self.config.patch_size
+        height, width = sequence.height, sequence.width
+        top = left = 0
+        if size is not None:
+            for _ in range(self.config.max_tries):
+                top = int(rng.integers(height - size + 1))
+                left = int(rng.integers(width - size + 1))
+                crop = frames[0]["target"][top : top + size, left : left + size]
+                if self.config.min_sharpness <= 0 or sharpness(crop) >= self.config.min_sharpness:
+                    break
+        h, w = (size, size) if size is not None else (height, width)
+        item = {
+            key: torch.from_numpy(
+                np.stack([f[key][top : top + h, left : left + w] for f in frames])
+            ).permute(0, 3, 1, 2).contiguous()
+            for key in frames[0]
+        }
+        radial = radial_distance(h, w, full_size=(height, width), top=top, left=left)
+        item["radial"] = torch.from_numpy(radial)[None, None].expand(len(frames), 1, h, w).clone()
+        if self.config.flips:
+            if rng.random() < 0.5:
+                item = flip_horizontal(item)
+            if rng.random() < 0.5:
+                item = {k: v.flip(-2) for k, v in item.items()}
+        return item
+
+
+def index_seed(index: int) -> int:
+    """A fixed seed for an index used without one (evaluation, debugging)."""
+    return int(np.random.SeedSequence(index).generate_state(1)[0])

@@ -1,0 +1,126 @@
+"""Finding DP examples in the DPDD folder layout (Abuolaim & Brown 2020), real or synthetic.
+
+Real pairs (one image per name)::
+
+    {split}_c/source/NAME.png  {split}_l/source/NAME.png  {split}_r/source/NAME.png
+    {split}_c/target/NAME.png
+
+Synthetic sequences, as ``dualpixel synth`` writes them: the same folders with one subfolder
+``seq_NNN`` per sequence holding its frames. Either way each example is a :class:`DPSequence`
+(a real pair is a sequence of one frame). 8- and 16-bit PNG/TIFF are accepted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from PIL import Image, UnidentifiedImageError
+
+from dualpixel.errors import InputFileError
+from dualpixel.io.images import IMAGE_SUFFIXES
+
+__all__ = ["DPFramePaths", "DPSequence", "discover_dp_dataset"]
+
+
+@dataclass(frozen=True)
+class DPFramePaths:
+    """The files of one DP frame; ``target`` and ``combined`` may be absent (inference)."""
+
+    left: Path
+    right: Path
+    combined: Path | None = None
+    target: Path | None = None
+
+
+@dataclass(frozen=True)
+class DPSequence:
+    """An ordered list of frames of one size (a real image pair is a sequence of length 1)."""
+
+    name: str
+    frames: tuple[DPFramePaths, ...]
+    height: int
+    width: int
+
+
+def _images(folder: Path) -> dict[str, Path]:
+    return {
+        p.stem: p
+        for p in sorted(folder.iterdir())
+        if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")
+    }
+
+
+def _image_size(path: Path) -> tuple[int, int]:
+    """(H, W) read from the image header, without decoding the pixels."""
+    try:
+        with Image.open(path) as image:
+            width, height = image.size
+    except (UnidentifiedImageError, OSError):
+        problem = "cannot be read as an image (corrupt or unsupported format)"
+        raise InputFileError(path, problem) from None
+    return height, width
+
+
+def _check_sizes(frames: list[DPFramePaths]) -> tuple[int, int]:
+    """The common (H, W) of all views and targets of ``frames``; an error names the odd file."""
+    first = frames[0].left
+    height, width = _image_size(first)
+    for frame in frames:
+        for path in (frame.left, frame.right, frame.target):
+            if path is not None and (size := _image_size(path)) != (height, width):
+                raise InputFileError(
+                    path, f"size {size[1]}x{size[0]} differs from {first.name} ({width}x{height})"
+                )
+    return height, width
+
+
+def _frames(
+    left_dir: Path, right_dir: Path, combined_dir: Path, target_dir: Path | None
+) -> list[DPFramePaths]:
+    lefts = _images(left_dir)
+    if not lefts:
+        raise InputFileError(left_dir, "no images found")
+    rights, combined = _images(right_dir), _images(combined_dir) if combined_dir.is_dir() else {}
+    targets = _images(target_dir) if target_dir is not None and target_dir.is_dir() else {}
+    frames = []
+    for stem, left in lefts.items():
+        if stem not in rights:
+            raise InputFileError(right_dir, f"right view of {left.name} is missing")
+        if target_dir is not None and stem not in targets:
+            raise InputFileError(target_dir, f"target of {left.name} is missing")
+        frames.append(DPFramePaths(left, rights[stem], combined.get(stem), targets.get(stem)))
+    return frames
+
+
+def discover_dp_dataset(
+    root: str | Path, split: str = "train", *, require_target: bool = True
+) -> list[DPSequence]:
+    """All examples of ``split`` under a DPDD-layout ``root`` (real pairs or ``seq_NNN`` folders).
+
+    Raises :class:`InputFileError` naming the folder or file for a missing view folder, a missing
+    view or target, images of different sizes, or no images at all.
+    """
+    root = Path(root)
+    left_root = root / f"{split}_l" / "source"
+    right_root = root / f"{split}_r" / "source"
+    combined_root = root / f"{split}_c" / "source"
+    target_root = root / f"{split}_c" / "target"
+    for folder in (left_root, right_root) + ((target_root,) if require_target else ()):
+        if not folder.is_dir():
+            raise InputFileError(folder, "folder missing (expected the DPDD layout)")
+    target = target_root if target_root.is_dir() else None
+    sequence_dirs = sorted(
+        p for p in left_root.iterdir() if p.is_dir() and p.name.startswith("seq")
+    )
+    if sequence_dirs:
+        sequences = []
+        for folder in sequence_dirs:
+            frames = _frames(
+                folder, right_root / folder.name, combined_root / folder.name,
+                target / folder.name if target else None,
+            )
+            sequences.append(DPSequence(folder.name, tuple(frames), *_check_sizes(frames)))
+        return sequences
+    frames = _frames(left_root, right_root, combined_root, target)
+    return [DPSequence(f.left.stem, (f,), *_check_sizes([f])) for f in frames]

@@ -1,0 +1,110 @@
+"""Model weights in safetensors, with the architecture in the file's metadata.
+
+A checkpoint holds the state dict and ``{"model", "width", "peepholes", "residual", "format"}``
+(plus free-form ``extra`` JSON), so :func:`load_model` rebuilds the right network without other
+files. Weights may be
+stored in half precision (``dtype=torch.float16``, for shipped models) and are loaded as float32.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors import SafetensorError
+from safetensors.torch import load_file, save_file
+
+from dualpixel.errors import InputFileError
+from dualpixel.io.atomic import atomic_path
+from dualpixel.models.registry import build_model, model_spec
+from dualpixel.models.unet import DeblurNet
+
+__all__ = ["load_model", "load_weights", "read_metadata", "save_model"]
+
+FORMAT = "dualpixel-model-1"
+
+
+def _unwrap(model: torch.nn.Module) -> DeblurNet:
+    return getattr(model, "module", model)  # DistributedDataParallel
+
+
+def save_model(
+    path: str | Path,
+    model: torch.nn.Module,
+    *,
+    dtype: torch.dtype | None = None,
+    extra: dict[str, Any] | None = None,
+) -> None:
+    """Write ``model``'s weights and architecture atomically to a ``.safetensors`` file."""
+    net = _unwrap(model)
+    tensors = {
+        key: (value.to(dtype) if dtype is not None and value.is_floating_point() else value)
+        .detach().cpu().contiguous()
+        for key, value in net.state_dict().items()
+    }
+    metadata = {
+        "format": FORMAT,
+        "model": net.spec.name,
+        "width": repr(float(net.width)),
+        "peepholes": json.dumps(net.shape.peepholes),
+        "residual": json.dumps(net.shape.residual),
+        "extra": json.dumps(extra or {}, sort_keys=True),
+    }
+    with atomic_path(path) as tmp:
+        save_file(tensors, str(tmp), metadata=metadata)
+
+
+def read_metadata(path: str | Path) -> dict[str, Any]:
+    """The architecture and ``extra`` stored in a checkpoint, with clear errors for bad files."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "checkpoint not found")
+    try:
+        from safetensors import safe_open
+
+        with safe_open(str(path), framework="pt") as handle:
+            metadata = handle.metadata() or {}
+    except (SafetensorError, OSError, ValueError) as error:
+        raise InputFileError(path, f"not a readable safetensors checkpoint ({error})") from None
+    if metadata.get("format") != FORMAT:
+        raise InputFileError(path, "not a dualpixel model checkpoint (no architecture metadata)")
+    return {
+        "model": metadata["model"],
+        "width": float(metadata["width"]),
+        "peepholes": json.loads(metadata["peepholes"]),
+        "residual": json.loads(metadata.get("residual", "false")),
+        "extra": json.loads(metadata.get("extra", "{}")),
+    }
+
+
+def load_weights(model: torch.nn.Module, path: str | Path) -> None:
+    """Load a checkpoint into an existing model, refusing one written for another architecture."""
+    path = Path(path)
+    meta = read_metadata(path)
+    net = _unwrap(model)
+    mine = {"model": net.spec.name, "width": float(net.width),
+            "peepholes": net.shape.peepholes, "residual": net.shape.residual}
+    theirs = {key: meta[key] for key in mine}
+    if mine != theirs:
+        raise InputFileError(path, f"checkpoint is for {theirs}, but the model is {mine}")
+    tensors = load_file(str(path))
+    state = net.state_dict()
+    for key, value in tensors.items():
+        if key in state:
+            tensors[key] = value.to(state[key].dtype)
+    try:
+        net.load_state_dict(tensors)
+    except RuntimeError as error:
+        raise InputFileError(path, f"weights do not fit the model: {error}") from None
+
+
+def load_model(path: str | Path, *, device: str | torch.device = "cpu") -> DeblurNet:
+    """Rebuild the network a checkpoint describes, load its weights, and put it in eval mode."""
+    meta = read_metadata(path)
+    model_spec(meta["model"])
+    model = build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
+                        residual=meta["residual"])
+    load_weights(model, path)
+    return model.to(device).eval()

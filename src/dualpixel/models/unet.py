@@ -1,0 +1,182 @@
+"""The encoder-decoder shared by RDPD and DPDNet (paper Sec. 4, Fig. 6; Abuolaim & Brown 2020).
+
+Encoder: per level two 3x3 conv + ReLU, then 2x2 max-pool. Bottleneck: RDPD has one 3x3 conv and
+the ConvLSTM (Eq. 8-12); DPDNet two 3x3 convs and dropout. Decoder: per level 2x upsampling, a 2x2
+conv + ReLU (Keras ``padding="same"``: one extra row and column at the bottom and right), skip
+concatenation and two 3x3 conv + ReLU. Head: a 3-channel 3x3 conv + ReLU and a 1x1 conv, clamped to
+[0, 1] (RDPD, "linear layer with clamping") or through a sigmoid (DPDNet). He-normal initialisation.
+
+Option (ours, off by default): ``residual=True`` adds the blurred input (the mean of the views) to
+the head's output before clamping, with the last layer initialised to zero so training starts from
+the identity. It adds no parameters and makes short CPU training converge much faster.
+
+Any input size: the input is reflect-padded to a multiple of 16 and the output cropped back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from dualpixel.models.convlstm import ConvLSTMCell, LSTMState
+
+__all__ = ["DeblurNet", "NetworkShape", "pad_to_multiple"]
+
+#: Spatial size the network needs: four 2x2 poolings.
+SIZE_MULTIPLE = 16
+
+
+@dataclass(frozen=True)
+class NetworkShape:
+    """Layer widths and head of one network (see ``dualpixel.models.registry`` for the presets)."""
+
+    in_channels: int
+    encoder: tuple[int, ...]
+    bottleneck: int
+    recurrent: bool
+    output: str  # "clamp" or "sigmoid"
+    encoder_dropout: float = 0.0  # after the last encoder level and the bottleneck (DPDNet)
+    lstm_dropout: float = 0.4
+    peepholes: bool = True
+    residual: bool = False  # output = input image + network output (not in the paper)
+
+
+def _conv_relu(cin: int, cout: int, kernel: int = 3) -> list[nn.Module]:
+    return [nn.Conv2d(cin, cout, kernel, padding=kernel // 2), nn.ReLU(inplace=True)]
+
+
+def _double_conv(cin: int, cout: int) -> nn.Sequential:
+    return nn.Sequential(*_conv_relu(cin, cout), *_conv_relu(cout, cout))
+
+
+class _UpConv(nn.Module):
+    """2x nearest upsampling and a 2x2 conv with Keras "same" padding (pad right and bottom)."""
+
+    def __init__(self, cin: int, cout: int) -> None:
+        super().__init__()
+        self.conv = nn.Conv2d(cin, cout, 2)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = F.interpolate(x, scale_factor=2.0, mode="nearest")
+        return F.relu(self.conv(F.pad(x, (0, 1, 0, 1))))
+
+
+def pad_to_multiple(
+    x: torch.Tensor, multiple: int = SIZE_MULTIPLE
+) -> tuple[torch.Tensor, int, int]:
+    """Reflect-pad ``(..., H, W)`` at the bottom and right to multiples of ``multiple``."""
+    height, width = x.shape[-2:]
+    pad_h, pad_w = -height % multiple, -width % multiple
+    if pad_h or pad_w:
+        mode = "reflect" if pad_h < height and pad_w < width else "replicate"
+        x = F.pad(x, (0, pad_w, 0, pad_h), mode=mode)
+    return x, height, width
+
+
+class DeblurNet(nn.Module):
+    """U-Net deblurring network, recurrent (ConvLSTM bottleneck) or not.
+
+    ``step`` runs one frame ``(B, C, H, W)`` with an optional recurrent state; ``forward`` runs a
+    sequence ``(B, T, C, H, W)`` frame by frame, carrying the state, and returns
+    ``(B, T, 3, H, W)`` with the final state (``None`` for a non-recurrent network).
+    """
+
+    def __init__(self, shape: NetworkShape) -> None:
+        super().__init__()
+        self.shape = shape
+        widths = shape.encoder
+        self.encoders = nn.ModuleList()
+        cin = shape.in_channels
+        for width in widths:
+            self.encoders.append(_double_conv(cin, width))
+            cin = width
+        self.encoder_dropout = nn.Dropout(shape.encoder_dropout)
+        if shape.recurrent:
+            self.bottleneck = nn.Sequential(*_conv_relu(cin, shape.bottleneck))
+            self.lstm: ConvLSTMCell | None = ConvLSTMCell(
+                shape.bottleneck,
+                shape.bottleneck,
+                dropout=shape.lstm_dropout,
+                peepholes=shape.peepholes,
+            )
+        else:
+            self.bottleneck = nn.Sequential(
+                _double_conv(cin, shape.bottleneck), nn.Dropout(shape.encoder_dropout)
+            )
+            self.lstm = None
+        self.upconvs = nn.ModuleList()
+        self.decoders = nn.ModuleList()
+        cin = shape.bottleneck
+        for width in reversed(widths):
+            self.upconvs.append(_UpConv(cin, width))
+            self.decoders.append(_double_conv(2 * width, width))
+            cin = width
+        self.head = nn.Sequential(*_conv_relu(cin, 3), nn.Conv2d(3, 3, 1))
+        if shape.residual and shape.output != "clamp":
+            raise ValueError("a residual network needs the clamped linear output")
+        self._init_weights()
+        if shape.residual:  # start as the identity: output = blurred input
+            nn.init.zeros_(self.head[-1].weight)
+
+    def _init_weights(self) -> None:
+        for module in self.modules():
+            lstm_input = getattr(self.lstm, "input_conv", None)
+            if isinstance(module, nn.Conv2d) and module is not lstm_input:
+                nn.init.kaiming_normal_(module.weight, nonlinearity="relu")
+                if module.bias is not None:
+                    nn.init.zeros_(module.bias)
+        if self.lstm is not None:
+            nn.init.kaiming_normal_(self.lstm.input_conv.weight, nonlinearity="relu")
+
+    @property
+    def recurrent(self) -> bool:
+        return self.lstm is not None
+
+    def step(
+        self, x: torch.Tensor, state: LSTMState | None = None
+    ) -> tuple[torch.Tensor, LSTMState | None]:
+        """Deblur one frame ``(B, C_in, H, W)``; returns ``(B, 3, H, W)`` and the next state."""
+        if x.ndim != 4 or x.shape[1] != self.shape.in_channels:
+            raise ValueError(
+                f"expected input (B, {self.shape.in_channels}, H, W), got {tuple(x.shape)}"
+            )
+        # The blurred image the residual is added to: the mean of the views (first 3 or 6 channels).
+        base = x[:, :3] if self.shape.in_channels in (3, 4) else (x[:, :3] + x[:, 3:6]) / 2
+        x, height, width = pad_to_multiple(x)
+        skips = []
+        for index, encoder in enumerate(self.encoders):
+            x = encoder(x)
+            if index == len(self.encoders) - 1:
+                x = self.encoder_dropout(x)
+            skips.append(x)
+            x = F.max_pool2d(x, 2)
+        x = self.bottleneck(x)
+        if self.lstm is not None:
+            state = self.lstm(x, state)
+            x = state[0]
+        for upconv, decoder, skip in zip(self.upconvs, self.decoders, reversed(skips)):
+            x = decoder(torch.cat([skip, upconv(x)], dim=1))
+        x = self.head(x)[..., :height, :width]
+        if self.shape.residual:
+            x = x + base
+        x = x.clamp(0.0, 1.0) if self.shape.output == "clamp" else torch.sigmoid(x)
+        return x, state if self.lstm is not None else None
+
+    def forward(
+        self, frames: torch.Tensor, state: LSTMState | None = None
+    ) -> tuple[torch.Tensor, LSTMState | None]:
+        """Deblur a sequence ``(B, T, C_in, H, W)`` frame by frame, carrying the ConvLSTM state."""
+        if frames.ndim != 5:
+            raise ValueError(f"expected frames (B, T, C, H, W), got {tuple(frames.shape)}")
+        batch, length = frames.shape[:2]
+        if self.lstm is None:  # no state: all frames at once
+            out, _ = self.step(frames.flatten(0, 1))
+            return out.unflatten(0, (batch, length)), None
+        outputs = []
+        for t in range(length):
+            out, state = self.step(frames[:, t], state)
+            outputs.append(out)
+        return torch.stack(outputs, dim=1), state

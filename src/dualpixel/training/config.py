@@ -1,0 +1,143 @@
+"""Training configuration (paper Sec. 5 defaults), read from YAML or JSON with overrides.
+
+Every run saves the resolved configuration as ``config.yaml`` in its output folder. Unknown keys
+and values of the wrong type are refused with the key named.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.atomic import atomic_path
+from dualpixel.models.registry import model_spec
+
+__all__ = ["TrainConfig", "load_config", "save_config"]
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run depends on. Defaults are the paper's (Sec. 5)."""
+
+    # Network.
+    model: str = "rdpd"
+    width: float = 1.0
+    peepholes: bool = True
+    lstm_dropout: float = 0.4
+    residual: bool = False  # ours, not the paper's: output = blurred input + network output
+    # Data (DPDD layout). Real data: single images; synthetic data: seq_NNN sequences.
+    real_data: str | None = None
+    real_split: str = "train"
+    synthetic_data: str | None = None
+    synthetic_split: str = "train"
+    synthetic_as_frames: bool = False  # sRDPD+: synthetic frames as single images
+    val_data: str | None = None
+    val_split: str = "test"
+    val_limit: int | None = None  # validate on the first N sequences only
+    patch_size: int = 512
+    real_batch: int = 8
+    sequence_batch: int = 2
+    sequence_frames: int = 4
+    min_sharpness: float = 0.0
+    flips: bool = True
+    cache: bool = False  # keep decoded images in memory
+    # Optimisation.
+    epochs: int = 140
+    iterations_per_epoch: int | None = None  # default: one pass over the larger dataset
+    learning_rate: float = 5e-5
+    lr_halve_every: int = 40
+    edge_sizes: list[int] = field(default_factory=lambda: [3, 7, 11])
+    lambda_x: float = 0.03
+    lambda_y: float = 0.02
+    # Running.
+    seed: int = 0
+    workers: int = 2
+    threads: int | None = None  # torch CPU threads (None: torch's default)
+    device: str = "auto"  # auto: cuda when available, else cpu
+    amp: bool = True  # bfloat16 autocast, CUDA only
+    channels_last: bool = True  # CUDA only
+    tensorboard: bool = True
+    log_images: int = 2
+
+    def __post_init__(self) -> None:
+        model_spec(self.model)
+        if self.real_data is None and self.synthetic_data is None:
+            raise ParameterError("give real_data, synthetic_data or both")
+        positive = ("patch_size", "real_batch", "sequence_batch", "sequence_frames", "epochs",
+                    "lr_halve_every")
+        for name in positive:
+            if getattr(self, name) < 1:
+                raise ParameterError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.learning_rate <= 0:
+            raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
+        if any(s % 2 == 0 or s < 3 for s in self.edge_sizes):
+            raise ParameterError(f"edge_sizes must be odd and >= 3, got {self.edge_sizes}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def _coerce(name: str, annotation: Any, value: Any) -> Any:
+    """Check (and for strings from the command line, parse) one value against its annotation."""
+    hint = typing.get_type_hints(TrainConfig)[name]
+    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+    if isinstance(value, str) and str not in options:
+        value = yaml.safe_load(value)
+    if value is None and type(None) in options:
+        return None
+    for option in options:
+        origin = typing.get_origin(option) or option
+        if origin is float and isinstance(value, int | float) and not isinstance(value, bool):
+            return float(value)
+        if origin is list and isinstance(value, list | tuple):
+            return [int(v) for v in value]
+        if origin is not type(None) and isinstance(value, origin) and not (
+            origin is int and isinstance(value, bool)
+        ):
+            return value
+    raise ParameterError(f"config key {name!r}: {value!r} is not a {hint}")
+
+
+def load_config(
+    path: str | Path | None = None, overrides: dict[str, Any] | None = None
+) -> TrainConfig:
+    """Read a YAML/JSON config file (optional) and apply ``overrides`` (key -> value or string)."""
+    values: dict[str, Any] = {}
+    if path is not None:
+        path = Path(path)
+        if not path.is_file():
+            raise InputFileError(path, "config file not found")
+        try:
+            loaded = yaml.safe_load(path.read_text()) or {}
+        except yaml.YAMLError as error:
+            raise InputFileError(path, f"not valid YAML/JSON: {error}") from None
+        if not isinstance(loaded, dict):
+            raise InputFileError(path, "expected a mapping of config keys")
+        values.update(loaded)
+    values.update(overrides or {})
+    known = {f.name: f for f in dataclasses.fields(TrainConfig)}
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        where = f" in {path}" if path is not None else ""
+        raise ParameterError(
+            f"unknown config key(s){where}: {', '.join(unknown)}; known: {', '.join(known)}"
+        )
+    return TrainConfig(**{k: _coerce(k, known[k].type, v) for k, v in values.items()})
+
+
+def save_config(config: TrainConfig, path: str | Path) -> None:
+    """Write the resolved configuration as YAML, atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
+
+
+def config_json(config: TrainConfig) -> str:
+    return json.dumps(config.to_dict(), sort_keys=True)

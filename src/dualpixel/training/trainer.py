@@ -1,0 +1,328 @@
+"""The training loop of Sec. 5: alternating real-image and synthetic-sequence iterations.
+
+Iteration ``i`` of an epoch draws from data kind ``i % K`` (K = 1 or 2: real single images with
+mini-batch 8, synthetic sequences with 2 sequences of 4 frames; ``synthetic_as_frames`` gives the
+sRDPD+ setting). Adam with the learning rate halved every ``lr_halve_every`` epochs.
+
+A run folder holds ``config.yaml``, ``last.safetensors`` + ``last_state.pt`` (optimiser, schedule,
+RNG states; written atomically after every epoch), ``best.safetensors`` (highest validation PSNR),
+``history.jsonl`` (one line per epoch) and ``tensorboard/``. ``resume=True`` continues after the
+last finished epoch and gives the weights an uninterrupted run would have. Batches are drawn from
+seeds derived from ``(seed, epoch, kind)``, so runs are reproducible whatever the number of workers.
+
+Multi-GPU: launch with ``torchrun --nproc-per-node N -m dualpixel train ...``; each
+process takes its share of every global batch and ``DistributedDataParallel`` averages gradients.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import random
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import torch.distributed as dist
+from torch.nn.parallel import DistributedDataParallel
+from torch.utils.data import DataLoader
+from tqdm import tqdm
+
+from dualpixel.data.dataset import DPPatchDataset, PatchConfig
+from dualpixel.data.layout import DPSequence, discover_dp_dataset
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.evaluation.metrics import psnr
+from dualpixel.io.atomic import atomic_path
+from dualpixel.models.checkpoint import load_weights, read_metadata, save_model
+from dualpixel.models.registry import build_model
+from dualpixel.models.unet import DeblurNet
+from dualpixel.training.config import TrainConfig, load_config, save_config
+from dualpixel.training.losses import DeblurLoss
+
+__all__ = ["DataKind", "TrainResult", "resolve_device", "train"]
+
+
+def resolve_device(name: str) -> torch.device:
+    """``auto`` -> CUDA when available, else CPU; otherwise the named device."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+@dataclass
+class DataKind:
+    """One source of training batches."""
+
+    name: str
+    dataset: DPPatchDataset
+    batch: int
+
+
+@dataclass
+class TrainResult:
+    """Where a run's files are and how it ended."""
+
+    output: Path
+    epochs: int
+    step: int
+    best_psnr: float | None
+    history: list[dict[str, Any]]
+
+
+def _data_kinds(config: TrainConfig) -> list[DataKind]:
+    kinds = []
+    common = dict(patch_size=config.patch_size, flips=config.flips,
+                  min_sharpness=config.min_sharpness)
+    if config.real_data is not None:
+        sequences = discover_dp_dataset(config.real_data, config.real_split)
+        kinds.append(DataKind(
+            "real", DPPatchDataset(sequences, PatchConfig(frames=1, **common), cache=config.cache),
+            config.real_batch,
+        ))
+    if config.synthetic_data is not None:
+        sequences = discover_dp_dataset(config.synthetic_data, config.synthetic_split)
+        frames = 1 if config.synthetic_as_frames else config.sequence_frames
+        as_frames = config.synthetic_as_frames
+        batch = config.sequence_batch * (config.sequence_frames if as_frames else 1)
+        kinds.append(DataKind(
+            "synthetic",
+            DPPatchDataset(sequences, PatchConfig(frames=frames, **common), cache=config.cache),
+            batch,
+        ))
+    return kinds
+
+
+def _epoch_batches(
+    config: TrainConfig, kind_index: int, kind: DataKind, epoch: int, count: int,
+    rank: int, world: int,
+) -> list[list[tuple[int, int]]]:
+    """``count`` batches of ``(index, seed)`` for this process, fixed by (seed, epoch, kind)."""
+    rng = np.random.default_rng([config.seed, epoch, kind_index])
+    batches = []
+    for _ in range(count):
+        indices = rng.integers(len(kind.dataset), size=kind.batch)
+        seeds = rng.integers(2**62, size=kind.batch)
+        pairs = [(int(i), int(s)) for i, s in zip(indices, seeds)]
+        batches.append(pairs[rank::world] or pairs[:1])
+    return batches
+
+
+def _iterations_per_epoch(config: TrainConfig, kinds: list[DataKind]) -> int:
+    if config.iterations_per_epoch is not None:
+        return config.iterations_per_epoch
+    return len(kinds) * max(math.ceil(len(k.dataset) / k.batch) for k in kinds)
+
+
+def validate(
+    model: DeblurNet, sequences: list[DPSequence], device: torch.device
+) -> tuple[float, dict[str, torch.Tensor] | None]:
+    """Mean PSNR over whole frames of ``sequences`` (state carried through each sequence)."""
+    # Imported here: inference imports the training-free model code only.
+    from dualpixel.inference.deblur import deblur_sequence, load_sequence_frames
+
+    was_training = model.training
+    model.eval()
+    scores, sample = [], None
+    for sequence in sequences:
+        frames = load_sequence_frames(sequence)
+        outputs = deblur_sequence(model, frames, device=device)
+        for frame, output in zip(frames, outputs):
+            scores.append(psnr(output, frame["target"]))
+        if sample is None:
+            sample = {
+                "input": torch.from_numpy(frames[0]["left"]).permute(2, 0, 1),
+                "output": torch.from_numpy(outputs[0]).permute(2, 0, 1),
+                "target": torch.from_numpy(frames[0]["target"]).permute(2, 0, 1),
+            }
+    model.train(was_training)
+    return float(np.mean(scores)), sample
+
+
+def _rng_state() -> dict[str, Any]:
+    state = {"torch": torch.get_rng_state(), "python": random.getstate()}
+    if torch.cuda.is_available():
+        state["cuda"] = torch.cuda.get_rng_state_all()
+    return state
+
+
+def _set_rng_state(state: dict[str, Any]) -> None:
+    torch.set_rng_state(state["torch"])
+    random.setstate(state["python"])
+    if "cuda" in state and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(state["cuda"])
+
+
+def _check_resumable(output: Path, config: TrainConfig) -> None:
+    saved = load_config(output / "config.yaml")
+    mine, theirs = config.to_dict(), saved.to_dict()
+    for key in ("epochs", "workers", "threads", "device", "tensorboard"):  # may change on resume
+        mine.pop(key), theirs.pop(key)
+    changed = sorted(k for k in mine if mine[k] != theirs[k])
+    if changed:
+        raise ParameterError(
+            f"cannot resume {output}: config differs from the saved run in {', '.join(changed)}"
+        )
+
+
+def _setup_distributed(config: TrainConfig) -> tuple[int, int, torch.device]:
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    device = resolve_device(config.device)
+    if world == 1:
+        return 0, 1, device
+    if not dist.is_initialized():
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
+    if device.type == "cuda":
+        device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
+        torch.cuda.set_device(device)
+    return dist.get_rank(), dist.get_world_size(), device
+
+
+def train(
+    config: TrainConfig, output: str | Path, *, resume: bool = False, progress: bool = True
+) -> TrainResult:
+    """Train ``config.model`` and write the run folder ``output`` (see the module docstring)."""
+    output = Path(output)
+    rank, world, device = _setup_distributed(config)
+    main = rank == 0
+    if config.threads is not None:
+        torch.set_num_threads(config.threads)
+    has_run = (output / "last_state.pt").is_file()
+    if has_run and not resume:
+        raise ParameterError(f"{output} already holds a training run; pass --resume to continue it")
+    if resume and not has_run:
+        raise InputFileError(output / "last_state.pt", "nothing to resume (no finished epoch)")
+    if resume:
+        _check_resumable(output, config)
+
+    torch.manual_seed(config.seed)
+    random.seed(config.seed)
+    kinds = _data_kinds(config)
+    val_sequences = None
+    if config.val_data is not None:
+        val_sequences = discover_dp_dataset(config.val_data, config.val_split)[: config.val_limit]
+
+    model = build_model(config.model, width=config.width, peepholes=config.peepholes,
+                        lstm_dropout=config.lstm_dropout, residual=config.residual).to(device)
+    use_cuda = device.type == "cuda"
+    if use_cuda and config.channels_last:
+        model = model.to(memory_format=torch.channels_last)
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+    scheduler = torch.optim.lr_scheduler.StepLR(optimizer, config.lr_halve_every, gamma=0.5)
+    criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x, config.lambda_y).to(device)
+
+    start_epoch, step, best = 0, 0, None
+    history: list[dict[str, Any]] = []
+    if resume:
+        state = torch.load(output / "last_state.pt", map_location="cpu", weights_only=False)
+        saved_epoch = read_metadata(output / "last.safetensors")["extra"].get("epoch")
+        if saved_epoch != state["epoch"] + 1:
+            raise InputFileError(output / "last.safetensors",
+                                 f"weights are from epoch {saved_epoch}, the optimiser state from "
+                                 f"epoch {state['epoch'] + 1} (interrupted while saving)")
+        load_weights(model, output / "last.safetensors")
+        optimizer.load_state_dict(state["optimizer"])
+        scheduler.load_state_dict(state["scheduler"])
+        start_epoch, step, best = state["epoch"] + 1, state["step"], state["best_psnr"]
+        history = state["history"]
+        _set_rng_state(state["rng"])
+    elif main:
+        output.mkdir(parents=True, exist_ok=True)
+        save_config(config, output / "config.yaml")
+
+    net = model
+    if world > 1:
+        model = DistributedDataParallel(model, device_ids=[device.index] if use_cuda else None)
+    writer = _summary_writer(output, config) if main else None
+    iterations = _iterations_per_epoch(config, kinds)
+
+    for epoch in range(start_epoch, config.epochs):
+        model.train()
+        loaders = []
+        for index, kind in enumerate(kinds):
+            count = len(range(index, iterations, len(kinds)))
+            batches = _epoch_batches(config, index, kind, epoch, count, rank, world)
+            loaders.append(iter(DataLoader(
+                kind.dataset, batch_sampler=batches, num_workers=config.workers,
+                pin_memory=use_cuda, persistent_workers=False,
+            )))
+        totals: dict[str, float] = {}
+        started = time.perf_counter()
+        bar = tqdm(range(iterations), desc=f"epoch {epoch + 1}/{config.epochs}",
+                   disable=not (progress and main), leave=False)
+        for iteration in bar:
+            kind = kinds[iteration % len(kinds)]
+            item = {k: v.to(device, non_blocking=True)
+                    for k, v in next(loaders[iteration % len(kinds)]).items()}
+            frames = net.spec.make_input(item["left"], item["right"], item["radial"])
+            with torch.autocast("cuda", dtype=torch.bfloat16, enabled=use_cuda and config.amp):
+                prediction, _ = model(frames)
+            loss, parts = criterion(prediction.float(), item["target"])
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            step += 1
+            values = {"loss": float(loss.detach()), **{k: float(v) for k, v in parts.items()}}
+            for key, value in values.items():
+                totals[key] = totals.get(key, 0.0) + value
+            bar.set_postfix(loss=f"{values['loss']:.4g}", kind=kind.name)
+            if writer is not None:
+                for key, value in values.items():
+                    writer.add_scalar(f"train/{key}", value, step)
+                writer.add_scalar("train/learning_rate", optimizer.param_groups[0]["lr"], step)
+        record: dict[str, Any] = {
+            "epoch": epoch + 1, "step": step, "learning_rate": optimizer.param_groups[0]["lr"],
+            **{k: v / iterations for k, v in totals.items()},
+            "seconds": round(time.perf_counter() - started, 3),
+        }
+        scheduler.step()
+        if main:
+            if val_sequences:
+                record["val_psnr"], sample = validate(net, val_sequences, device)
+                if writer is not None:
+                    writer.add_scalar("val/psnr", record["val_psnr"], step)
+                    if sample is not None and config.log_images:
+                        for key, image in sample.items():
+                            writer.add_image(f"val/{key}", image, step)
+                if best is None or record["val_psnr"] > best:
+                    best = record["val_psnr"]
+                    save_model(output / "best.safetensors", net,
+                               extra={"epoch": epoch + 1, "step": step, "val_psnr": best})
+            history.append(record)
+            _save_state(output, net, optimizer, scheduler, epoch, step, best, history, config)
+            if writer is not None:
+                writer.flush()
+            tqdm.write(json.dumps(record)) if progress else None
+        if world > 1:
+            dist.barrier()
+    if writer is not None:
+        writer.close()
+    return TrainResult(output, config.epochs, step, best, history)
+
+
+def _save_state(output: Path, net: DeblurNet, optimizer, scheduler, epoch: int, step: int,
+                best: float | None, history: list[dict[str, Any]], config: TrainConfig) -> None:
+    """Weights, then optimiser/schedule/RNG state; the state file marks the epoch finished."""
+    save_model(output / "last.safetensors", net,
+               extra={"epoch": epoch + 1, "step": step, "config": config.to_dict()})
+    with atomic_path(output / "history.jsonl") as tmp:
+        tmp.write_text("".join(json.dumps(r) + "\n" for r in history))
+    state = {"optimizer": optimizer.state_dict(), "scheduler": scheduler.state_dict(),
+             "epoch": epoch, "step": step, "best_psnr": best, "history": history,
+             "rng": _rng_state()}
+    with atomic_path(output / "last_state.pt") as tmp:
+        torch.save(state, tmp)
+
+
+def _summary_writer(output: Path, config: TrainConfig):
+    if not config.tensorboard:
+        return None
+    try:
+        from torch.utils.tensorboard import SummaryWriter
+    except ImportError:  # tensorboard is an optional extra
+        tqdm.write("tensorboard is not installed; pip install 'dualpixel[train]' for logs")
+        return None
+    return SummaryWriter(str(output / "tensorboard"))

@@ -1,0 +1,122 @@
+import pytest
+import torch
+
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.models import (
+    MODELS,
+    ConvLSTMCell,
+    build_model,
+    count_parameters,
+    load_model,
+    save_model,
+)
+
+TINY = 0.125
+
+
+def test_parameter_counts_match_the_published_models():
+    # The authors' Keras RDPD (ConvLSTM2D has no peepholes) and DPDNet (ECCV 2020).
+    assert count_parameters(build_model("rdpd", peepholes=False)) == 24_278_703
+    assert count_parameters(build_model("dpdnet")) == 31_035_151
+    # Peepholes add one weight per channel for three gates.
+    assert count_parameters(build_model("rdpd")) == 24_278_703 + 3 * 512
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+@pytest.mark.parametrize("size", [(37, 53), (16, 16), (21, 8)])
+def test_output_has_the_input_size(name, size):
+    model = build_model(name, width=TINY).eval()
+    spec = MODELS[name]
+    x = torch.rand(2, 3, spec.in_channels, *size)
+    with torch.no_grad():
+        y, state = model(x)
+    assert y.shape == (2, 3, 3, *size)
+    assert y.min() >= 0 and y.max() <= 1
+    assert (state is not None) == spec.recurrent
+
+
+def test_recurrent_model_is_causal_and_carries_state():
+    torch.manual_seed(0)
+    model = build_model("rdpd", width=TINY).eval()
+    for p in model.lstm.parameters():  # make the recurrence matter
+        p.data.normal_(0, 0.3)
+    seq = torch.rand(1, 3, 7, 24, 40)
+    with torch.no_grad():
+        full, final = model(seq)
+        first, _ = model(seq[:, :1])
+        # One frame alone equals the first frame of the longer sequence.
+        torch.testing.assert_close(first[:, 0], full[:, 0])
+        # Frame by frame with the carried state equals the whole sequence.
+        state = None
+        for t in range(3):
+            out, state = model.step(seq[:, t], state)
+            torch.testing.assert_close(out, full[:, t])
+        torch.testing.assert_close(state[0], final[0])
+        # Without the state the later frames differ: the state is used.
+        fresh, _ = model.step(seq[:, 2], None)
+    assert (fresh - full[:, 2]).abs().max() > 1e-4
+
+
+def test_convlstm_peepholes_switch():
+    with_p = ConvLSTMCell(4, 6, peepholes=True)
+    without = ConvLSTMCell(4, 6, peepholes=False)
+    assert count_parameters(with_p) - count_parameters(without) == 3 * 6
+    # Keras ConvLSTM2D: 4 * (k*k*(cin + cout)*cout + cout)
+    assert count_parameters(without) == 4 * (9 * (4 + 6) * 6 + 6)
+
+
+def test_dropout_only_in_training():
+    model = build_model("rdpd", width=TINY)
+    x = torch.rand(1, 1, 7, 16, 16)
+    model.eval()
+    with torch.no_grad():
+        a, _ = model(x)
+        b, _ = model(x)
+    torch.testing.assert_close(a, b)
+
+
+def test_unknown_model_and_bad_width():
+    with pytest.raises(ParameterError, match="unknown model"):
+        build_model("unet3000")
+    with pytest.raises(ParameterError, match="width"):
+        build_model("rdpd", width=0)
+
+
+def test_checkpoint_round_trip_and_refusals(tmp_path):
+    model = build_model("rdpd", width=0.3).eval()
+    path = tmp_path / "m.safetensors"
+    save_model(path, model, extra={"note": "x"})
+    loaded = load_model(path)
+    x = torch.rand(1, 1, 7, 32, 32)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(x)[0], model(x)[0])
+    # Half precision storage loads as float32 and stays close.
+    half = tmp_path / "half.safetensors"
+    save_model(half, model, dtype=torch.float16)
+    with torch.no_grad():
+        assert (load_model(half)(x)[0] - model(x)[0]).abs().max() < 1e-2
+    assert next(load_model(half).parameters()).dtype == torch.float32
+
+    from dualpixel.models import load_weights
+
+    other = build_model("dpdnet", width=TINY)
+    with pytest.raises(InputFileError, match="checkpoint is for"):
+        load_weights(other, path)
+    with pytest.raises(InputFileError, match="not found"):
+        load_model(tmp_path / "missing.safetensors")
+    bad = tmp_path / "bad.safetensors"
+    bad.write_bytes(b"not a checkpoint")
+    with pytest.raises(InputFileError, match=r"bad\.safetensors"):
+        load_model(bad)
+
+
+def test_residual_option_starts_at_the_blurred_input(tmp_path):
+    model = build_model("rdpd", width=TINY, residual=True).eval()
+    x = torch.rand(1, 2, 7, 20, 30)
+    with torch.no_grad():
+        y, _ = model(x)
+    torch.testing.assert_close(y, (x[:, :, :3] + x[:, :, 3:6]) / 2)
+    save_model(tmp_path / "r.safetensors", model)
+    assert load_model(tmp_path / "r.safetensors").shape.residual
+    with pytest.raises(ParameterError, match="sigmoid"):
+        build_model("dpdnet", residual=True)

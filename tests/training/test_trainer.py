@@ -1,0 +1,144 @@
+import json
+
+import pytest
+import torch
+import yaml
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.models import build_model, load_model
+from dualpixel.training import DeblurLoss, load_config, train
+from tests.conftest import write_dpdd_pairs
+
+
+def tiny_config(data, **overrides):
+    values = dict(model="rdpd", width=0.125, synthetic_data=str(data), patch_size=32,
+                  sequence_batch=2, sequence_frames=2, epochs=2, iterations_per_epoch=3,
+                  workers=0, learning_rate=1e-3, tensorboard=False)
+    values.update(overrides)
+    return load_config(None, values)
+
+
+def test_tiny_model_overfits_a_tiny_batch(tiny_synthetic_dataset):
+    from dualpixel.data import DPPatchDataset, PatchConfig, discover_dp_dataset
+
+    torch.manual_seed(0)
+    data = DPPatchDataset(discover_dp_dataset(tiny_synthetic_dataset, "train"),
+                          PatchConfig(patch_size=32, frames=2, flips=False))
+    items = [data[(i, i)] for i in range(2)]
+    batch = {k: torch.stack([it[k] for it in items]) for k in items[0]}
+    model = build_model("rdpd", width=0.25, lstm_dropout=0.0)
+    frames = model.spec.make_input(batch["left"], batch["right"], batch["radial"])
+    optimizer = torch.optim.Adam(model.parameters(), lr=2e-3)
+    criterion = DeblurLoss()
+    losses = []
+    for _ in range(120):
+        loss, _ = criterion(model(frames)[0], batch["target"])
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        losses.append(float(loss.detach()))
+    assert min(losses[-10:]) < losses[0] / 10
+
+
+def test_resume_continues_exactly(tiny_synthetic_dataset, tmp_path):
+    config = tiny_config(tiny_synthetic_dataset, lr_halve_every=1, val_data=str(
+        tiny_synthetic_dataset), val_split="train", val_limit=1)
+    straight = train(config, tmp_path / "straight", progress=False)
+    first = train(tiny_config(tiny_synthetic_dataset, lr_halve_every=1, epochs=1,
+                              val_data=str(tiny_synthetic_dataset), val_split="train",
+                              val_limit=1), tmp_path / "resumed", progress=False)
+    assert first.step == 3
+    resumed = train(config, tmp_path / "resumed", resume=True, progress=False)
+    assert resumed.step == straight.step == 6
+    # Same learning rate schedule and the same weights as the uninterrupted run.
+    assert [r["learning_rate"] for r in resumed.history] == [1e-3, 5e-4]
+    assert resumed.history == [
+        {**r, "seconds": s["seconds"]} for r, s in zip(straight.history, resumed.history)
+    ]
+    a = load_model(tmp_path / "straight" / "last.safetensors").state_dict()
+    b = load_model(tmp_path / "resumed" / "last.safetensors").state_dict()
+    for key in a:
+        torch.testing.assert_close(a[key], b[key], rtol=0, atol=0)
+    assert (tmp_path / "resumed" / "best.safetensors").is_file()
+    lines = (tmp_path / "resumed" / "history.jsonl").read_text().splitlines()
+    assert [json.loads(line)["epoch"] for line in lines] == [1, 2]
+
+
+def test_refusals(tiny_synthetic_dataset, tmp_path):
+    train(tiny_config(tiny_synthetic_dataset, epochs=1), tmp_path / "run", progress=False)
+    with pytest.raises(ParameterError, match="--resume"):
+        train(tiny_config(tiny_synthetic_dataset, epochs=1), tmp_path / "run", progress=False)
+    with pytest.raises(ParameterError, match="differs from the saved run in learning_rate"):
+        train(tiny_config(tiny_synthetic_dataset, learning_rate=1.0), tmp_path / "run",
+              resume=True, progress=False)
+    with pytest.raises(InputFileError, match="nothing to resume"):
+        train(tiny_config(tiny_synthetic_dataset), tmp_path / "new", resume=True, progress=False)
+    with pytest.raises(ParameterError, match=r"unknown config key.*learnin_rate"):
+        load_config(None, {"learnin_rate": 1})
+    with pytest.raises(ParameterError, match="epochs"):
+        load_config(None, {"epochs": "many", "synthetic_data": "x"})
+    with pytest.raises(ParameterError, match="real_data, synthetic_data"):
+        load_config(None, {})
+
+
+def test_alternates_real_and_synthetic(tiny_synthetic_dataset, tmp_path):
+    real = tmp_path / "real"
+    write_dpdd_pairs(real, "train", ["a", "b", "c"], size=(40, 48))
+    config = tiny_config(tiny_synthetic_dataset, real_data=str(real), real_batch=2, epochs=1,
+                         iterations_per_epoch=None)
+    result = train(config, tmp_path / "mixed", progress=False)
+    # default epoch: both kinds, one pass over the larger (4 sequences / batch 2, 3 pairs / 2)
+    assert result.step == 4
+
+
+def test_train_command_end_to_end(tiny_synthetic_dataset, tmp_path):
+    config_file = tmp_path / "c.yaml"
+    config_file.write_text(yaml.safe_dump({
+        "model": "rdpd", "width": 0.125, "synthetic_data": str(tiny_synthetic_dataset),
+        "val_data": str(tiny_synthetic_dataset), "val_split": "train", "val_limit": 1,
+        "patch_size": 32, "sequence_frames": 2, "epochs": 1, "iterations_per_epoch": 2,
+        "workers": 1,
+    }))
+    out = tmp_path / "run"
+    result = CliRunner().invoke(cli, ["train", "--config", str(config_file), "--set",
+                                      "epochs=2", "--output", str(out), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    assert "trained 4 steps" in result.output
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["epochs"] == 2 and saved["width"] == 0.125
+    assert load_model(out / "best.safetensors").spec.name == "rdpd"
+    assert list((out / "tensorboard").iterdir())  # TensorBoard event files
+    bad = CliRunner().invoke(cli, ["train", "--config", str(config_file), "--set", "nope=1",
+                                   "--output", str(tmp_path / "x")])
+    assert bad.exit_code == 2 and "unknown config key" in bad.output
+
+
+def test_models_command_lists_counts():
+    result = CliRunner().invoke(cli, ["models"])
+    assert result.exit_code == 0
+    assert "24,278,703" in result.output and "31,035,151" in result.output
+
+
+def test_torchrun_two_processes(tiny_synthetic_dataset, tmp_path):
+    """Multi-process training through torchrun (gloo on the CPU), as on a multi-GPU machine."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "ddp"
+    command = [
+        sys.executable, "-m", "torch.distributed.run", "--nproc-per-node", "2",
+        "--standalone", "-m", "dualpixel", "train", "--output", str(out),
+        "--no-progress", "--set", f"synthetic_data={tiny_synthetic_dataset}",
+        "--set", "width=0.125", "--set", "patch_size=32", "--set", "sequence_frames=2",
+        "--set", "epochs=1", "--set", "iterations_per_epoch=2", "--set", "workers=0",
+        "--set", "tensorboard=false", "--set", "threads=1",
+    ]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert load_model(out / "last.safetensors").spec.name == "rdpd"
+    history = [json.loads(line) for line in (out / "history.jsonl").read_text().splitlines()]
+    assert history[-1]["step"] == 2
