@@ -20,7 +20,7 @@ from PIL import Image, UnidentifiedImageError
 from dualpixel.errors import InputFileError
 from dualpixel.io.images import IMAGE_SUFFIXES
 
-__all__ = ["DPFramePaths", "DPSequence", "discover_dp_dataset"]
+__all__ = ["DPFramePaths", "DPSequence", "discover_dp_dataset", "discover_scene_folders"]
 
 
 @dataclass(frozen=True)
@@ -124,3 +124,42 @@ def discover_dp_dataset(
         return sequences
     frames = _frames(left_root, right_root, combined_root, target)
     return [DPSequence(f.left.stem, (f,), *_check_sizes([f])) for f in frames]
+
+
+#: File stems of a scene folder (``scene_NN/view0.png`` ...) with the role they play.
+SCENE_ROLES = {
+    "left": ("left", "view0"), "right": ("right", "view1"),
+    "combined": ("input", "combined"), "target": ("target", "gt"),
+}
+
+
+def discover_scene_folders(root: str | Path) -> tuple[list[DPSequence], dict[str, dict[str, Path]]]:
+    """Examples stored one folder per scene (e.g. ``../shared/data/canon-dp-real``).
+
+    Each subfolder holds ``view0``/``left``, ``view1``/``right``, ``input``/``combined`` and
+    ``target`` images; any other image in it (e.g. ``dpdnet.png``) is another method's output,
+    returned as ``{scene: {method: path}}``.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise InputFileError(root, "folder not found")
+    sequences, others = [], {}
+    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+        images = _images(folder)
+        roles: dict[str, Path] = {}
+        for role, stems in SCENE_ROLES.items():
+            found = [images[s] for s in stems if s in images]
+            if found:
+                roles[role] = found[0]
+        if "left" not in roles and "right" not in roles:
+            continue
+        for role in ("left", "right", "target"):
+            if role not in roles:
+                raise InputFileError(folder, f"{role} image missing ({' or '.join(SCENE_ROLES[role])})")
+        frame = DPFramePaths(roles["left"], roles["right"], roles.get("combined"), roles["target"])
+        sequences.append(DPSequence(folder.name, (frame,), *_check_sizes([frame])))
+        used = {p for p in roles.values()}
+        others[folder.name] = {stem: p for stem, p in images.items() if p not in used}
+    if not sequences:
+        raise InputFileError(root, "no scene folders with left/right views found")
+    return sequences, others

@@ -1,12 +1,15 @@
 """Deblurring whole frames and sequences with a trained network (paper Sec. 5, "full resolution").
 
-A sequence runs frame by frame with the ConvLSTM state carried from each frame to the next, which
-gives the same result as running the frames as one sequence through ``DeblurNet.forward``.
+:class:`Deblurrer` runs frames in order and carries the ConvLSTM state from each frame to the next
+(call :meth:`Deblurrer.reset` between sequences), which gives the same result as running the frames
+as one sequence through ``DeblurNet.forward``. With ``tile`` set, frames are processed in
+overlapping tiles (see :mod:`dualpixel.inference.tiling`) so memory stays bounded by the tile size.
+On CUDA, ``half=True`` runs in float16 autocast and the model uses channels-last memory.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -14,11 +17,11 @@ import torch
 from dualpixel.data.layout import DPSequence
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
+from dualpixel.inference.tiling import deblur_tiled
 from dualpixel.io.images import read_rgb
-from dualpixel.models.convlstm import LSTMState
 from dualpixel.models.unet import DeblurNet
 
-__all__ = ["deblur_frame", "deblur_sequence", "frame_tensor", "load_sequence_frames"]
+__all__ = ["Deblurrer", "deblur_sequence", "frame_tensor", "load_sequence_frames"]
 
 
 def load_sequence_frames(sequence: DPSequence) -> list[dict[str, np.ndarray]]:
@@ -32,51 +35,70 @@ def load_sequence_frames(sequence: DPSequence) -> list[dict[str, np.ndarray]]:
     return frames
 
 
+def _chw(image: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None]
+
+
 def frame_tensor(model: DeblurNet, left: np.ndarray, right: np.ndarray | None) -> torch.Tensor:
     """The network input ``(1, C, H, W)`` for one frame: views and the full-frame radial channel."""
-    height, width = left.shape[:2]
+    if left.ndim != 3 or left.shape[2] != 3:
+        raise ParameterError(f"expected an RGB view (H, W, 3), got shape {left.shape}")
     if right is not None and right.shape != left.shape:
-        raise ValueError(f"left {left.shape} and right {right.shape} views differ in size")
-    as_tensor = lambda a: torch.from_numpy(np.ascontiguousarray(a)).permute(2, 0, 1)[None]  # noqa: E731
-    radial = torch.from_numpy(radial_distance(height, width))[None, None]
-    return model.spec.make_input(
-        as_tensor(left), None if right is None else as_tensor(right), radial
-    )
+        raise ParameterError(f"left {left.shape} and right {right.shape} views differ in size")
+    radial = torch.from_numpy(radial_distance(*left.shape[:2]))[None, None]
+    return model.spec.make_input(_chw(left), None if right is None else _chw(right), radial)
 
 
-@torch.inference_mode()
-def deblur_frame(
-    model: DeblurNet,
-    left: np.ndarray,
-    right: np.ndarray | None,
-    *,
-    state: LSTMState | None = None,
-    device: str | torch.device = "cpu",
-) -> tuple[np.ndarray, LSTMState | None]:
-    """Deblur one frame (float32 (H, W, 3) views in [0, 1]); returns the output and next state."""
-    x = frame_tensor(model, left, right).to(device)
-    out, state = model.step(x, state)
-    return out[0].permute(1, 2, 0).float().cpu().numpy(), state
+@dataclass
+class Deblurrer:
+    """Stateful frame-by-frame deblurring with a trained model.
 
+    Args:
+        model: the network (put in eval mode here).
+        device: where it runs.
+        tile: tile size (multiple of 16) for bounded memory, or ``None`` for whole frames.
+        overlap: tile overlap in pixels.
+        half: float16 autocast on CUDA (ignored on the CPU).
+    """
 
-def iter_deblur(
-    model: DeblurNet,
-    frames: Iterable[dict[str, np.ndarray]],
-    *,
-    device: str | torch.device = "cpu",
-) -> Iterator[np.ndarray]:
-    """Deblur frames in order, carrying the recurrent state; yields each output as it is ready."""
-    state = None
-    for frame in frames:
-        output, state = deblur_frame(model, frame["left"], frame.get("right"), state=state,
-                                     device=device)
-        yield output
+    model: DeblurNet
+    device: str | torch.device = "cpu"
+    tile: int | None = None
+    overlap: int = 192
+    half: bool = False
+
+    def __post_init__(self) -> None:
+        self.device = torch.device(self.device)
+        self.model = self.model.to(self.device).eval()
+        if self.device.type == "cuda":
+            self.model = self.model.to(memory_format=torch.channels_last)
+        self._state = None
+
+    def reset(self) -> None:
+        """Forget the recurrent state (start of a new sequence)."""
+        self._state = None
+
+    @torch.inference_mode()
+    def __call__(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
+        """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3)."""
+        x = frame_tensor(self.model, left, right).to(self.device)
+        autocast = self.half and self.device.type == "cuda"
+        with torch.autocast("cuda", dtype=torch.float16, enabled=autocast):
+            if self.tile is None:
+                out, self._state = self.model.step(x, self._state)
+            else:
+                out, self._state = deblur_tiled(
+                    self.model, x, tile=self.tile, overlap=self.overlap, states=self._state
+                )
+        return out[0].permute(1, 2, 0).float().cpu().numpy()
 
 
 def deblur_sequence(
-    model: DeblurNet, frames: list[dict[str, np.ndarray]], *, device: str | torch.device = "cpu"
+    model: DeblurNet, frames: list[dict[str, np.ndarray]], *, device: str | torch.device = "cpu",
+    tile: int | None = None,
 ) -> list[np.ndarray]:
     """Deblur a list of frames (dicts with ``left`` and ``right``) carrying the recurrent state."""
     if not frames:
         raise ParameterError("no frames to deblur")
-    return list(iter_deblur(model, frames, device=device))
+    deblurrer = Deblurrer(model, device=device, tile=tile)
+    return [deblurrer(frame["left"], frame.get("right")) for frame in frames]

@@ -19,6 +19,7 @@ __all__ = [
     "quantise",
     "read_depth",
     "read_rgb",
+    "read_rgb_with_depth",
     "read_synthia_depth",
     "write_png",
 ]
@@ -53,12 +54,18 @@ def _unit_range(path: Path, data: np.ndarray) -> np.ndarray:
 
 def read_rgb(path: str | Path) -> np.ndarray:
     """Read an 8- or 16-bit RGB image as float32 ``(H, W, 3)`` in [0, 1] (alpha dropped)."""
+    return read_rgb_with_depth(path)[0]
+
+
+def read_rgb_with_depth(path: str | Path) -> tuple[np.ndarray, int]:
+    """Like :func:`read_rgb`, also returning the file's bit depth (8 or 16)."""
     path = Path(path)
     data = _imread(path)
     if data.ndim != 3 or data.shape[2] not in (3, 4):
         shape = "x".join(map(str, data.shape))
         raise InputFileError(path, f"expected an RGB image with 3 channels, got shape {shape}")
-    return _unit_range(path, cv2.cvtColor(data[:, :, :3], cv2.COLOR_BGR2RGB))
+    image = _unit_range(path, cv2.cvtColor(data[:, :, :3], cv2.COLOR_BGR2RGB))
+    return image, 16 if data.dtype == np.uint16 else 8
 
 
 def decode_synthia_depth(bgr: np.ndarray, *, max_depth: float = 250.0) -> np.ndarray:
@@ -125,7 +132,8 @@ def quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
 
 
 def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16) -> None:
-    """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer levels) as PNG, atomically."""
+    """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer levels) atomically, as PNG
+    or any format OpenCV writes with that suffix (TIFF keeps 16 bits too)."""
     if np.issubdtype(image.dtype, np.floating):
         image = quantise(image, bit_depth)
     elif bit_depth not in (8, 16):

@@ -1,0 +1,262 @@
+"""``dualpixel deblur``, ``eval``, ``niqe`` and ``export``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from dualpixel.cli.main import CONTEXT, cli
+
+_CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
+
+
+def _load(checkpoint: str, device: str):
+    from dualpixel.models import load_model
+    from dualpixel.training.trainer import resolve_device
+    from dualpixel.weights import resolve_checkpoint
+
+    resolved = resolve_device(device)
+    return load_model(resolve_checkpoint(checkpoint), device=resolved), resolved
+
+
+def _image_files(folder: Path) -> list[Path]:
+    from dualpixel.io.images import IMAGE_SUFFIXES
+
+    return sorted(p for p in folder.iterdir()
+                  if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("."))
+
+
+@cli.command(context_settings=CONTEXT)
+@click.option("--left", type=click.Path(exists=True, path_type=Path), default=None,
+              help="Left view, or a folder of left frames (a sequence, in name order).")
+@click.option("--right", type=click.Path(exists=True, path_type=Path), default=None,
+              help="Right view, or a folder of right frames with the same names.")
+@click.option("--input", "dataset", type=click.Path(file_okay=False, exists=True, path_type=Path),
+              default=None, help="A DPDD-layout folder instead (pairs or seq_NNN sequences).")
+@click.option("--split", default="test", help="Split of --input.")
+@click.option("--output", "-o", type=click.Path(path_type=Path), required=True,
+              help="Output image (pair) or folder (sequence, dataset).")
+@click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
+@click.option("--tile", type=int, default=None,
+              help="Tile size (multiple of 16) for bounded memory; default: whole frames.")
+@click.option("--overlap", type=int, default=192, help="Tile overlap in pixels.")
+@click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
+@click.option("--half", is_flag=True, help="float16 on CUDA.")
+def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: str, output: Path,
+           checkpoint: str, tile: int | None, overlap: int, device: str, half: bool) -> None:
+    """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder."""
+    from tqdm import tqdm
+
+    from dualpixel.data.layout import discover_dp_dataset
+    from dualpixel.errors import InputFileError
+    from dualpixel.inference import Deblurrer
+    from dualpixel.io.images import read_rgb_with_depth, write_png
+
+    if (dataset is None) == (left is None):
+        raise click.UsageError("give --left and --right, or --input")
+    model, resolved = _load(checkpoint, device)
+    deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, half=half)
+    needs_right = model.spec.views == 2
+    jobs: list[list[tuple[Path, Path | None, Path]]] = []  # sequences of (left, right, out)
+    if dataset is not None:
+        for sequence in discover_dp_dataset(dataset, split, require_target=False):
+            folder = output / sequence.name if len(sequence.frames) > 1 else output
+            jobs.append([(f.left, f.right, folder / f"{f.left.stem}.png") for f in sequence.frames])
+    elif left.is_dir():
+        if right is None and needs_right:
+            raise click.UsageError("--right is required for this model")
+        lefts = _image_files(left)
+        if not lefts:
+            raise InputFileError(left, "no images found")
+        sequence = []
+        for path in lefts:
+            other = right / path.name if right is not None else None
+            if other is not None and not other.is_file():
+                raise InputFileError(other, f"right frame for {path.name} is missing")
+            sequence.append((path, other, output / path.name))
+        jobs.append(sequence)
+    else:
+        if right is None and needs_right:
+            raise click.UsageError("--right is required for this model")
+        jobs.append([(left, right, output)])
+    total = sum(len(job) for job in jobs)
+    with tqdm(total=total, desc="deblurring", unit="frame") as bar:
+        for job in jobs:
+            deblurrer.reset()
+            for left_path, right_path, out_path in job:
+                left_image, bits = read_rgb_with_depth(left_path)
+                right_image = read_rgb_with_depth(right_path)[0] if right_path else None
+                if right_image is not None and right_image.shape != left_image.shape:
+                    raise InputFileError(right_path, f"size differs from {left_path.name}")
+                write_png(out_path, deblurrer(left_image, right_image), bit_depth=bits)
+                bar.update()
+    click.echo(f"wrote {total} frame(s) to {output}")
+
+
+def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
+    result = {}
+    for item in values:
+        name, sep, folder = item.partition("=")
+        if not sep or not Path(folder).is_dir():
+            raise click.BadParameter(f"expected NAME=FOLDER with an existing folder, got {item!r}")
+        result[name] = Path(folder)
+    return result
+
+
+@cli.command("eval", context_settings=CONTEXT)
+@click.option("--dataset", type=click.Path(file_okay=False, exists=True, path_type=Path),
+              default=None, help="DPDD-layout test set, or one folder per scene (view0/view1/"
+              "input/target, extra images = other methods).")
+@click.option("--split", default="test", help="Split of a DPDD-layout --dataset.")
+@click.option("--pred", type=click.Path(file_okay=False, exists=True, path_type=Path),
+              default=None, help="Instead of --dataset: a folder of predictions ...")
+@click.option("--target", type=click.Path(file_okay=False, exists=True, path_type=Path),
+              default=None, help="... and the folder of targets with the same names.")
+@click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
+@click.option("--no-model", is_flag=True, help="Score only the input and other methods.")
+@click.option("--compare", multiple=True, callback=_compare, metavar="NAME=FOLDER",
+              help="Another method's outputs, named like the examples (repeatable).")
+@click.option("--categories", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="'name,category' lines (e.g. indoor/outdoor) for per-category columns.")
+@click.option("--niqe-model", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="NIQE model from 'dualpixel niqe fit' (default: the built-in one).")
+@click.option("--no-niqe", is_flag=True, help="Skip NIQE.")
+@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("eval-output"), help="Report folder.")
+@click.option("--figures", type=click.IntRange(0), default=3,
+              help="Side-by-side figures for the first N images.")
+@click.option("--save-outputs", is_flag=True, help="Also write the model's outputs (PNG).")
+@click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
+@click.option("--device", default="auto", help="auto, cpu, cuda, ...")
+def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
+                     niqe_model, no_niqe, output, figures, save_outputs, tile, device) -> None:
+    """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
+    from dualpixel.data.layout import discover_dp_dataset, discover_scene_folders
+    from dualpixel.evaluation.evaluate import (
+        evaluate,
+        evaluate_folders,
+        examples_from_sequences,
+        read_categories,
+        write_reports,
+    )
+    from dualpixel.evaluation.niqe import NIQEModel, load_builtin_model
+    from dualpixel.io.images import write_png
+
+    niqe = None if no_niqe else (NIQEModel.load(niqe_model) if niqe_model else
+                                 load_builtin_model())
+    cats = read_categories(categories) if categories else None
+    meta = {"niqe_model": None if niqe is None else (str(niqe_model) if niqe_model else
+                                                    f"built-in ({niqe.source})")}
+    if pred is not None or target is not None:
+        if pred is None or target is None or dataset is not None:
+            raise click.UsageError("give --pred and --target together, without --dataset")
+        results = evaluate_folders(pred, target, niqe_model=niqe, categories=cats)
+    else:
+        if dataset is None:
+            raise click.UsageError("give --dataset, or --pred and --target")
+        if (dataset / f"{split}_l").is_dir():
+            sequences, others = discover_dp_dataset(dataset, split), {}
+        else:
+            sequences, others = discover_scene_folders(dataset)
+        examples = examples_from_sequences(sequences, others, compare)
+        deblurrer, method = None, "model"
+        if not no_model:
+            from dualpixel.inference import Deblurrer
+
+            model, resolved = _load(checkpoint, device)
+            deblurrer = Deblurrer(model, device=resolved, tile=tile)
+            method = Path(checkpoint).stem
+            meta["checkpoint"] = str(checkpoint)
+        drawn: dict[str, object] = {}
+
+        def keep(example, image):
+            if save_outputs:
+                write_png(output / "outputs" / f"{example.name}.png", image, bit_depth=8)
+            if len(drawn) < figures:
+                drawn[example.name] = image
+
+        results = evaluate(examples, deblur=deblurrer, reset=deblurrer.reset if deblurrer else
+                           None, method=method, niqe_model=niqe, categories=cats,
+                           save_outputs=keep if deblurrer else None)
+        _draw_comparisons(examples[:figures], drawn, results, method, output)
+    write_reports(results, output, meta=meta)
+    click.echo((output / "summary.md").read_text())
+    click.echo(f"reports in {output}")
+
+
+def _draw_comparisons(examples, outputs, results, method, output: Path) -> None:
+    """Input, model output, other methods and target side by side, with zoomed crops."""
+    from dualpixel.io.images import read_rgb
+    from dualpixel.viz.comparison import render_comparison
+
+    by_name = {(r.name, r.method): r for r in results}
+    for example in examples:
+        panels = {"input": read_rgb(example.combined) if example.combined else
+                  (read_rgb(example.left) + read_rgb(example.right)) / 2}
+        if example.name in outputs:
+            panels[method] = outputs[example.name]
+        panels.update({m: read_rgb(p) for m, p in sorted(example.others.items())})
+        panels["target"] = read_rgb(example.target)
+        scores = {m: f"{by_name[(example.name, m)].psnr:.2f} dB" for m in panels
+                  if (example.name, m) in by_name}
+        render_comparison(panels, output / f"compare_{example.name.replace('/', '_')}.png",
+                          title=example.name, scores=scores)
+
+
+@cli.group(context_settings=CONTEXT)
+def niqe() -> None:
+    """NIQE with a reference model fitted from sharp images."""
+
+
+@niqe.command("fit", context_settings=CONTEXT)
+@click.option("--images", type=click.Path(file_okay=False, exists=True, path_type=Path),
+              required=True, help="Folder of sharp images (searched recursively).")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Model file (.npz).")
+def niqe_fit(images: Path, output: Path) -> None:
+    """Fit a NIQE reference model (e.g. from DP ground-truth images, as the paper did)."""
+    from tqdm import tqdm
+
+    from dualpixel.errors import InputFileError
+    from dualpixel.evaluation.niqe import fit_niqe_model
+    from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
+
+    files = sorted(p for p in images.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise InputFileError(images, "no images found")
+    model = fit_niqe_model((read_rgb(p) for p in tqdm(files, desc="fitting NIQE", unit="image")),
+                           source=f"{len(files)} images under {images}")
+    model.save(output)
+    click.echo(f"NIQE model from {len(files)} images written to {output}")
+
+
+@niqe.command("score", context_settings=CONTEXT)
+@click.argument("images", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+@click.option("--model", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Model from 'niqe fit' (default: built-in).")
+def niqe_score(images: tuple[Path, ...], model: Path | None) -> None:
+    """Print the NIQE score of each image (lower is more natural)."""
+    from dualpixel.evaluation.niqe import NIQEModel, load_builtin_model
+    from dualpixel.evaluation.niqe import niqe as score
+    from dualpixel.io.images import read_rgb
+
+    reference = NIQEModel.load(model) if model else load_builtin_model()
+    for path in images:
+        click.echo(f"{path}\t{score(read_rgb(path), reference):.4f}")
+
+
+@cli.command(context_settings=CONTEXT)
+@click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True)
+@click.option("--size", default="512x512", help="Frame size WIDTHxHEIGHT the graph is made for.")
+@click.option("--step", is_flag=True, help="One recurrent step with the state as input/output.")
+def export(checkpoint: str, output: Path, size: str, step: bool) -> None:
+    """Export a checkpoint to ONNX (needs: pip install 'dualpixel[onnx]')."""
+    from dualpixel.cli.main import _size
+    from dualpixel.inference.onnx_export import export_onnx
+
+    width, height = _size(None, None, size)
+    model, _ = _load(checkpoint, "cpu")
+    export_onnx(model, output, height=height, width=width, step=step)
+    click.echo(f"wrote {output}")

@@ -1,0 +1,239 @@
+"""Evaluating deblurring as in the paper's Table 1: per-image metrics, category summaries, reports.
+
+Rows are methods: ``input`` (the combined blurred image), the model being evaluated (timed per
+image), and any other method's outputs (a folder of images named like the examples, or extra images
+in scene folders such as ``dpdnet.png``). Columns are PSNR / SSIM / MAE per category (Indoor,
+Outdoor, Combined when a category list is given), NIQE and seconds per image.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from dualpixel.data.layout import DPSequence
+from dualpixel.errors import InputFileError
+from dualpixel.evaluation.metrics import mae, psnr, ssim
+from dualpixel.evaluation.niqe import NIQEModel, niqe
+from dualpixel.io.atomic import atomic_path
+from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
+
+__all__ = [
+    "EvalExample",
+    "ImageResult",
+    "evaluate",
+    "evaluate_folders",
+    "examples_from_sequences",
+    "markdown_table",
+    "read_categories",
+    "summarise",
+    "write_reports",
+]
+
+
+@dataclass
+class EvalExample:
+    """One image to score: its name, sequence, views, target and other methods' outputs."""
+
+    name: str
+    sequence: str
+    left: Path
+    right: Path
+    target: Path
+    combined: Path | None = None
+    others: dict[str, Path] = field(default_factory=dict)
+
+
+@dataclass
+class ImageResult:
+    name: str
+    method: str
+    category: str
+    psnr: float
+    ssim: float
+    mae: float
+    niqe: float | None
+    seconds: float | None
+
+
+def examples_from_sequences(
+    sequences: list[DPSequence], others: dict[str, dict[str, Path]] | None = None,
+    compare: dict[str, Path] | None = None,
+) -> list[EvalExample]:
+    """Flatten sequences into examples (``seq/frame`` names for multi-frame sequences) and attach
+    other methods' outputs: per-scene extras and ``compare`` folders (files named like examples)."""
+    examples = []
+    for sequence in sequences:
+        for frame in sequence.frames:
+            if frame.target is None:
+                raise InputFileError(frame.left, "no target to evaluate against")
+            multi = len(sequence.frames) > 1
+            name = f"{sequence.name}/{frame.left.stem}" if multi else sequence.name
+            extra = dict((others or {}).get(sequence.name, {}))
+            for method, folder in (compare or {}).items():
+                matches = [folder / f"{name}{s}" for s in IMAGE_SUFFIXES]
+                found = [m for m in matches if m.is_file()]
+                if not found:
+                    raise InputFileError(folder, f"no output of {method!r} for {name}")
+                extra[method] = found[0]
+            examples.append(EvalExample(name, sequence.name, frame.left, frame.right,
+                                        frame.target, frame.combined, extra))
+    return examples
+
+
+def read_categories(path: str | Path) -> dict[str, str]:
+    """``name,category`` lines (CSV, ``#`` comments allowed), e.g. the DPDD indoor/outdoor list."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "category list not found")
+    categories = {}
+    for number, line in enumerate(path.read_text().splitlines(), 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = [p.strip() for p in line.replace("\t", ",").split(",")]
+        if len(parts) != 2 or not all(parts):
+            raise InputFileError(path, f"line {number}: expected 'name,category', got {line!r}")
+        categories[Path(parts[0]).stem if "/" not in parts[0] else parts[0]] = parts[1].lower()
+    return categories
+
+
+def _score(method: str, name: str, category: str, output: np.ndarray, target: np.ndarray,
+           niqe_model: NIQEModel | None, seconds: float | None, source: Path) -> ImageResult:
+    if output.shape != target.shape:
+        raise InputFileError(source, f"size {output.shape[1]}x{output.shape[0]} differs from the "
+                                     f"target ({target.shape[1]}x{target.shape[0]})")
+    score = niqe(output, niqe_model) if niqe_model is not None else None
+    return ImageResult(name, method, category, psnr(output, target), ssim(output, target),
+                       mae(output, target), score, seconds)
+
+
+def evaluate(
+    examples: list[EvalExample],
+    *,
+    deblur: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    reset: Callable[[], None] | None = None,
+    method: str = "model",
+    niqe_model: NIQEModel | None = None,
+    categories: dict[str, str] | None = None,
+    save_outputs: Callable[[EvalExample, np.ndarray], None] | None = None,
+    progress: bool = True,
+) -> list[ImageResult]:
+    """Score the input, the model (``deblur(left, right)``; ``reset()`` between sequences) and
+    every other method of each example."""
+    results, current = [], None
+    for example in tqdm(examples, desc="evaluating", unit="image", disable=not progress):
+        category = (categories or {}).get(example.sequence, (categories or {}).get(example.name, ""))
+        if categories and not category:
+            raise InputFileError(example.left, f"{example.name} is not in the category list")
+        target = read_rgb(example.target)
+        left, right = read_rgb(example.left), read_rgb(example.right)
+        combined = read_rgb(example.combined) if example.combined else (left + right) / 2
+        results.append(_score("input", example.name, category, combined, target, niqe_model,
+                              None, example.combined or example.left))
+        if deblur is not None:
+            if example.sequence != current and reset is not None:
+                reset()
+            current = example.sequence
+            started = time.perf_counter()
+            output = deblur(left, right)
+            seconds = time.perf_counter() - started
+            results.append(_score(method, example.name, category, output, target, niqe_model,
+                                  seconds, example.left))
+            if save_outputs is not None:
+                save_outputs(example, output)
+        for other, path in sorted(example.others.items()):
+            results.append(_score(other, example.name, category, read_rgb(path), target,
+                                  niqe_model, None, path))
+    return results
+
+
+def summarise(results: list[ImageResult]) -> dict[str, dict[str, dict[str, float]]]:
+    """Means per method and category (``combined`` = all images): psnr, ssim, mae, niqe, seconds."""
+    summary: dict[str, dict[str, dict[str, float]]] = {}
+    methods = list(dict.fromkeys(r.method for r in results))
+    categories = sorted({r.category for r in results if r.category})
+    for method in methods:
+        rows = [r for r in results if r.method == method]
+        summary[method] = {}
+        for category in [*categories, "combined"]:
+            chosen = [r for r in rows if category == "combined" or r.category == category]
+            entry = {key: float(np.mean([getattr(r, key) for r in chosen]))
+                     for key in ("psnr", "ssim", "mae")}
+            entry["count"] = len(chosen)
+            if category == "combined":
+                for key in ("niqe", "seconds"):
+                    values = [getattr(r, key) for r in chosen if getattr(r, key) is not None]
+                    entry[key] = float(np.mean(values)) if values else None
+            summary[method][category] = entry
+    return summary
+
+
+def markdown_table(summary: dict[str, dict[str, dict[str, float]]]) -> str:
+    """The summary as a Markdown table in the layout of the paper's Table 1."""
+    categories = list(next(iter(summary.values())).keys())
+    head = "| Method | " + " | ".join(
+        f"{c.capitalize()} PSNR ↑ | SSIM ↑ | MAE ↓" for c in categories
+    ) + " | NIQE ↓ | Time (s) ↓ |"
+    lines = [head, "|" + "---|" * (1 + 3 * len(categories) + 2)]
+    for method, per_category in summary.items():
+        cells = []
+        for category in categories:
+            e = per_category[category]
+            cells += [f"{e['psnr']:.2f}", f"{e['ssim']:.3f}", f"{e['mae']:.3f}"]
+        combined = per_category["combined"]
+        niqe_cell = "–" if combined.get("niqe") is None else f"{combined['niqe']:.2f}"
+        time_cell = "–" if combined.get("seconds") is None else f"{combined['seconds']:.3f}"
+        lines.append(f"| {method} | " + " | ".join(cells) + f" | {niqe_cell} | {time_cell} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict | None = None
+                  ) -> dict:
+    """Write ``per_image.csv``, ``summary.json`` and ``summary.md`` atomically; returns the summary."""
+    output = Path(output)
+    output.mkdir(parents=True, exist_ok=True)
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(ImageResult.__dataclass_fields__))
+    writer.writeheader()
+    for result in results:
+        writer.writerow(asdict(result))
+    summary = summarise(results)
+    files = {
+        "per_image.csv": buffer.getvalue(),
+        "summary.json": json.dumps({"summary": summary, **(meta or {})}, indent=2),
+        "summary.md": markdown_table(summary),
+    }
+    for name, text in files.items():
+        with atomic_path(output / name) as tmp:
+            tmp.write_text(text)
+    return summary
+
+
+def evaluate_folders(
+    predictions: Path, targets: Path, *, niqe_model: NIQEModel | None = None,
+    categories: dict[str, str] | None = None, method: str = "prediction",
+) -> list[ImageResult]:
+    """Score every target against the prediction of the same name (any image suffix)."""
+    target_files = sorted(p for p in Path(targets).rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES)
+    if not target_files:
+        raise InputFileError(targets, "no images found")
+    results = []
+    for target_path in tqdm(target_files, desc="evaluating", unit="image"):
+        name = str(target_path.relative_to(targets).with_suffix(""))
+        found = [Path(predictions) / f"{name}{s}" for s in IMAGE_SUFFIXES]
+        found = [p for p in found if p.is_file()]
+        if not found:
+            raise InputFileError(Path(predictions) / name, "prediction missing for this target")
+        category = (categories or {}).get(name, "")
+        results.append(_score(method, name, category, read_rgb(found[0]), read_rgb(target_path),
+                              niqe_model, None, found[0]))
+    return results

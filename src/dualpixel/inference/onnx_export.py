@@ -1,0 +1,81 @@
+"""Export a trained network to ONNX: one frame, or one recurrent step with the state as I/O.
+
+The single-frame graph maps the model input ``(1, C, H, W)`` to the output ``(1, 3, H, W)``
+(a recurrent model starts from a zero state). The step graph takes ``input, hidden, cell`` and
+returns ``output, next_hidden, next_cell``; the state is ``(1, 512*width, H/16, W/16)`` for
+``H, W`` rounded up to multiples of 16, and zeros for the first frame. Both are exported for a
+fixed frame size. Needs the ``onnx`` extra (``onnx``, ``onnxscript``; ``onnxruntime`` to verify).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from dualpixel.errors import ParameterError
+from dualpixel.io.atomic import atomic_path
+from dualpixel.models.unet import SIZE_MULTIPLE, DeblurNet
+
+__all__ = ["export_onnx", "run_onnx", "state_shape"]
+
+
+class _Frame(nn.Module):
+    def __init__(self, model: DeblurNet) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.model.step(x, None)[0]
+
+
+class _Step(nn.Module):
+    def __init__(self, model: DeblurNet) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, x: torch.Tensor, hidden: torch.Tensor, cell: torch.Tensor):
+        out, (hidden, cell) = self.model.step(x, (hidden, cell))
+        return out, hidden, cell
+
+
+def state_shape(model: DeblurNet, height: int, width: int) -> tuple[int, int, int, int]:
+    """Shape of the ConvLSTM hidden and cell state for frames of ``height x width``."""
+    if model.lstm is None:
+        raise ParameterError(f"model {model.spec.name!r} is not recurrent")
+    pad = lambda n: -(-n // SIZE_MULTIPLE)  # noqa: E731
+    return (1, model.lstm.hidden_channels, pad(height), pad(width))
+
+
+def export_onnx(
+    model: DeblurNet, path: str | Path, *, height: int, width: int, step: bool = False,
+    opset: int = 18,
+) -> Path:
+    """Write ``model`` as ONNX for ``height x width`` frames (``step``: one recurrent step)."""
+    model = model.cpu().eval()
+    x = torch.rand(1, model.shape.in_channels, height, width)
+    if step:
+        zeros = torch.zeros(state_shape(model, height, width))
+        wrapper, args = _Step(model), (x, zeros, zeros.clone())
+        names_in, names_out = ["input", "hidden", "cell"], ["output", "next_hidden", "next_cell"]
+    else:
+        wrapper, args, names_in, names_out = _Frame(model), (x,), ["input"], ["output"]
+    wrapper.eval()
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        torch.onnx.export(
+            wrapper, args, str(tmp), input_names=names_in, output_names=names_out,
+            opset_version=opset, dynamo=True, external_data=False, verbose=False,
+        )
+    return path
+
+
+def run_onnx(path: str | Path, *inputs: np.ndarray) -> list[np.ndarray]:
+    """Run an exported graph with ONNX Runtime on the CPU."""
+    import onnxruntime
+
+    session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    feeds = {i.name: a.astype(np.float32) for i, a in zip(session.get_inputs(), inputs)}
+    return session.run(None, feeds)

@@ -1,0 +1,38 @@
+"""The project's own trained checkpoints, shipped inside the package (see MODEL_CARD.md).
+
+``resolve_checkpoint`` accepts a registry name (``rdpd-light``) or a path to a ``.safetensors`` file
+written by ``dualpixel train``.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+from dualpixel.errors import InputFileError
+
+__all__ = ["CHECKPOINTS", "DEFAULT_CHECKPOINT", "resolve_checkpoint"]
+
+#: name -> (file in this package, description)
+CHECKPOINTS: dict[str, tuple[str, str]] = {
+    "rdpd-light": (
+        "rdpd-light.safetensors",
+        "RDPD, width 0.5, residual output, trained on the CPU on procedural synthetic sequences",
+    ),
+}
+DEFAULT_CHECKPOINT = "rdpd-light"
+
+
+def resolve_checkpoint(name_or_path: str | Path) -> Path:
+    """The file of a registry name, or the given path; a clear error when neither exists."""
+    text = str(name_or_path)
+    if text in CHECKPOINTS:
+        path = Path(str(resources.files(__name__).joinpath(CHECKPOINTS[text][0])))
+        if not path.is_file():
+            raise InputFileError(path, f"shipped checkpoint {text!r} is missing from the package")
+        return path
+    path = Path(name_or_path)
+    if not path.is_file():
+        known = ", ".join(CHECKPOINTS)
+        raise InputFileError(path, f"checkpoint not found (not a file, nor a registry name: {known})")
+    return path

@@ -1,0 +1,112 @@
+import json
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.models import build_model, save_model
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    import torch
+
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "tiny.safetensors"
+    save_model(path, build_model("rdpd", width=0.125, residual=True))
+    return path
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def test_deblur_pair_keeps_16_bits_and_checks_sizes(checkpoint, tmp_path):
+    rng = np.random.default_rng(0)
+    for name in ("l", "r"):
+        cv2.imwrite(str(tmp_path / f"{name}.png"), rng.integers(0, 65535, (36, 52, 3), np.uint16))
+    result = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
+                 "--output", tmp_path / "out.png", "--checkpoint", checkpoint, "--device", "cpu")
+    assert result.exit_code == 0, result.output
+    out = cv2.imread(str(tmp_path / "out.png"), cv2.IMREAD_UNCHANGED)
+    assert out.dtype == np.uint16 and out.shape == (36, 52, 3)
+    cv2.imwrite(str(tmp_path / "r.png"), np.zeros((30, 52, 3), np.uint8))
+    bad = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
+              "--output", tmp_path / "o.png", "--checkpoint", checkpoint)
+    assert bad.exit_code == 2 and "r.png" in bad.output and "differs" in bad.output
+    (tmp_path / "r.png").write_bytes(b"broken")
+    bad = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
+              "--output", tmp_path / "o.png", "--checkpoint", checkpoint)
+    assert bad.exit_code == 2 and "r.png: cannot be decoded" in bad.output
+    missing = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "l.png",
+                  "--output", tmp_path / "o.png", "--checkpoint", tmp_path / "none.safetensors")
+    assert missing.exit_code == 2 and "none.safetensors: checkpoint not found" in missing.output
+
+
+def test_deblur_sequence_folder_and_dataset(checkpoint, tiny_synthetic_dataset, tmp_path):
+    seq = "seq_001"
+    left = tiny_synthetic_dataset / "train_l" / "source" / seq
+    right = tiny_synthetic_dataset / "train_r" / "source" / seq
+    result = run("deblur", "--left", left, "--right", right, "--output", tmp_path / "seq",
+                 "--checkpoint", checkpoint, "--tile", "32", "--overlap", "16")
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (tmp_path / "seq").iterdir()) == sorted(
+        p.name for p in left.iterdir())
+    result = run("deblur", "--input", tiny_synthetic_dataset, "--split", "train",
+                 "--output", tmp_path / "ds", "--checkpoint", checkpoint)
+    assert result.exit_code == 0, result.output
+    assert len(list((tmp_path / "ds").rglob("*.png"))) == 12
+
+
+def test_eval_on_canon_folder(shared_dir, checkpoint, tmp_path):
+    canon = shared_dir / "data" / "canon-dp-real"
+    categories = tmp_path / "cats.csv"
+    categories.write_text("".join(f"scene_0{k},{'indoor' if k < 4 else 'outdoor'}\n"
+                                  for k in range(7)))
+    result = run("eval", "--dataset", canon, "--checkpoint", checkpoint, "--categories",
+                 categories, "--output", tmp_path / "report", "--figures", "1", "--no-niqe",
+                 "--tile", "256")
+    assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())["summary"]
+    assert round(summary["input"]["combined"]["psnr"], 2) == 24.80
+    assert round(summary["dpdnet"]["combined"]["psnr"], 2) == 27.12
+    assert summary["tiny"]["indoor"]["count"] == 4 and summary["tiny"]["outdoor"]["count"] == 3
+    assert summary["tiny"]["combined"]["seconds"] > 0
+    table = (tmp_path / "report" / "summary.md").read_text()
+    assert "Indoor PSNR" in table and "| dpdnet | " in table
+    csv_lines = (tmp_path / "report" / "per_image.csv").read_text().splitlines()
+    assert len(csv_lines) == 1 + 7 * 3
+    assert (tmp_path / "report" / "compare_scene_00.png").stat().st_size > 10_000
+
+
+def test_eval_prediction_folders_and_niqe_commands(shared_dir, tmp_path):
+    canon = shared_dir / "data" / "canon-dp-real"
+    pred, target = tmp_path / "pred", tmp_path / "target"
+    pred.mkdir(), target.mkdir()
+    for k in range(2):
+        (pred / f"s{k}.png").write_bytes((canon / f"scene_0{k}" / "dpdnet.png").read_bytes())
+        (target / f"s{k}.png").write_bytes((canon / f"scene_0{k}" / "target.png").read_bytes())
+    result = run("niqe", "fit", "--images", target, "--output", tmp_path / "niqe.npz")
+    assert result.exit_code == 0, result.output
+    result = run("eval", "--pred", pred, "--target", target, "--niqe-model", tmp_path / "niqe.npz",
+                 "--output", tmp_path / "r")
+    assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())["summary"]
+    expected = np.mean([25.38, 28.54])
+    assert summary["prediction"]["combined"]["psnr"] == pytest.approx(expected, abs=0.01)
+    assert summary["prediction"]["combined"]["niqe"] > 0
+    score = run("niqe", "score", pred / "s0.png", "--model", tmp_path / "niqe.npz")
+    assert score.exit_code == 0 and "s0.png" in score.output
+    (pred / "s1.png").unlink()
+    bad = run("eval", "--pred", pred, "--target", target, "--output", tmp_path / "r2")
+    assert bad.exit_code == 2 and "prediction missing" in bad.output
+
+
+def test_export_command(checkpoint, tmp_path):
+    pytest.importorskip("onnxruntime")
+    result = run("export", "--checkpoint", checkpoint, "--output", tmp_path / "m.onnx",
+                 "--size", "48x32", "--step")
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "m.onnx").stat().st_size > 1000
