@@ -155,7 +155,8 @@ def discover_scene_folders(root: str | Path) -> tuple[list[DPSequence], dict[str
             continue
         for role in ("left", "right", "target"):
             if role not in roles:
-                raise InputFileError(folder, f"{role} image missing ({' or '.join(SCENE_ROLES[role])})")
+                names = " or ".join(SCENE_ROLES[role])
+                raise InputFileError(folder, f"{role} image missing ({names})")
         frame = DPFramePaths(roles["left"], roles["right"], roles.get("combined"), roles["target"])
         sequences.append(DPSequence(folder.name, (frame,), *_check_sizes([frame])))
         used = {p for p in roles.values()}

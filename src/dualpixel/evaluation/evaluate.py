@@ -131,7 +131,8 @@ def evaluate(
     every other method of each example."""
     results, current = [], None
     for example in tqdm(examples, desc="evaluating", unit="image", disable=not progress):
-        category = (categories or {}).get(example.sequence, (categories or {}).get(example.name, ""))
+        known = categories or {}
+        category = known.get(example.sequence, known.get(example.name, ""))
         if categories and not category:
             raise InputFileError(example.left, f"{example.name} is not in the category list")
         target = read_rgb(example.target)
@@ -198,7 +199,8 @@ def markdown_table(summary: dict[str, dict[str, dict[str, float]]]) -> str:
 
 def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict | None = None
                   ) -> dict:
-    """Write ``per_image.csv``, ``summary.json`` and ``summary.md`` atomically; returns the summary."""
+    """Write ``per_image.csv``, ``summary.json`` and ``summary.md`` atomically; return the
+    summary."""
     output = Path(output)
     output.mkdir(parents=True, exist_ok=True)
     buffer = io.StringIO()

@@ -1,11 +1,12 @@
 """Tiled full-resolution inference with bounded memory (paper Sec. 5: "full-resolution inputs").
 
-The image is reflect-padded to a multiple of 16 exactly as the whole-image path pads it, and cut into
-tiles whose positions are multiples of 16, so every tile's pooling grid matches the whole image's.
-Tiles overlap by ``overlap`` pixels and are blended with weights that are ~0 over the outer quarter
-of the overlap and ramp linearly to 1 across its middle half (and stay 1 at the image border), so
-the pixels kept from a tile lie away from its zero-padded edges. The radial channel is computed once for the full image
-and cropped per tile. For a recurrent network each tile keeps its own ConvLSTM state across frames.
+The image is reflect-padded to a multiple of 16 exactly as the whole-image path pads it, and cut
+into tiles whose positions are multiples of 16, so every tile's pooling grid matches the whole
+image's. Tiles overlap by ``overlap`` pixels and are blended with weights that are ~0 over the outer
+quarter of the overlap and ramp linearly to 1 across its middle half (and stay 1 at the image
+border), so the pixels kept from a tile lie away from its zero-padded edges. The radial channel is
+computed once for the full image and cropped per tile. For a recurrent network each tile keeps its
+own ConvLSTM state across frames.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ class TileGrid:
         if length <= self.size:
             return [0]
         stride = max(SIZE_MULTIPLE, (self.size - self.overlap) // SIZE_MULTIPLE * SIZE_MULTIPLE)
-        starts = list(range(0, length - self.size, stride)) + [length - self.size]
+        starts = [*range(0, length - self.size, stride), length - self.size]
         return sorted(set(starts))
 
     def weights(self, start: int, length: int, span: int) -> np.ndarray:

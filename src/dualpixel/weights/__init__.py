@@ -34,5 +34,7 @@ def resolve_checkpoint(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
     if not path.is_file():
         known = ", ".join(CHECKPOINTS)
-        raise InputFileError(path, f"checkpoint not found (not a file, nor a registry name: {known})")
+        raise InputFileError(
+            path, f"checkpoint not found (not a file, nor a registry name: {known})"
+        )
     return path
