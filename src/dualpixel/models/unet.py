@@ -8,7 +8,8 @@ concatenation and two 3x3 conv + ReLU. Head: a 3-channel 3x3 conv + ReLU and a 1
 
 Option (ours, off by default): ``residual=True`` adds the blurred input (the mean of the views) to
 the head's output before clamping, with the last layer initialised to zero so training starts from
-the identity. It adds no parameters and makes short CPU training converge much faster.
+the identity, and drops the ReLU of the 3-channel layer (a correction needs both signs). It adds
+no parameters and makes short CPU training converge much faster.
 
 Any input size: the input is reflect-padded to a multiple of 16 and the output cropped back.
 """
@@ -114,7 +115,9 @@ class DeblurNet(nn.Module):
             self.upconvs.append(_UpConv(cin, width))
             self.decoders.append(_double_conv(2 * width, width))
             cin = width
-        self.head = nn.Sequential(*_conv_relu(cin, 3), nn.Conv2d(3, 3, 1))
+        # The residual variant drops the ReLU of the 3-channel layer: a correction needs both signs.
+        head_act = nn.Identity() if shape.residual else nn.ReLU(inplace=True)
+        self.head = nn.Sequential(nn.Conv2d(cin, 3, 3, padding=1), head_act, nn.Conv2d(3, 3, 1))
         if shape.residual and shape.output != "clamp":
             raise ValueError("a residual network needs the clamped linear output")
         self._init_weights()

@@ -33,10 +33,12 @@ __all__ = [
     "PSFModel",
     "PSFParams",
     "butterworth_combined_psf",
+    "butterworth_disk_terms",
     "disk_psf",
     "dp_psf",
     "gaussian_psf",
     "kernel_size",
+    "mix_butterworth_terms",
     "punnappurath_left_psf",
     "split_views",
 ]
@@ -171,27 +173,44 @@ def _gaussian_blur(kernels: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
     return F.conv2d(out, taps[:, None, None, :], padding="same", groups=count)[0]
 
 
+def butterworth_disk_terms(
+    radius: torch.Tensor, n: float, alpha: float, size: int
+) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""The two pixel-integrated terms of Eq. 2-3 whose mix is our combined PSF: the disk ``[C]``
+    and the Butterworth-weighted disk ``[B o C]``, each ``(K, S, S)``.
+
+    .. math:: B = \left(1 + (D_o / \rho)^{2n}\right)^{-1}, \quad D_o = 2 \alpha |r|
+
+    Computed as a logistic function of log-distances, which cannot overflow for large n, and
+    integrated over each pixel (``SUPERSAMPLING``^2 samples) so small radii are not aliased.
+    The calibration fit reuses them for every beta and kappa.
+    """
+    rho = _subpixel_radius(size, radius)
+    cutoff = 2.0 * alpha * radius.abs()[:, None, None]
+    tiny = torch.finfo(radius.dtype).tiny
+    butterworth = torch.sigmoid(2.0 * n * (torch.log(rho + tiny) - torch.log(cutoff + tiny)))
+    disk = _disk_samples(radius, rho)
+    return _pixel_integral(disk), _pixel_integral(butterworth * disk)
+
+
+def mix_butterworth_terms(
+    disk: torch.Tensor, butter_disk: torch.Tensor, radius: torch.Tensor, beta: float, kappa: float
+) -> torch.Tensor:
+    r"""``H = G_{\kappa |r|} * ((\beta + (1 - \beta) B) o C)`` from the terms, sums to 1."""
+    combined = beta * disk + (1.0 - beta) * butter_disk
+    if kappa > 0:
+        combined = _gaussian_blur(combined, kappa * radius.abs())
+    return _normalise(combined)
+
+
 def butterworth_combined_psf(radius: torch.Tensor, params: PSFParams, size: int) -> torch.Tensor:
     r"""Combined DP PSF of our model before the left/right split (Eq. 2-3), sums to 1.
 
-    .. math:: B = \left(1 + (D_o / \rho)^{2n}\right)^{-1}, \quad D_o = 2 \alpha |r|, \quad
-              H = G_{\kappa |r|} \ast \left((\beta + (1 - \beta) B) \circ C\right)
-
-    B (a high-pass, 0 at the centre, 1 far out) is rescaled affinely from [0, 1] to [beta, 1].
-    Computed as a logistic function of log-distances, which cannot overflow for large n, and
-    integrated over each pixel (``SUPERSAMPLING``^2 samples) so small radii are not aliased.
+    B (a high-pass, 0 at the centre, 1 far out) is rescaled affinely from [0, 1] to [beta, 1]:
+    the pixel integral of ``(beta + (1 - beta) B) C`` is ``beta [C] + (1 - beta) [B C]``.
     """
-    rho = _subpixel_radius(size, radius)
-    cutoff = 2.0 * params.alpha * radius.abs()[:, None, None]
-    tiny = torch.finfo(radius.dtype).tiny
-    butterworth = torch.sigmoid(
-        2.0 * params.n * (torch.log(rho + tiny) - torch.log(cutoff + tiny))
-    )
-    rescaled = params.beta + (1.0 - params.beta) * butterworth
-    combined = _pixel_integral(rescaled * _disk_samples(radius, rho))
-    if params.kappa > 0:
-        combined = _gaussian_blur(combined, params.kappa * radius.abs())
-    return _normalise(combined)
+    disk, butter_disk = butterworth_disk_terms(radius, params.n, params.alpha, size)
+    return mix_butterworth_terms(disk, butter_disk, radius, params.beta, params.kappa)
 
 
 def gaussian_psf(radius: torch.Tensor, size: int) -> torch.Tensor:

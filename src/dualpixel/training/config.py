@@ -91,6 +91,11 @@ def _coerce(name: str, annotation: Any, value: Any) -> Any:
     options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
     if isinstance(value, str) and str not in options:
         value = yaml.safe_load(value)
+        if isinstance(value, str) and float in options:  # YAML 1.1 reads "5e-4" as a string
+            try:
+                value = float(value)
+            except ValueError:
+                pass
     if value is None and type(None) in options:
         return None
     for option in options:
