@@ -110,7 +110,8 @@ def estimate_psfs(
         radius: the sharp disk's radius in capture pixels (the pattern's radius fraction times the
             spacing measured in the capture).
         kernel_size: odd size of the estimated PSFs.
-        centres: disk centres (x, y); found in the sum of the views when omitted.
+        centres: disk centres (x, y); found in the ``combined`` view (else the sum of the views)
+            when omitted.
         lam: weight of the l1 term.
         smoothness: weight of an extra ``||grad E||^2`` term relative to the data term's largest
             eigenvalue (ours, not in S1; 0 gives the supplement's objective). Noisy captures need
@@ -121,8 +122,9 @@ def estimate_psfs(
         raise ParameterError(f"kernel_size must be odd and >= 3, got {kernel_size}")
     names = list(views)
     stack = np.stack([np.asarray(views[n], np.float64) for n in names])
-    if centres is None:
-        centres = locate_disks(stack.sum(0))
+    if centres is None:  # from the combined image: its PSF is symmetric, so centres are unbiased
+        combined = views["combined"] if "combined" in views else stack.sum(0)
+        centres = locate_disks(np.asarray(combined, np.float64))
     half_k = kernel_size // 2
     size = next_fast_len(int(2 * (half_k + np.ceil(radius)) + 8))
     half = size // 2

@@ -39,7 +39,14 @@ from dualpixel.optics.psf import (
     split_views,
 )
 
-__all__ = ["PAPER_SEARCH_GRID", "PSFFit", "SearchGrid", "fit_psf_models", "psf_correlation"]
+__all__ = [
+    "BANK_SEARCH_GRID",
+    "PAPER_SEARCH_GRID",
+    "PSFFit",
+    "SearchGrid",
+    "fit_psf_models",
+    "psf_correlation",
+]
 
 
 @dataclass(frozen=True)
@@ -56,6 +63,9 @@ class SearchGrid:
 
 
 PAPER_SEARCH_GRID = SearchGrid()
+#: The values the supplement kept for the 48-PSF bank (a quick search).
+BANK_SEARCH_GRID = SearchGrid(n=(3.0, 6.0, 9.0), alpha=(0.4, 0.6, 0.8, 1.0),
+                              beta=(0.1, 0.2, 0.3, 0.4), kappa=(0.14,))
 
 
 @dataclass
@@ -195,27 +205,30 @@ def fit_psf_models(
     radii = torch.arange(low, high + 1e-9, grid.radius_step, dtype=torch.float64)
 
     ours = _Scorer(target, grid.refine_top)
+    betas = torch.tensor(grid.beta, dtype=torch.float64)[:, None, None, None]
+    all_radii = radii.repeat(len(grid.beta))
     combos = [(n, a) for n in grid.n for a in grid.alpha]
     for n, a in tqdm(combos, desc="fitting our PSF model", unit="(n,alpha)", disable=not progress):
         disk, butter = butterworth_disk_terms(radii, n, a, size)
         for kappa in grid.kappa:
             smooth = [_gaussian_blur(t, kappa * radii.abs()) for t in (disk, butter)]
-            for beta in grid.beta:
-                combined = mix_butterworth_terms(*smooth, radii, beta, 0.0)
-                cand = split_views(combined, radii).left
-                cand = cand / cand.sum(dim=(-2, -1), keepdim=True)
-                ours.add(cand, [(n, a, beta, kappa, float(r)) for r in radii])
+            # every beta at once: (beta, radius) flattened, beta-major
+            mixed = mix_butterworth_terms(smooth[0][None], smooth[1][None], all_radii, betas, 0.0)
+            cand = split_views(mixed.flatten(0, 1), all_radii).left
+            cand = cand / cand.sum(dim=(-2, -1), keepdim=True)
+            ours.add(cand, [(n, a, float(b), kappa, float(r)) for b in grid.beta for r in radii])
     fine = torch.arange(low, high + 1e-9, 0.1, dtype=torch.float64)
     theirs = _Scorer(target, 3)
     theirs.add(_punnappurath(fine, size), [(float(r),) for r in fine])
 
     results = []
     for m, (index, view, sign) in enumerate(views):
-        best = _refine(measured[m], ours.best_labels[m], grid, lambda labels: _ours_batch(labels,
-                                                                                           size))
+        best = _refine(measured[m], ours.best_labels[m], grid,
+                       lambda labels: _ours_batch(labels, size))
         best_p = _refine(measured[m], theirs.best_labels[m], grid,
-                         lambda labels: _punnappurath(torch.tensor([l[0] for l in labels],
-                                                                    dtype=torch.float64), size))
+                         lambda labels: _punnappurath(
+                             torch.tensor([label[0] for label in labels], dtype=torch.float64),
+                             size))
         (n, a, b, k, r), (odx, ody), corr = best
         (rp,), _, corr_p = best_p
         results.append(PSFFit(index, view, n, a, b, k, sign * r, odx, ody, corr, sign * rp,
@@ -228,14 +241,9 @@ def _refine(measured: np.ndarray, labels: list[tuple], grid: SearchGrid, make) -
     q = _q_kernel()
     models = make(labels)
     quad = (models * _apply_q(models, q)).flatten(1).sum(1)
-    best = (float("inf"), None)
-    for oy in grid.centre_offsets:
-        for ox in grid.centre_offsets:
-            shifted = torch.from_numpy(_shift(measured, ox, oy))
-            q_shifted = _apply_q(shifted[None], q).flatten(1)
-            scores = quad - 2 * (models.flatten(1) @ q_shifted.T)[:, 0]
-            j = int(torch.argmin(scores))
-            if float(scores[j]) < best[0]:
-                best = (float(scores[j]), (labels[j], (-ox, -oy), shifted.numpy(), j))
-    label, offset, shifted, j = best[1]
-    return label, offset, psf_correlation(models[j].numpy(), shifted)
+    offsets = [(ox, oy) for oy in grid.centre_offsets for ox in grid.centre_offsets]
+    shifted = torch.from_numpy(np.stack([_shift(measured, ox, oy) for ox, oy in offsets]))
+    scores = quad[:, None] - 2 * models.flatten(1) @ _apply_q(shifted, q).flatten(1).T
+    j, k = np.unravel_index(int(torch.argmin(scores)), tuple(scores.shape))
+    ox, oy = offsets[k]
+    return labels[j], (-ox, -oy), psf_correlation(models[j].numpy(), shifted[k].numpy())

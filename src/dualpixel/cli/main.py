@@ -166,5 +166,6 @@ if __name__ == "__main__":  # pragma: no cover
 
 
 # Commands defined in their own modules register themselves on ``cli`` when imported.
+from dualpixel.cli import calibration as _calibration  # noqa: E402, F401
 from dualpixel.cli import inference as _inference  # noqa: E402, F401
 from dualpixel.cli import training as _training  # noqa: E402, F401

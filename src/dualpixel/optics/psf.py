@@ -162,15 +162,23 @@ def _normalise(kernels: torch.Tensor, total: float = 1.0) -> torch.Tensor:
 
 
 def _gaussian_blur(kernels: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
-    """Blur each kernel ``(K, S, S)`` with its own isotropic Gaussian of std ``sigma[k]``."""
-    count, size, _ = kernels.shape
+    """Blur each kernel ``(..., K, S, S)`` with its own isotropic Gaussian of std ``sigma[k]``.
+
+    Zero-padded "same" filtering written as ``T_k @ H_k @ T_k^T`` with ``T_k`` the banded
+    (Toeplitz) matrix of kernel k's taps: batched matrix products, much faster than a grouped
+    convolution with S-tap filters.
+    """
+    size = kernels.shape[-1]
     t = torch.arange(size, dtype=kernels.dtype, device=kernels.device) - size // 2
     # A vanishing sigma gives a delta (exp(-inf) off-centre), so the blur fades out continuously.
     variance = 2.0 * sigma.clamp_min(1e-6)[:, None] ** 2
     taps = torch.exp(-(t[None, :] ** 2) / variance)
     taps = taps / taps.sum(dim=1, keepdim=True)
-    out = F.conv2d(kernels[None], taps[:, None, :, None], padding="same", groups=count)
-    return F.conv2d(out, taps[:, None, None, :], padding="same", groups=count)[0]
+    offset = t[None, :] - t[:, None]  # a - i, in [-(S-1), S-1]
+    inside = offset.abs() <= size // 2
+    index = (offset + size // 2).clamp(0, size - 1).long()
+    toeplitz = taps[:, index] * inside  # (K, S, S): T[k, i, a] = taps[k, a - i + S // 2]
+    return toeplitz @ kernels @ toeplitz.transpose(-1, -2)
 
 
 def butterworth_disk_terms(
@@ -194,7 +202,8 @@ def butterworth_disk_terms(
 
 
 def mix_butterworth_terms(
-    disk: torch.Tensor, butter_disk: torch.Tensor, radius: torch.Tensor, beta: float, kappa: float
+    disk: torch.Tensor, butter_disk: torch.Tensor, radius: torch.Tensor, beta: float | torch.Tensor,
+    kappa: float,
 ) -> torch.Tensor:
     r"""``H = G_{\kappa |r|} * ((\beta + (1 - \beta) B) o C)`` from the terms, sums to 1."""
     combined = beta * disk + (1.0 - beta) * butter_disk

@@ -1,0 +1,153 @@
+"""``dualpixel pattern`` and ``dualpixel calibrate`` (supplement S1-S3)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+import numpy as np
+
+from dualpixel.cli.main import CONTEXT, _size, cli
+
+
+@cli.command(context_settings=CONTEXT)
+@click.option("--kind", type=click.Choice(["disks", "squares"]), required=True,
+              help="disks: PSF target (S1); squares: distortion target (S3).")
+@click.option("--size", default="1920x1080", callback=_size, help="Display resolution WxH.")
+@click.option("--spacing", type=int, default=60, help="Distance between disk/square centres.")
+@click.option("--radius-fraction", type=float, default=0.1,
+              help="Disk radius as a fraction of the spacing (disks).")
+@click.option("--square", type=int, default=None, help="Square side (squares; default spacing/2).")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True)
+def pattern(kind: str, size: tuple[int, int], spacing: int, radius_fraction: float,
+            square: int | None, output: Path) -> None:
+    """Write a calibration target to show full-screen on a display."""
+    from dualpixel.calibration.patterns import DiskGrid, disk_grid_pattern, square_grid_pattern
+    from dualpixel.io.images import write_png
+
+    width, height = size
+    if kind == "disks":
+        grid = DiskGrid(width, height, spacing, radius_fraction)
+        image = disk_grid_pattern(grid)
+        detail = f"{len(grid.centres())} disks of radius {grid.radius:g} px every {spacing} px"
+    else:
+        image = square_grid_pattern(width, height, square=square or spacing // 2, spacing=spacing)
+        detail = f"squares of {square or spacing // 2} px every {spacing} px"
+    write_png(output, np.repeat(image[:, :, None], 3, axis=2), bit_depth=8)
+    click.echo(f"wrote {output} ({width}x{height}, {detail})")
+
+
+@cli.group(context_settings=CONTEXT)
+def calibrate() -> None:
+    """Estimate DP PSFs, fit the PSF model and radial distortion (supplement S1-S3)."""
+
+
+def _grey(path: Path) -> np.ndarray:
+    from dualpixel.io.images import read_rgb
+
+    return read_rgb(path).mean(axis=2)
+
+
+@calibrate.command("estimate-psf", context_settings=CONTEXT)
+@click.option("--left", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Left-view capture of the disk pattern.")
+@click.option("--right", type=click.Path(dir_okay=False, path_type=Path), required=True)
+@click.option("--combined", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Combined capture (default: left + right).")
+@click.option("--radius", type=float, required=True,
+              help="Sharp disk radius in capture pixels (radius fraction x spacing in pixels).")
+@click.option("--kernel-size", type=int, default=61, help="Odd size of the estimated PSFs.")
+@click.option("--lam", type=float, default=0.1, help="Weight of the l1 term.")
+@click.option("--smoothness", type=float, default=0.1,
+              help="Extra ||grad E||^2 weight (ours; 0 = the supplement's objective).")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help=".npz with left, right, combined (N, K, K) and centres.")
+def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, kernel_size: int,
+                 lam: float, smoothness: float, output: Path) -> None:
+    """Non-blind PSF estimation per disk and view (S1)."""
+    from dualpixel.calibration.psf_estimation import estimate_psfs
+    from dualpixel.errors import InputFileError
+    from dualpixel.io.atomic import atomic_path
+
+    views = {"left": _grey(left), "right": _grey(right)}
+    views["combined"] = _grey(combined) if combined else views["left"] + views["right"]
+    for name, path in (("right", right), ("combined", combined)):
+        if path is not None and views[name].shape != views["left"].shape:
+            raise InputFileError(path, f"size differs from {left.name}")
+    estimate = estimate_psfs(views, radius=radius, kernel_size=kernel_size, lam=lam,
+                             smoothness=smoothness)
+    with atomic_path(output) as tmp, open(tmp, "wb") as handle:
+        np.savez(handle, centres=estimate.centres, **estimate.psfs)
+    click.echo(f"estimated {len(estimate.centres)} PSF(s) per view; wrote {output}")
+
+
+def _load_psfs(path: Path) -> np.ndarray:
+    from dualpixel.errors import InputFileError
+
+    if not path.is_file():
+        raise InputFileError(path, "file not found")
+    try:
+        data = np.load(path) if path.suffix == ".npy" else np.load(path)["left"]
+    except (OSError, ValueError, KeyError) as error:
+        raise InputFileError(path, f"cannot read PSFs ({error})") from None
+    data = np.asarray(data, np.float64)
+    if data.ndim == 2:
+        data = data[None]
+    if data.ndim != 3 or data.shape[1] != data.shape[2] or data.shape[1] % 2 == 0:
+        raise InputFileError(path, f"expected PSFs of shape (N, S, S) with odd S, got {data.shape}")
+    if not np.isfinite(data).all() or (data < -1e-6).any():
+        raise InputFileError(path, "PSFs must be finite and non-negative")
+    return data
+
+
+@calibrate.command("fit-psf", context_settings=CONTEXT)
+@click.option("--left", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Measured left PSFs, .npy (N, S, S).")
+@click.option("--right", type=click.Path(dir_okay=False, path_type=Path), required=True)
+@click.option("--report", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Folder for fits.csv, summary.json/.md and figure.png.")
+@click.option("--limit", type=int, default=None, help="Fit only the first N pairs.")
+@click.option("--grid", type=click.Choice(["paper", "bank"]), default="paper",
+              help="paper: the full S2 search; bank: only the 48-PSF bank's values (quick).")
+def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str) -> None:
+    """Fit our PSF model and Punnappurath et al.'s to measured DP PSFs (S2)."""
+    import time
+
+    from dualpixel.calibration.psf_fit import (
+        BANK_SEARCH_GRID,
+        PAPER_SEARCH_GRID,
+        fit_psf_models,
+    )
+    from dualpixel.calibration.report import write_fit_report
+    from dualpixel.errors import InputFileError
+
+    lefts, rights = _load_psfs(left), _load_psfs(right)
+    if lefts.shape != rights.shape:
+        raise InputFileError(right, f"shape {rights.shape} differs from {left.name} {lefts.shape}")
+    lefts, rights = lefts[:limit], rights[:limit]
+    started = time.perf_counter()
+    fits = fit_psf_models(lefts, rights,
+                          grid=PAPER_SEARCH_GRID if grid == "paper" else BANK_SEARCH_GRID)
+    seconds = time.perf_counter() - started
+    summary = write_fit_report(fits, {"left": lefts, "right": rights}, report,
+                               meta={"seconds": round(seconds, 1), "grid": grid, "left": str(left),
+                                     "right": str(right)})
+    click.echo((report / "summary.md").read_text())
+    click.echo(json.dumps(summary, indent=2))
+
+
+@calibrate.command("fit-distortion", context_settings=CONTEXT)
+@click.option("--capture", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="In-focus capture of the square pattern, centred and cropped to it.")
+@click.option("--pattern", "pattern_path", type=click.Path(dir_okay=False, path_type=Path),
+              required=True, help="The pattern image that was displayed.")
+@click.option("--working-width", type=int, default=480, help="Search resolution (width).")
+def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int) -> None:
+    """Fit division-model coefficients c1, c2, c3 (S3)."""
+    from dualpixel.calibration.distortion_fit import fit_distortion
+
+    fit = fit_distortion(_grey(capture), _grey(pattern_path), working_width=working_width)
+    c1, c2, c3 = fit.distortion.coefficients
+    click.echo(json.dumps({"c1": c1, "c2": c2, "c3": c3, "correlation": fit.correlation,
+                           "evaluations": fit.evaluations}))
