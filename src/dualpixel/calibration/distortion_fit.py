@@ -4,9 +4,10 @@ Searches ``(c1, c2, c3)`` maximising the normalised cross-correlation between th
 ``I_f`` and the pattern warped by the model ``I_d(c1, c2, c3)`` (Eq. S3), coarse to fine instead of
 a blind triple loop: a 1-D scan of ``c1`` (the dominant term), then a local 3x3x3 grid around
 the best point, climbed until its centre wins, whose step halves at every level. Both images are
-compared at a reduced working resolution and lightly blurred so that the correlation varies smoothly with the coefficients;
-the coefficients are resolution independent (R is normalised by the half-diagonal). The capture
-must be centred on the pattern (the supplement re-centres manually) and have its size.
+compared at a reduced working resolution and lightly blurred so that the correlation varies
+smoothly with the coefficients; the coefficients are resolution independent (R is normalised by
+the half-diagonal). The capture must be centred on the pattern (the supplement re-centres
+manually) and have its aspect ratio.
 """
 
 from __future__ import annotations
