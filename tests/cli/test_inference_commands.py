@@ -60,25 +60,36 @@ def test_deblur_sequence_folder_and_dataset(checkpoint, tiny_synthetic_dataset, 
     assert len(list((tmp_path / "ds").rglob("*.png"))) == 12
 
 
-def test_eval_on_canon_folder(shared_dir, checkpoint, tmp_path):
+def test_eval_on_canon_folder(shared_dir, tmp_path):
     canon = shared_dir / "data" / "canon-dp-real"
     categories = tmp_path / "cats.csv"
     categories.write_text("".join(f"scene_0{k},{'indoor' if k < 4 else 'outdoor'}\n"
                                   for k in range(7)))
-    result = run("eval", "--dataset", canon, "--checkpoint", checkpoint, "--categories",
-                 categories, "--output", tmp_path / "report", "--figures", "1", "--no-niqe",
-                 "--tile", "256")
+    result = run("eval", "--dataset", canon, "--no-model", "--categories", categories,
+                 "--output", tmp_path / "report", "--figures", "1", "--no-niqe")
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "report" / "summary.json").read_text())["summary"]
     assert round(summary["input"]["combined"]["psnr"], 2) == 24.80
     assert round(summary["dpdnet"]["combined"]["psnr"], 2) == 27.12
-    assert summary["tiny"]["indoor"]["count"] == 4 and summary["tiny"]["outdoor"]["count"] == 3
-    assert summary["tiny"]["combined"]["seconds"] > 0
+    assert summary["dpdnet"]["indoor"]["count"] == 4 and summary["dpdnet"]["outdoor"]["count"] == 3
     table = (tmp_path / "report" / "summary.md").read_text()
     assert "Indoor PSNR" in table and "| dpdnet | " in table
     csv_lines = (tmp_path / "report" / "per_image.csv").read_text().splitlines()
-    assert len(csv_lines) == 1 + 7 * 3
+    assert len(csv_lines) == 1 + 7 * 2
     assert (tmp_path / "report" / "compare_scene_00.png").stat().st_size > 10_000
+
+
+def test_eval_runs_the_model_on_sequences(checkpoint, tiny_synthetic_dataset, tmp_path):
+    result = run("eval", "--dataset", tiny_synthetic_dataset, "--split", "train", "--checkpoint",
+                 checkpoint, "--output", tmp_path / "r", "--figures", "1", "--tile", "32",
+                 "--save-outputs", "--no-niqe")
+    assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())["summary"]
+    assert summary["tiny"]["combined"]["count"] == 12 and summary["tiny"]["combined"]["seconds"] > 0
+    assert len(list((tmp_path / "r" / "outputs").rglob("*.png"))) == 12
+    # the residual model starts as the identity: its output scores like the input
+    assert summary["tiny"]["combined"]["psnr"] == pytest.approx(
+        summary["input"]["combined"]["psnr"], abs=0.5)
 
 
 def test_eval_prediction_folders_and_niqe_commands(shared_dir, tmp_path):

@@ -9,8 +9,10 @@ and a grid of CoC radii minimises ``sum_i || D_i (E - H(n, alpha, beta, kappa, r
 ``D_i`` in {D_x, D_y, D_xx, D_yy, D_xy}. Centring: both views of a pair are shifted (sub-pixel,
 Fourier shift) so that the *combined* PSF's centroid is at the kernel centre, which keeps their
 disparity; the best candidates are then refined over sub-pixel centre offsets. Punnappurath et
-al.'s model (one parameter, the radius) is fitted the same way. Similarity is the 2-D normalised
-cross-correlation at zero shift (zero-mean, as Pearson's r over pixels).
+al.'s model (one parameter, the radius) is fitted the same way; because the derivative-domain
+objective favours its widest radius, its best-case correlation over the radius grid (selected by
+correlation itself) is reported too. Similarity is the 2-D normalised cross-correlation at zero
+shift (zero-mean, as Pearson's r over pixels).
 
 Vectorised: the expensive supersampled terms ``[C]`` and ``[B o C]`` are computed once per
 ``(n, alpha, r)``; the Gaussian blur once per kappa; every beta is a linear mix of the two; and the
@@ -84,6 +86,7 @@ class PSFFit:
     correlation: float
     punnappurath_radius: float
     punnappurath_correlation: float
+    punnappurath_best_correlation: float  # best-case: max correlation over its radius grid
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -219,7 +222,8 @@ def fit_psf_models(
             ours.add(cand, [(n, a, float(b), kappa, float(r)) for b in grid.beta for r in radii])
     fine = torch.arange(low, high + 1e-9, 0.1, dtype=torch.float64)
     theirs = _Scorer(target, 3)
-    theirs.add(_punnappurath(fine, size), [(float(r),) for r in fine])
+    punn_kernels = _punnappurath(fine, size)
+    theirs.add(punn_kernels, [(float(r),) for r in fine])
 
     results = []
     for m, (index, view, sign) in enumerate(views):
@@ -231,8 +235,9 @@ def fit_psf_models(
                              size))
         (n, a, b, k, r), (odx, ody), corr = best
         (rp,), _, corr_p = best_p
+        best_case = max(psf_correlation(kernel, measured[m]) for kernel in punn_kernels.numpy())
         results.append(PSFFit(index, view, n, a, b, k, sign * r, odx, ody, corr, sign * rp,
-                              corr_p))
+                              corr_p, best_case))
     return results
 
 

@@ -251,12 +251,56 @@ def niqe_score(images: tuple[Path, ...], model: Path | None) -> None:
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True)
 @click.option("--size", default="512x512", help="Frame size WIDTHxHEIGHT the graph is made for.")
 @click.option("--step", is_flag=True, help="One recurrent step with the state as input/output.")
-def export(checkpoint: str, output: Path, size: str, step: bool) -> None:
-    """Export a checkpoint to ONNX (needs: pip install 'dualpixel[onnx]')."""
+@click.option("--format", "fmt", type=click.Choice(["onnx", "safetensors-fp16"]), default="onnx",
+              help="onnx (needs: pip install 'dualpixel[onnx]'), or a half-precision copy of the "
+              "checkpoint (how shipped models are stored).")
+def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> None:
+    """Export a checkpoint to ONNX, or as a half-precision safetensors checkpoint."""
+    import torch
+
     from dualpixel.cli.main import _size
     from dualpixel.inference.onnx_export import export_onnx
+    from dualpixel.models import read_metadata, save_model
+    from dualpixel.weights import resolve_checkpoint
 
-    width, height = _size(None, None, size)
     model, _ = _load(checkpoint, "cpu")
-    export_onnx(model, output, height=height, width=width, step=step)
+    if fmt == "safetensors-fp16":
+        extra = read_metadata(resolve_checkpoint(checkpoint))["extra"]
+        save_model(output, model, dtype=torch.float16, extra={**extra, "source": str(checkpoint)})
+    else:
+        width, height = _size(None, None, size)
+        export_onnx(model, output, height=height, width=width, step=step)
     click.echo(f"wrote {output}")
+
+
+@cli.command(context_settings=CONTEXT)
+@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("demo-output"), help="Report folder (index.html).")
+@click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
+@click.option("--left", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=None, help="Your left view (with --right) instead of a procedural scene.")
+@click.option("--right", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=None)
+@click.option("--target", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=None, help="Sharp target of your pair, to score it.")
+@click.option("--rgb", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=None, help="Your all-in-focus frame (with --depth) to synthesise from.")
+@click.option("--depth", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=None, help="Its depth map (.npy metres, or 16-bit PNG x --depth-scale).")
+@click.option("--depth-scale", type=float, default=0.001, help="Metres per 16-bit PNG unit.")
+@click.option("--camera", default="set1", help="Camera preset for synthesis (set0..set4).")
+@click.option("--frames", type=click.IntRange(1, 30), default=4, help="Procedural frames.")
+@click.option("--seed", type=int, default=2026, help="Procedural scene seed.")
+def demo(output: Path, checkpoint: str, left, right, target, rgb, depth, depth_scale: float,
+         camera: str, frames: int, seed: int) -> None:
+    """Synthesise, deblur with the shipped model, evaluate, and write an HTML report."""
+    from dualpixel.demo import run_demo
+
+    result = run_demo(output, checkpoint=checkpoint, left=left, right=right, target=target,
+                      rgb=rgb, depth=depth, depth_scale=depth_scale, camera=camera,
+                      frames=frames, seed=seed)
+    mean = result.metrics.get("mean")
+    if mean:
+        click.echo(f"PSNR input {mean['combined']['psnr']:.2f} dB -> output "
+                   f"{mean['output']['psnr']:.2f} dB (mean over frames)")
+    click.echo(f"report: {result.report.resolve()}  ({result.seconds:.1f} s)")
