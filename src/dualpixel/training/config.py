@@ -7,7 +7,6 @@ and values of the wrong type are refused with the key named.
 from __future__ import annotations
 
 import dataclasses
-import json
 import types
 import typing
 from dataclasses import dataclass, field
@@ -142,7 +141,3 @@ def save_config(config: TrainConfig, path: str | Path) -> None:
     """Write the resolved configuration as YAML, atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
-
-
-def config_json(config: TrainConfig) -> str:
-    return json.dumps(config.to_dict(), sort_keys=True)

@@ -19,6 +19,10 @@ CHECKPOINTS: dict[str, tuple[str, str]] = {
         "rdpd-light.safetensors",
         "RDPD, width 0.5, residual output, trained on the CPU on procedural synthetic sequences",
     ),
+    "srdpd-light": (
+        "srdpd-light.safetensors",
+        "the same network and budget trained on single frames (sRDPD), for comparison",
+    ),
 }
 DEFAULT_CHECKPOINT = "rdpd-light"
 
