@@ -82,6 +82,7 @@ def test_eval_on_canon_folder(shared_dir, tmp_path):
 def test_eval_runs_the_model_on_sequences(checkpoint, tiny_synthetic_dataset, tmp_path):
     result = run("eval", "--dataset", tiny_synthetic_dataset, "--split", "train", "--checkpoint",
                  checkpoint, "--output", tmp_path / "r", "--figures", "1", "--tile", "32",
+                 "--overlap", "16",
                  "--save-outputs", "--no-niqe")
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())["summary"]

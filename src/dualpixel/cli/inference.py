@@ -128,9 +128,11 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
               help="Side-by-side figures for the first N images.")
 @click.option("--save-outputs", is_flag=True, help="Also write the model's outputs (PNG).")
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
+@click.option("--overlap", type=int, default=192, help="Tile overlap in pixels.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
-                     niqe_model, no_niqe, output, figures, save_outputs, tile, device) -> None:
+                     niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
+                     device) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.data.layout import discover_dp_dataset, discover_scene_folders
     from dualpixel.evaluation.evaluate import (
@@ -165,7 +167,7 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
             from dualpixel.inference import Deblurrer
 
             model, resolved = _load(checkpoint, device)
-            deblurrer = Deblurrer(model, device=resolved, tile=tile)
+            deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap)
             method = Path(checkpoint).stem
             meta["checkpoint"] = str(checkpoint)
         drawn: dict[str, object] = {}
