@@ -157,15 +157,12 @@ def run_demo(
                            "ssim": ssim(frame[name], frame["target"]),
                            "mae": mae(frame[name], frame["target"])}
         metrics["frames"].append(entry)
-        rows.append([str(index)] + [f"{entry[n][k]:.{3 if k != 'psnr' else 2}f}"
-                                    for n in ("combined", "output") for k in ("psnr", "ssim",
-                                                                             "mae")])
+        rows.append([str(index), *_cells(entry)])
     if metrics["frames"]:
         mean = {n: {k: float(np.mean([f[n][k] for f in metrics["frames"]])) for k in
                     ("psnr", "ssim", "mae")} for n in ("combined", "output")}
         metrics["mean"] = mean
-        rows.append(["mean"] + [f"{mean[n][k]:.{3 if k != 'psnr' else 2}f}"
-                                for n in ("combined", "output") for k in ("psnr", "ssim", "mae")])
+        rows.append(["mean", *_cells(mean)])
 
     figures = _figures(sequence, output, recipe_info)
     bar.update()
@@ -189,6 +186,12 @@ def run_demo(
     bar.update()
     bar.close()
     return DemoResult(path, metrics, seconds)
+
+
+def _cells(scores: dict) -> list[str]:
+    """Table cells: PSNR with 2 decimals, SSIM and MAE with 3, input then output."""
+    return [f"{scores[n][k]:.{2 if k == 'psnr' else 3}f}"
+            for n in ("combined", "output") for k in ("psnr", "ssim", "mae")]
 
 
 def _intro(mode, checkpoint, recipe_info, count, seconds, timings) -> str:

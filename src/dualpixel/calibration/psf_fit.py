@@ -151,19 +151,26 @@ class _Scorer:
         self.best_scores = top.values
 
 
-def _ours(radii: torch.Tensor, n: float, alpha: float, beta: float, kappa: float, size: int):
-    disk, butter = butterworth_disk_terms(radii, n, alpha, size)
-    smooth = [_gaussian_blur(t, kappa * radii.abs()) for t in (disk, butter)]
-    combined = mix_butterworth_terms(*smooth, radii, beta, 0.0)
-    left = split_views(combined, radii).left
+def _our_left_kernels(terms: tuple[torch.Tensor, torch.Tensor], radii: torch.Tensor,
+                      betas: torch.Tensor, kappa: float) -> torch.Tensor:
+    """Left kernels (sum 1) for every beta x radius, beta-major, from ``[C]`` and ``[B o C]``:
+    the blur is linear, so it is applied to the two terms once and every beta mixes them."""
+    smooth = [_gaussian_blur(t, kappa * radii.abs()) for t in terms]
+    every_radius = radii.repeat(len(betas))
+    mixed = mix_butterworth_terms(smooth[0][None], smooth[1][None], every_radius,
+                                  betas[:, None, None, None], 0.0)
+    left = split_views(mixed.flatten(0, 1), every_radius).left
     return left / left.sum(dim=(-2, -1), keepdim=True)
 
 
 def _ours_batch(labels: list[tuple], size: int) -> torch.Tensor:
-    return torch.stack([
-        _ours(torch.tensor([r], dtype=torch.float64), n, a, b, k, size)[0]
-        for n, a, b, k, r in labels
-    ])
+    """Our left kernels for explicit (n, alpha, beta, kappa, r) labels."""
+    kernels = []
+    for n, a, b, k, r in labels:
+        radius = torch.tensor([r], dtype=torch.float64)
+        terms = butterworth_disk_terms(radius, n, a, size)
+        kernels.append(_our_left_kernels(terms, radius, torch.tensor([b]), k)[0])
+    return torch.stack(kernels)
 
 
 def _punnappurath(radii: torch.Tensor, size: int) -> torch.Tensor:
@@ -208,18 +215,13 @@ def fit_psf_models(
     radii = torch.arange(low, high + 1e-9, grid.radius_step, dtype=torch.float64)
 
     ours = _Scorer(target, grid.refine_top)
-    betas = torch.tensor(grid.beta, dtype=torch.float64)[:, None, None, None]
-    all_radii = radii.repeat(len(grid.beta))
+    betas = torch.tensor(grid.beta, dtype=torch.float64)
     combos = [(n, a) for n in grid.n for a in grid.alpha]
     for n, a in tqdm(combos, desc="fitting our PSF model", unit="(n,alpha)", disable=not progress):
-        disk, butter = butterworth_disk_terms(radii, n, a, size)
+        terms = butterworth_disk_terms(radii, n, a, size)
         for kappa in grid.kappa:
-            smooth = [_gaussian_blur(t, kappa * radii.abs()) for t in (disk, butter)]
-            # every beta at once: (beta, radius) flattened, beta-major
-            mixed = mix_butterworth_terms(smooth[0][None], smooth[1][None], all_radii, betas, 0.0)
-            cand = split_views(mixed.flatten(0, 1), all_radii).left
-            cand = cand / cand.sum(dim=(-2, -1), keepdim=True)
-            ours.add(cand, [(n, a, float(b), kappa, float(r)) for b in grid.beta for r in radii])
+            ours.add(_our_left_kernels(terms, radii, betas, kappa),
+                     [(n, a, float(b), kappa, float(r)) for b in grid.beta for r in radii])
     fine = torch.arange(low, high + 1e-9, 0.1, dtype=torch.float64)
     theirs = _Scorer(target, 3)
     punn_kernels = _punnappurath(fine, size)

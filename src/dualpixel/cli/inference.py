@@ -20,13 +20,6 @@ def _load(checkpoint: str, device: str):
     return load_model(resolve_checkpoint(checkpoint), device=resolved), resolved
 
 
-def _image_files(folder: Path) -> list[Path]:
-    from dualpixel.io.images import IMAGE_SUFFIXES
-
-    return sorted(p for p in folder.iterdir()
-                  if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("."))
-
-
 @cli.command(context_settings=CONTEXT)
 @click.option("--left", type=click.Path(exists=True, path_type=Path), default=None,
               help="Left view, or a folder of left frames (a sequence, in name order).")
@@ -48,7 +41,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: s
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder."""
     from tqdm import tqdm
 
-    from dualpixel.data.layout import discover_dp_dataset
+    from dualpixel.data.layout import discover_dp_dataset, image_files
     from dualpixel.errors import InputFileError
     from dualpixel.inference import Deblurrer
     from dualpixel.io.images import read_rgb_with_depth, write_png
@@ -66,7 +59,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: s
     elif left.is_dir():
         if right is None and needs_right:
             raise click.UsageError("--right is required for this model")
-        lefts = _image_files(left)
+        lefts = list(image_files(left).values())
         if not lefts:
             raise InputFileError(left, "no images found")
         sequence = []

@@ -20,7 +20,13 @@ from PIL import Image, UnidentifiedImageError
 from dualpixel.errors import InputFileError
 from dualpixel.io.images import IMAGE_SUFFIXES
 
-__all__ = ["DPFramePaths", "DPSequence", "discover_dp_dataset", "discover_scene_folders"]
+__all__ = [
+    "DPFramePaths",
+    "DPSequence",
+    "discover_dp_dataset",
+    "discover_scene_folders",
+    "image_files",
+]
 
 
 @dataclass(frozen=True)
@@ -43,7 +49,8 @@ class DPSequence:
     width: int
 
 
-def _images(folder: Path) -> dict[str, Path]:
+def image_files(folder: Path) -> dict[str, Path]:
+    """Images directly in ``folder`` by stem, in name order (hidden and partial files skipped)."""
     return {
         p.stem: p
         for p in sorted(folder.iterdir())
@@ -78,11 +85,12 @@ def _check_sizes(frames: list[DPFramePaths]) -> tuple[int, int]:
 def _frames(
     left_dir: Path, right_dir: Path, combined_dir: Path, target_dir: Path | None
 ) -> list[DPFramePaths]:
-    lefts = _images(left_dir)
+    lefts = image_files(left_dir)
     if not lefts:
         raise InputFileError(left_dir, "no images found")
-    rights, combined = _images(right_dir), _images(combined_dir) if combined_dir.is_dir() else {}
-    targets = _images(target_dir) if target_dir is not None and target_dir.is_dir() else {}
+    rights = image_files(right_dir)
+    combined = image_files(combined_dir) if combined_dir.is_dir() else {}
+    targets = image_files(target_dir) if target_dir is not None and target_dir.is_dir() else {}
     frames = []
     for stem, left in lefts.items():
         if stem not in rights:
@@ -145,7 +153,7 @@ def discover_scene_folders(root: str | Path) -> tuple[list[DPSequence], dict[str
         raise InputFileError(root, "folder not found")
     sequences, others = [], {}
     for folder in sorted(p for p in root.iterdir() if p.is_dir()):
-        images = _images(folder)
+        images = image_files(folder)
         roles: dict[str, Path] = {}
         for role, stems in SCENE_ROLES.items():
             found = [images[s] for s in stems if s in images]
