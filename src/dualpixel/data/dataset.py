@@ -18,12 +18,11 @@ import torch
 from scipy import ndimage
 from torch.utils.data import Dataset
 
-from dualpixel.data.layout import DPFramePaths, DPSequence
+from dualpixel.data.layout import DPFramePaths, DPSequence, read_frame
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
-from dualpixel.io.images import read_rgb
 
-__all__ = ["DPPatchDataset", "PatchConfig", "flip_horizontal", "sharpness"]
+__all__ = ["DPPatchDataset", "PatchConfig", "flip_horizontal", "gradient_magnitude", "sharpness"]
 
 
 @dataclass(frozen=True)
@@ -37,10 +36,15 @@ class PatchConfig:
     max_tries: int = 10
 
 
+def gradient_magnitude(image: np.ndarray) -> np.ndarray:
+    """Sobel gradient magnitude of the grey (channel-mean) image, ``(H, W)``."""
+    grey = image.mean(axis=-1)
+    return np.hypot(ndimage.sobel(grey, 0), ndimage.sobel(grey, 1))
+
+
 def sharpness(image: np.ndarray) -> float:
     """Mean Sobel gradient magnitude of the grey image, a cheap flat-patch detector."""
-    grey = image.mean(axis=-1)
-    return float(np.hypot(ndimage.sobel(grey, 0), ndimage.sobel(grey, 1)).mean())
+    return float(gradient_magnitude(image).mean())
 
 
 def flip_horizontal(item: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
@@ -81,9 +85,7 @@ class DPPatchDataset(Dataset):
     def _load(self, frame: DPFramePaths) -> dict[str, np.ndarray]:
         if self._cache is not None and frame in self._cache:
             return self._cache[frame]
-        images = {"left": read_rgb(frame.left), "right": read_rgb(frame.right)}
-        if frame.target is not None:
-            images["target"] = read_rgb(frame.target)
+        images = read_frame(frame)
         if self._cache is not None:
             self._cache[frame] = images
         return images

@@ -15,10 +15,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from dualpixel.errors import InputFileError
-from dualpixel.io.images import IMAGE_SUFFIXES
+from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
 
 __all__ = [
     "DPFramePaths",
@@ -26,6 +27,7 @@ __all__ = [
     "discover_dp_dataset",
     "discover_scene_folders",
     "image_files",
+    "read_frame",
 ]
 
 
@@ -47,6 +49,14 @@ class DPSequence:
     frames: tuple[DPFramePaths, ...]
     height: int
     width: int
+
+
+def read_frame(paths: DPFramePaths) -> dict[str, np.ndarray]:
+    """Decode a frame's views (and target, where present) as float32 ``(H, W, 3)`` in [0, 1]."""
+    frame = {"left": read_rgb(paths.left), "right": read_rgb(paths.right)}
+    if paths.target is not None:
+        frame["target"] = read_rgb(paths.target)
+    return frame
 
 
 def image_files(folder: Path) -> dict[str, Path]:

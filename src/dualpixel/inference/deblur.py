@@ -14,11 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dualpixel.data.layout import DPSequence
+from dualpixel.data.layout import DPSequence, read_frame
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
 from dualpixel.inference.tiling import deblur_tiled
-from dualpixel.io.images import read_rgb
 from dualpixel.models.unet import DeblurNet
 
 __all__ = ["Deblurrer", "deblur_sequence", "frame_tensor", "load_sequence_frames"]
@@ -26,13 +25,7 @@ __all__ = ["Deblurrer", "deblur_sequence", "frame_tensor", "load_sequence_frames
 
 def load_sequence_frames(sequence: DPSequence) -> list[dict[str, np.ndarray]]:
     """Decode the views (and targets, where present) of a sequence as float32 (H, W, 3)."""
-    frames = []
-    for paths in sequence.frames:
-        frame = {"left": read_rgb(paths.left), "right": read_rgb(paths.right)}
-        if paths.target is not None:
-            frame["target"] = read_rgb(paths.target)
-        frames.append(frame)
-    return frames
+    return [read_frame(paths) for paths in sequence.frames]
 
 
 def _chw(image: np.ndarray) -> torch.Tensor:

@@ -11,13 +11,6 @@ from dualpixel.io.atomic import atomic_path
 __all__ = ["render_comparison", "sharpest_window"]
 
 
-def _energy(image: np.ndarray) -> np.ndarray:
-    from scipy import ndimage
-
-    grey = image.mean(axis=-1)
-    return np.hypot(ndimage.sobel(grey, 0), ndimage.sobel(grey, 1))
-
-
 def sharpest_window(
     image: np.ndarray, size: int, blurred: np.ndarray | None = None
 ) -> tuple[int, int]:
@@ -25,11 +18,14 @@ def sharpest_window(
     ``blurred`` (if given) lacks: where deblurring matters."""
     from scipy import ndimage
 
-    grey = image.mean(axis=-1)
-    energy = _energy(image) - (_energy(blurred) if blurred is not None else 0)
+    from dualpixel.data.dataset import gradient_magnitude
+
+    energy = gradient_magnitude(image)
+    if blurred is not None:
+        energy = energy - gradient_magnitude(blurred)
     local = ndimage.uniform_filter(energy, size)
     half = size // 2
-    inner = local[half : grey.shape[0] - half, half : grey.shape[1] - half]
+    inner = local[half : image.shape[0] - half, half : image.shape[1] - half]
     if inner.size == 0:
         return 0, 0
     y, x = np.unravel_index(np.argmax(inner), inner.shape)
