@@ -283,8 +283,9 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
 @click.option("--depth", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=None, help="Its depth map (.npy metres, or 16-bit PNG x --depth-scale).")
 @click.option("--depth-scale", type=float, default=0.001, help="Metres per 16-bit PNG unit.")
-@click.option("--camera", default="set1", help="Camera preset for synthesis (set0..set4).")
-@click.option("--frames", type=click.IntRange(1, 30), default=4, help="Procedural frames.")
+@click.option("--camera", default="dslr-840",
+              help="Defocus profile (dslr-840) or camera preset (set0..set4) for synthesis.")
+@click.option("--frames", type=click.IntRange(1, 30), default=3, help="Procedural frames.")
 @click.option("--seed", type=int, default=2026, help="Procedural scene seed.")
 def demo(output: Path, checkpoint: str, left, right, target, rgb, depth, depth_scale: float,
          camera: str, frames: int, seed: int) -> None:

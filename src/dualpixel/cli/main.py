@@ -89,12 +89,16 @@ def _size(_ctx, _param, value: str) -> tuple[int, int]:
 @click.option("--size", default="320x240", callback=_size, help="Frame size WIDTHxHEIGHT.")
 @click.option("--leaves", type=click.IntRange(0), default=28, help="Shapes per scene.")
 @click.option("--seed", type=int, default=0, help="Scene seed.")
+@click.option("--layout", type=click.Choice(["leaves", "photo"]), default="leaves",
+              help="leaves: shapes at random depths; photo: an in-focus subject, ground plane, "
+                   "background and occluders, with richer textures (writes the focus distance).")
 def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], leaves: int,
-           seed: int) -> None:
-    """Render procedural dead-leaves RGB-D sequences (the built-in default input)."""
+           seed: int, layout: str) -> None:
+    """Render procedural RGB-D sequences (the built-in default input)."""
     from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 
-    config = SceneConfig(width=size[0], height=size[1], frames=frames, leaves=leaves)
+    config = SceneConfig(width=size[0], height=size[1], frames=frames, leaves=leaves,
+                         layout=layout)
     write_scene_folder(output, sequences, config, seed=seed)
     click.echo(f"wrote {sequences} sequences of {frames} frames to {output}")
 
@@ -107,7 +111,8 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
               required=True, help="Dataset folder (DPDD layout).")
 @click.option("--cameras", default="set0,set1,set2,set3,set4",
-              help="Camera presets, comma-separated (one output sequence per input and camera).")
+              help="Camera presets set0..set4 and/or defocus profiles relative to the frame "
+                   "(e.g. dslr-840), comma-separated; one output sequence per input and camera.")
 @click.option("--layers", type=click.IntRange(1), default=500, help="Maximum depth layers.")
 @click.option("--bit-depth", type=click.Choice(["8", "16"]), default="16", help="PNG bit depth.")
 @click.option("--noise/--no-noise", default=True, help="Signal-dependent noise (Sec. 2.3).")
@@ -119,6 +124,8 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--distortion/--no-distortion", default=True, help="Radial distortion (Eq. 5).")
 @click.option("--psf-model", type=click.Choice(["ours", "punnappurath", "disk", "gaussian"]),
               default="ours", help="DP PSF model (the others for the paper's ablations).")
+@click.option("--psf-bank", type=click.Choice(["paper", "pixel4"]), default="paper",
+              help="PSF shapes to draw from: the paper's 48, or around the real Pixel 4 fits.")
 @click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
 @click.option("--depth-scale", type=float, default=0.001,
@@ -128,8 +135,8 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
 def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bit_depth: str,
           noise: bool, noise_model: str, noise_sigmas: str | None, distortion: bool,
-          psf_model: str, split: str, max_depth: float, depth_scale: float, seed: int,
-          device: str, workers: int) -> None:
+          psf_model: str, psf_bank: str, split: str, max_depth: float, depth_scale: float,
+          seed: int, device: str, workers: int) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
@@ -139,7 +146,8 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bi
         sigmas = tuple(_float_list(None, None, noise_sigmas))
     config = SynthConfig(
         cameras=tuple(c.strip() for c in cameras.split(",") if c.strip()),
-        psf_model=psf_model, max_layers=layers, bit_depth=int(bit_depth), noise=noise,
+        psf_model=psf_model, psf_bank=psf_bank, max_layers=layers, bit_depth=int(bit_depth),
+        noise=noise,
         noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
     )
@@ -159,6 +167,47 @@ def preview(dataset: Path, output: Path, rows: int) -> None:
     from dualpixel.viz.dataset_preview import render_dataset_preview
 
     click.echo(f"wrote {render_dataset_preview(dataset, output, rows=rows)}")
+
+
+@cli.command(context_settings=CONTEXT)
+@click.argument("datasets", nargs=-1, required=True,
+                type=click.Path(file_okay=False, path_type=Path))
+@click.option("--split", default=None,
+              help="Split of DPDD-layout folders [default: test, else train]; scene folders "
+                   "(scene/view0.png ...) need none.")
+@click.option("--limit", type=click.IntRange(1), default=None,
+              help="At most this many frames per dataset, spread evenly over its sequences.")
+@click.option("--patch", type=click.IntRange(16), default=64, help="Block size in pixels.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Histogram figure (PNG) of all datasets side by side.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Write the percentiles as JSON too.")
+def stats(datasets: tuple[Path, ...], split: str | None, limit: int | None, patch: int,
+          output: Path | None, json_path: Path | None) -> None:
+    """Measure DP datasets: disparity, blur, noise and gradient content (percentiles).
+
+    Give two datasets to compare them, e.g. synthetic training data beside real photographs.
+    """
+    from dualpixel.data.statistics import dataset_statistics, write_summary
+
+    measured = [dataset_statistics(d, split=split, limit=limit, patch=patch, progress=True)
+                for d in datasets]
+    rows = [("frames", lambda s: str(s["frames"])), ("size", lambda s: s["size"])]
+    for key, label in (("abs_disparity_px", "|disparity| px"), ("blur_sigma_px", "blur std px"),
+                       ("noise_std", "noise std"), ("gradient_fraction", "gradient frac.")):
+        for p in ("p25", "p50", "p75", "p90"):
+            rows.append((f"{label} {p}", lambda s, k=key, p=p: "-" if s[k] is None else
+                         f"{s[k][p]:.4g}"))
+    summaries = [m.summary() for m in measured]
+    click.echo(f"{'':<22}" + "".join(f"{s['name'][:20]:>22}" for s in summaries))
+    for label, value in rows:
+        click.echo(f"{label:<22}" + "".join(f"{value(s):>22}" for s in summaries))
+    if json_path is not None:
+        click.echo(f"wrote {write_summary(measured, json_path)}")
+    if output is not None:
+        from dualpixel.viz.statistics_figure import render_statistics_figure
+
+        click.echo(f"wrote {render_statistics_figure(measured, output)}")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -15,16 +15,26 @@ from dualpixel.optics.psf import (
     dp_psf,
     kernel_size,
 )
-from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
-from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
+from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PIXEL4_PSF_BANK, PSF_BANKS, PSFBank
+from dualpixel.optics.thin_lens import (
+    CAMERA_PRESETS,
+    DEFOCUS_PROFILES,
+    DefocusProfile,
+    ThinLensCamera,
+    coc_radius,
+)
 
 __all__ = [
     "CAMERA_PRESETS",
+    "DEFOCUS_PROFILES",
     "DISTORTION_PRESETS",
     "PAPER_NOISE_SIGMAS",
     "PAPER_PSF_BANK",
+    "PIXEL4_PSF_BANK",
+    "PSF_BANKS",
     "PSF_MODELS",
     "DPKernels",
+    "DefocusProfile",
     "DivisionDistortion",
     "PSFBank",
     "PSFParams",

@@ -10,7 +10,7 @@ import numpy as np
 from dualpixel.errors import ParameterError
 from dualpixel.optics.psf import PSFParams
 
-__all__ = ["PAPER_PSF_BANK", "PSFBank"]
+__all__ = ["PAPER_PSF_BANK", "PIXEL4_PSF_BANK", "PSF_BANKS", "PSFBank"]
 
 
 class PSFBank(Sequence[PSFParams]):
@@ -59,3 +59,12 @@ class PSFBank(Sequence[PSFParams]):
 PAPER_PSF_BANK = PSFBank.from_grid(
     n=(3, 6, 9), alpha=(0.4, 0.6, 0.8, 1.0), beta=(0.1, 0.2, 0.3, 0.4), kappa=(0.14,)
 )
+
+#: Drawn around our S2 fits to the 48 real Pixel 4 PSF pairs (README "Calibration"): alpha mostly
+#: 0.4-0.5, beta 0.1-0.3, kappa mostly 0.21, n poorly determined (2, 3, 7 and 15 all common).
+PIXEL4_PSF_BANK = PSFBank.from_grid(
+    n=(2, 3, 7, 15), alpha=(0.35, 0.45, 0.55), beta=(0.1, 0.2, 0.3), kappa=(0.17, 0.21, 0.25)
+)
+
+#: Banks by name (``dualpixel synth --psf-bank``).
+PSF_BANKS: dict[str, PSFBank] = {"paper": PAPER_PSF_BANK, "pixel4": PIXEL4_PSF_BANK}

@@ -21,7 +21,14 @@ import torch
 
 from dualpixel.errors import ParameterError, check_range
 
-__all__ = ["CAMERA_PRESETS", "ThinLensCamera", "coc_radius", "validate_depth"]
+__all__ = [
+    "CAMERA_PRESETS",
+    "DEFOCUS_PROFILES",
+    "DefocusProfile",
+    "ThinLensCamera",
+    "coc_radius",
+    "validate_depth",
+]
 
 ArrayT = TypeVar("ArrayT", np.ndarray, torch.Tensor)
 
@@ -133,5 +140,67 @@ CAMERA_PRESETS: dict[str, ThinLensCamera] = {
         ThinLensCamera(7, 5, 8, name="set2"),
         ThinLensCamera(10, 13, 12, name="set3"),
         ThinLensCamera(22, 10, 30, name="set4"),
+    )
+}
+
+
+@dataclass(frozen=True)
+class DefocusProfile:
+    """A blur distribution relative to the frame, for any scene scale (ours, not the paper's).
+
+    The paper's camera sets fix the CoC in pixels whatever the frame size, so a small frame gets
+    a blur far larger, relative to its content, than a photograph has. A profile instead says how
+    large the CoC is at a reference frame width: per sequence it draws the CoC radius of a point
+    at infinity, ``|r_inf|``, log-uniformly from ``infinity_coc`` (px at ``reference_width``),
+    scales it by ``width / reference_width`` and builds the thin-lens camera of Eq. 1 that focuses
+    at the given distance and gives that CoC (r = r_inf (d - s) / d). ``max_coc_radius`` (px at the
+    reference width) clamps near, strongly defocused surfaces.
+
+    >>> camera = DEFOCUS_PROFILES["dslr-840"].camera(np.random.default_rng(0), 2.0, 840)
+    >>> round(float(coc_radius(np.array([2.0]), camera)[0]), 6)
+    0.0
+    """
+
+    name: str
+    reference_width: int
+    infinity_coc: tuple[float, float]
+    max_coc_radius: float
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        check_range("reference_width", self.reference_width, 1)
+        low, high = self.infinity_coc
+        check_range("infinity_coc low", low, 0.0, low_inclusive=False)
+        check_range("infinity_coc high", high, low)
+        check_range("max_coc_radius", self.max_coc_radius, 0.0, low_inclusive=False)
+
+    def camera(
+        self, rng: np.random.Generator, focus_distance: float, width: int
+    ) -> ThinLensCamera:
+        """The camera of one sequence: focused at ``focus_distance``, frame ``width`` px wide."""
+        check_range("focus_distance", focus_distance, 0.0, low_inclusive=False)
+        check_range("width", width, 1)
+        low, high = self.infinity_coc
+        scale = width / self.reference_width
+        r_inf = float(np.exp(rng.uniform(np.log(low), np.log(high)))) * scale
+        focal_length = min(0.05, 0.5 * float(focus_distance))  # any f < s: the pitch absorbs it
+        f_number = 2.0
+        lens = ThinLensCamera(focal_length, f_number, float(focus_distance), pixel_pitch=1.0)
+        return ThinLensCamera(
+            focal_length, f_number, float(focus_distance),
+            pixel_pitch=lens.coc_scale / r_inf,
+            max_coc_radius=self.max_coc_radius * scale,
+            name=self.name,
+        )
+
+
+#: Defocus profiles. "dslr-840": a full-frame DSLR with a fast lens at a half-resolution DPDD frame
+#: (840 px wide; the Canon EOS 5D Mark IV of the DPDD benchmark): backgrounds far behind the
+#: subject blur by 3-20 px radius, near occluders by up to 30 px.
+DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
+    profile.name: profile
+    for profile in (
+        DefocusProfile("dslr-840", 840, (3.0, 20.0), 30.0,
+                       "DSLR, fast lens, 840-px-wide frame (half-resolution DPDD)"),
     )
 }

@@ -40,7 +40,13 @@ from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
 from dualpixel.optics.psf import PSF_MODELS, PSFModel
-from dualpixel.optics.thin_lens import CAMERA_PRESETS
+from dualpixel.optics.psf_bank import PSF_BANKS
+from dualpixel.optics.thin_lens import (
+    CAMERA_PRESETS,
+    DEFOCUS_PROFILES,
+    DefocusProfile,
+    ThinLensCamera,
+)
 from dualpixel.synthesis.frame import SequenceRecipe, draw_recipe, synthesize_frame
 from dualpixel.synthesis.inputs import (
     InputFormat,
@@ -57,8 +63,9 @@ __all__ = ["SynthConfig", "read_manifest", "synthesize_dataset"]
 class SynthConfig:
     """Everything that determines a synthetic dataset's content (saved in ``dataset.json``)."""
 
-    cameras: tuple[str, ...] = tuple(CAMERA_PRESETS)
+    cameras: tuple[str, ...] = tuple(CAMERA_PRESETS)  # presets setK or defocus profiles
     psf_model: PSFModel = "ours"
+    psf_bank: str = "paper"
     max_layers: int = 500
     bit_depth: int = 16
     noise: bool = True
@@ -71,11 +78,16 @@ class SynthConfig:
     split: str = "train"
 
     def __post_init__(self) -> None:
-        unknown = [c for c in self.cameras if c not in CAMERA_PRESETS]
+        known = (*CAMERA_PRESETS, *DEFOCUS_PROFILES)
+        unknown = [c for c in self.cameras if c not in known]
         if unknown or not self.cameras:
             raise ParameterError(
-                f"cameras must be a non-empty subset of {', '.join(CAMERA_PRESETS)}, got "
+                f"cameras must be a non-empty subset of {', '.join(known)}, got "
                 f"{', '.join(self.cameras) or 'none'}"
+            )
+        if self.psf_bank not in PSF_BANKS:
+            raise ParameterError(
+                f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {self.psf_bank!r}"
             )
         if self.psf_model not in PSF_MODELS:
             raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}")
@@ -122,15 +134,45 @@ class FrameJob:
         }
 
 
-def plan_jobs(sequences: list[InputSequence], config: SynthConfig) -> list[FrameJob]:
+def _profile_camera(
+    profile: DefocusProfile, sequence: InputSequence, fmt: InputFormat, config: SynthConfig,
+    seed: tuple[int, ...],
+) -> ThinLensCamera:
+    """A defocus profile's camera for a sequence: focused at the distance its ``scene.json``
+    gives (procedural "photo" scenes), else at a depth percentile (10..50, drawn) of its first
+    frame; the frame width scales the blur."""
+    rng = np.random.default_rng((*seed, 1))
+    first = sequence.frames[0]
+    _, depth = load_frame(first, fmt, max_depth=config.max_depth, depth_scale=config.depth_scale)
+    scene_file = first.rgb.parent.parent / "scene.json"
+    focus = None
+    if scene_file.is_file():
+        try:
+            focus = float(json.loads(scene_file.read_text())["focus_distance"])
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+            raise InputFileError(
+                scene_file, "expected JSON with a number 'focus_distance'"
+            ) from None
+    if focus is None:
+        focus = float(np.percentile(depth, rng.uniform(10, 50)))
+    return profile.camera(rng, focus, depth.shape[1])
+
+
+def plan_jobs(
+    sequences: list[InputSequence], config: SynthConfig, fmt: InputFormat = "rgbd"
+) -> list[FrameJob]:
     """Every output frame, with the recipe of its sequence drawn from the seed."""
     jobs = []
     for cam_index, camera in enumerate(config.cameras):
         for seq_index, sequence in enumerate(sequences):
             number = cam_index * len(sequences) + seq_index + 1
+            seed = (config.seed, seq_index, cam_index)
+            distortion = config.distortion
+            if camera in DEFOCUS_PROFILES:
+                camera = _profile_camera(DEFOCUS_PROFILES[camera], sequence, fmt, config, seed)
             recipe = draw_recipe(
-                (config.seed, seq_index, cam_index), camera, psf_model=config.psf_model,
-                distortion=config.distortion, noise=config.noise,
+                seed, camera, psf_model=config.psf_model, bank=PSF_BANKS[config.psf_bank],
+                distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
                 max_layers=config.max_layers,
             )
@@ -259,7 +301,7 @@ def synthesize_dataset(
     config = config or SynthConfig()
     root = Path(output_dir)
     sequences = discover_sequences(input_dir, fmt, split=config.split)
-    jobs = plan_jobs(sequences, config)
+    jobs = plan_jobs(sequences, config, fmt)
     root.mkdir(parents=True, exist_ok=True)
     description = {
         "config": config.as_dict(),

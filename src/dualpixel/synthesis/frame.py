@@ -68,7 +68,8 @@ def draw_recipe(
 ) -> SequenceRecipe:
     """Draw a sequence's PSF shape and noise strength from ``seed`` for a camera.
 
-    A preset camera ``setK`` gets the matching distortion preset ``setK`` (supplement S3).
+    A preset camera ``setK`` gets the matching distortion preset ``setK`` (supplement S3); any
+    other camera (e.g. one drawn from a defocus profile) a preset drawn from ``seed``.
     """
     if psf_model not in PSF_MODELS:
         raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}, got {psf_model!r}")
@@ -81,10 +82,14 @@ def draw_recipe(
     rng = np.random.default_rng(seed)
     psf = bank.sample(rng)
     sigma = float(noise_sigmas[int(rng.integers(len(noise_sigmas)))])
+    warp = DISTORTION_PRESETS.get(camera.name)
+    if warp is None:
+        presets = list(DISTORTION_PRESETS.values())
+        warp = presets[int(np.random.default_rng((*np.atleast_1d(seed), 2)).integers(len(presets)))]
     return SequenceRecipe(
         camera=camera,
         psf=psf,
-        distortion=DISTORTION_PRESETS.get(camera.name) if distortion else None,
+        distortion=warp if distortion else None,
         noise_sigma=sigma if noise else None,
         psf_model=psf_model,
         noise_model=noise_model,

@@ -11,15 +11,23 @@ each leaf drifts and moves in depth, smoothly. Depth is exact, in metres, per fr
 from __future__ import annotations
 
 import functools
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from dualpixel.errors import check_range
+from dualpixel.errors import ParameterError, check_range
+from dualpixel.synthesis.textures import random_texture
 
-__all__ = ["SceneConfig", "render_scene_sequence", "write_scene_folder"]
+__all__ = ["SCENE_LAYOUTS", "SceneConfig", "render_scene_sequence", "write_scene_folder"]
+
+#: "leaves": textured shapes at log-uniform depths before a slanted plane (the original default).
+#: "photo": laid out like a photograph: an in-focus subject near the centre (the camera focuses on
+#: it), a ground plane receding to a background, objects between them and, sometimes, a blurred
+#: foreground occluder; textures from :mod:`dualpixel.synthesis.textures`.
+SCENE_LAYOUTS = ("leaves", "photo")
 
 _PHOTOS = ("astronaut", "coffee", "chelsea", "rocket", "brick", "grass", "gravel", "camera")
 
@@ -38,6 +46,7 @@ class SceneConfig:
     plane_near: float = 4.0
     camera_speed: float = 6.0  # px per frame for a surface at 1 m ... scaled by 1/depth
     leaf_speed: float = 2.0  # px per frame
+    layout: str = "leaves"  # "leaves" (dead-leaves world) or "photo" (subject, ground, background)
 
     def __post_init__(self) -> None:
         check_range("width", self.width, 16, 16384)
@@ -46,6 +55,10 @@ class SceneConfig:
         check_range("leaves", self.leaves, 0, 10000)
         check_range("near", self.near, 0.0, self.far, low_inclusive=False)
         check_range("plane_near", self.plane_near, 0.0, self.plane_far, low_inclusive=False)
+        if self.layout not in SCENE_LAYOUTS:
+            raise ParameterError(
+                f"layout must be one of {', '.join(SCENE_LAYOUTS)}, got {self.layout!r}"
+            )
 
 
 @functools.lru_cache(maxsize=1)
@@ -120,6 +133,7 @@ class _Leaf:
     vx: float
     vy: float
     depth_rate: float  # relative change of depth per frame
+    tilt: float = 0.0  # relative depth change across the leaf's width (a slanted surface)
 
 
 def _plane_depth(config: SceneConfig, horizon: float) -> np.ndarray:
@@ -130,38 +144,111 @@ def _plane_depth(config: SceneConfig, horizon: float) -> np.ndarray:
     return np.broadcast_to(1.0 / inverse, (config.height, config.width)).astype(np.float32)
 
 
+def _photo_world(
+    rng: np.random.Generator, config: SceneConfig, margin: int
+) -> tuple[np.ndarray, np.ndarray, list[_Leaf], float]:
+    """Background image and depth (with margin), shapes and the focus distance of a photo layout."""
+    height, width = config.height + 2 * margin, config.width + 2 * margin
+    short = min(config.height, config.width)
+    subject = float(np.exp(rng.uniform(np.log(1.0), np.log(6.0))))
+    far = subject * float(np.exp(rng.uniform(np.log(2.5), np.log(40.0))))
+    background = random_texture(rng, height, width)
+    depth = np.full((height, width), far, np.float32)
+    if rng.uniform() < 0.65:  # a ground plane from near the camera to the background
+        horizon = int(rng.uniform(0.25, 0.75) * height)
+        ground = random_texture(rng, height - horizon, width)
+        near = subject * rng.uniform(0.35, 1.0)
+        t = np.linspace(0.0, 1.0, height - horizon, dtype=np.float64)[:, None]
+        background[horizon:] = ground
+        depth[horizon:] = 1.0 / ((1 - t) / far + t / near)
+
+    def leaf(size: int, x: float, y: float, d: float, tilt: float = 0.0) -> _Leaf:
+        return _Leaf(
+            texture=random_texture(rng, size, size), mask=_shape_mask(rng, size),
+            x=x - size / 2, y=y - size / 2, depth=d,
+            vx=config.leaf_speed * rng.normal(), vy=config.leaf_speed * rng.normal() * 0.5,
+            depth_rate=rng.normal(0, 0.01), tilt=tilt,
+        )
+
+    leaves = []
+    for _ in range(int(rng.integers(2, 9))):  # objects between subject and background
+        size = int(rng.uniform(0.1, 0.5) * short) + 8
+        d = subject * float(np.exp(rng.uniform(np.log(1.1), np.log(far / subject))))
+        leaves.append(leaf(size, rng.uniform(-0.1, 1.1) * config.width,
+                           rng.uniform(-0.1, 1.1) * config.height, d))
+    for _ in range(int(rng.integers(1, 3))):  # the subject, near the centre, maybe slanted
+        size = int(rng.uniform(0.35, 0.85) * short) + 8
+        leaves.append(leaf(size, rng.uniform(0.2, 0.8) * config.width,
+                           rng.uniform(0.25, 0.8) * config.height,
+                           subject * (1 + rng.normal(0, 0.02)), tilt=rng.normal(0, 0.1)))
+    if rng.uniform() < 0.35:  # a foreground occluder at the frame's edge
+        size = int(rng.uniform(0.2, 0.6) * short) + 8
+        x = rng.choice([rng.uniform(-0.2, 0.15), rng.uniform(0.85, 1.2)]) * config.width
+        leaves.append(leaf(size, x, rng.uniform(0, 1) * config.height,
+                           subject * rng.uniform(0.3, 0.8)))
+    focus = subject if rng.uniform() < 0.85 else subject * float(np.exp(rng.normal(0, 0.4)))
+    return background, depth, leaves, focus
+
+
+def _shape_mask(rng: np.random.Generator, size: int) -> np.ndarray:
+    """A geometric shape (see :func:`_leaf_mask`) or an organic blob (thresholded smooth noise)."""
+    if rng.uniform() < 0.6:
+        return _leaf_mask(rng, size)
+    noise = cv2.GaussianBlur(rng.normal(size=(size, size)).astype(np.float32), (0, 0), size / 8)
+    yy, xx = np.mgrid[0:size, 0:size]
+    falloff = np.hypot(yy - size / 2, xx - size / 2) / (size / 2)
+    field = noise / (noise.std() + 1e-6) - 2.5 * falloff**2
+    return field > 0.0
+
+
 def render_scene_sequence(seed: int, config: SceneConfig) -> list[tuple[np.ndarray, np.ndarray]]:
     """Render one sequence: a list of ``(rgb float32 (H, W, 3) in [0, 1], depth float32 (H, W))``.
 
     The same ``seed`` and ``config`` always give the same frames.
     """
+    return render_scene(seed, config)[0]
+
+
+def render_scene(
+    seed: int, config: SceneConfig
+) -> tuple[list[tuple[np.ndarray, np.ndarray]], float | None]:
+    """Like :func:`render_scene_sequence`, with the focus distance (m) of the "photo" layout
+    (the subject's depth, or occasionally a missed focus), None for "leaves"."""
     rng = np.random.default_rng(seed)
     height, width = config.height, config.width
     pan = config.camera_speed * rng.uniform(-1, 1, 2) * np.array([1.0, 0.3])
     margin = int(abs(pan).max() * config.frames / config.plane_near) + 8
-    background = _texture(rng, height + 2 * margin, width + 2 * margin)
-    horizon = rng.uniform(-0.3, 0.5) * height
-    plane = _plane_depth(config, horizon)
-    leaves = []
-    for _ in range(config.leaves):
-        size = int(rng.uniform(0.12, 0.55) * min(height, width)) + 8
-        leaves.append(_Leaf(
-            texture=_texture(rng, size, size),
-            mask=_leaf_mask(rng, size),
-            x=rng.uniform(-0.2, 1.2) * width - size / 2,
-            y=rng.uniform(-0.2, 1.2) * height - size / 2,
-            depth=float(np.exp(rng.uniform(np.log(config.near), np.log(config.far)))),
-            vx=config.leaf_speed * rng.normal(),
-            vy=config.leaf_speed * rng.normal() * 0.5,
-            depth_rate=rng.normal(0, 0.02),
-        ))
+    focus = None
+    if config.layout == "photo":
+        background, back_depth, leaves, focus = _photo_world(rng, config, margin)
+        parallax_depth = float(np.median(back_depth))
+    else:
+        background = _texture(rng, height + 2 * margin, width + 2 * margin)
+        horizon = rng.uniform(-0.3, 0.5) * height
+        back_depth = None
+        plane = _plane_depth(config, horizon)
+        parallax_depth = float(np.mean(plane))
+        leaves = []
+        for _ in range(config.leaves):
+            size = int(rng.uniform(0.12, 0.55) * min(height, width)) + 8
+            leaves.append(_Leaf(
+                texture=_texture(rng, size, size),
+                mask=_leaf_mask(rng, size),
+                x=rng.uniform(-0.2, 1.2) * width - size / 2,
+                y=rng.uniform(-0.2, 1.2) * height - size / 2,
+                depth=float(np.exp(rng.uniform(np.log(config.near), np.log(config.far)))),
+                vx=config.leaf_speed * rng.normal(),
+                vy=config.leaf_speed * rng.normal() * 0.5,
+                depth_rate=rng.normal(0, 0.02),
+            ))
     frames = []
     for t in range(config.frames):
-        # the back plane scrolls with the camera at the parallax of its mean depth
-        shift = pan * t / float(np.mean(plane))
+        # the background scrolls with the camera at the parallax of its typical depth
+        shift = pan * t / parallax_depth
         ox, oy = round(margin + shift[0]), round(margin + shift[1])
         rgb = background[oy : oy + height, ox : ox + width].copy()
-        depth = plane.copy()
+        depth = (plane.copy() if back_depth is None
+                 else back_depth[oy : oy + height, ox : ox + width].copy())
         placed = []
         for leaf in leaves:
             d = leaf.depth * (1.0 + leaf.depth_rate) ** t
@@ -175,20 +262,26 @@ def render_scene_sequence(seed: int, config: SceneConfig) -> list[tuple[np.ndarr
                 continue
             mask = leaf.mask[y0 - y : y1 - y, x0 - x : x1 - x]
             rgb[y0:y1, x0:x1][mask] = leaf.texture[y0 - y : y1 - y, x0 - x : x1 - x][mask]
-            depth[y0:y1, x0:x1][mask] = d
-        frames.append((np.ascontiguousarray(rgb), depth))
-    return frames
+            leaf_depth = np.float32(d)
+            if leaf.tilt:
+                ramp = (np.arange(x0 - x, x1 - x, dtype=np.float32) / size - 0.5) * leaf.tilt
+                leaf_depth = np.broadcast_to(d * (1 + ramp)[None, :], mask.shape)[mask]
+            depth[y0:y1, x0:x1][mask] = leaf_depth
+        frames.append((np.ascontiguousarray(rgb), np.ascontiguousarray(depth, np.float32)))
+    return frames, focus
 
 
 def write_scene_folder(
     output: str | Path, sequences: int, config: SceneConfig, *, seed: int = 0,
     progress: bool = True,
 ) -> list[Path]:
-    """Write procedural sequences as an RGB-D folder: ``seq_NNN/rgb/*.png`` (8-bit) and
-    ``seq_NNN/depth/*.npy`` (float32 metres). Sequence k uses seed ``(seed, k)``; files are
-    written atomically and existing complete sequences are kept."""
+    """Write procedural sequences as an RGB-D folder: ``seq_NNN/rgb/*.png`` (8-bit),
+    ``seq_NNN/depth/*.npy`` (float32 metres) and, for the "photo" layout, ``seq_NNN/scene.json``
+    with the focus distance (read by defocus profiles). Sequence k uses seed ``(seed, k)``; files
+    are written atomically and existing complete sequences are kept."""
     from tqdm import tqdm
 
+    from dualpixel.io.atomic import atomic_path
     from dualpixel.io.images import save_npy, write_png
 
     root = Path(output)
@@ -201,7 +294,11 @@ def write_scene_folder(
                .is_file() for n in names):
             continue
         sequence_seed = int(np.random.SeedSequence((seed, k)).generate_state(1)[0])
-        for name, (rgb, depth) in zip(names, render_scene_sequence(sequence_seed, config)):
+        frames, focus = render_scene(sequence_seed, config)
+        if focus is not None:
+            with atomic_path(folder / "scene.json") as tmp:
+                tmp.write_text(json.dumps({"focus_distance": focus, "layout": config.layout}))
+        for name, (rgb, depth) in zip(names, frames):
             write_png(folder / "rgb" / f"{name}.png", rgb, bit_depth=8)
             save_npy(folder / "depth" / f"{name}.npy", depth)
     return folders

@@ -41,6 +41,10 @@ class TrainConfig:
     val_data: str | None = None
     val_split: str = "test"
     val_limit: int | None = None  # validate on the first N sequences only
+    # Real photographs scored every epoch for the log only (DPDD layout or scene folders such as
+    # ../shared/data/canon-dp-real); never used to choose a checkpoint.
+    real_val_data: str | None = None
+    init_weights: str | None = None  # start from these weights (same architecture), not at random
     patch_size: int = 512
     real_batch: int = 8
     sequence_batch: int = 2

@@ -37,7 +37,7 @@ from dualpixel.data.layout import DPSequence, discover_dp_dataset
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.io.atomic import atomic_path
-from dualpixel.models.checkpoint import load_weights, read_metadata, save_model
+from dualpixel.models.checkpoint import load_weights, save_model
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
 from dualpixel.training.config import TrainConfig, load_config, save_config
@@ -142,6 +142,24 @@ def validate(
     return float(np.mean(scores)), sample
 
 
+def _real_validation(root: str | None) -> list[DPSequence] | None:
+    """Real photographs to log: a DPDD-layout folder (its test split) or scene folders."""
+    if root is None:
+        return None
+    from dualpixel.data.layout import discover_scene_folders
+
+    if (Path(root) / "test_l").is_dir():
+        return discover_dp_dataset(root, "test")
+    return discover_scene_folders(root)[0]
+
+
+def _resolve_weights(name: str) -> Path:
+    """A checkpoint path, or the name of a shipped checkpoint."""
+    from dualpixel.weights import resolve_checkpoint
+
+    return Path(resolve_checkpoint(name))
+
+
 def _rng_state() -> dict[str, Any]:
     state = {"torch": torch.get_rng_state(), "python": random.getstate()}
     if torch.cuda.is_available():
@@ -204,6 +222,7 @@ def train(
     val_sequences = None
     if config.val_data is not None:
         val_sequences = discover_dp_dataset(config.val_data, config.val_split)[: config.val_limit]
+    real_val_sequences = _real_validation(config.real_val_data)
 
     model = build_model(config.model, width=config.width, peepholes=config.peepholes,
                         lstm_dropout=config.lstm_dropout, residual=config.residual).to(device)
@@ -218,20 +237,24 @@ def train(
     history: list[dict[str, Any]] = []
     if resume:
         state = torch.load(output / "last_state.pt", map_location="cpu", weights_only=False)
-        saved_epoch = read_metadata(output / "last.safetensors")["extra"].get("epoch")
-        if saved_epoch != state["epoch"] + 1:
-            raise InputFileError(output / "last.safetensors",
-                                 f"weights are from epoch {saved_epoch}, the optimiser state from "
-                                 f"epoch {state['epoch'] + 1} (interrupted while saving)")
-        load_weights(model, output / "last.safetensors")
+        if "model" not in state:
+            raise InputFileError(output / "last_state.pt",
+                                 "written by an older version without the weights; start anew")
+        # The state file is the one atomic unit of a checkpoint (weights, optimiser, schedule,
+        # RNG): a kill while last.safetensors or history.jsonl is rewritten cannot break resume.
+        net_state = {k: v.to(device) for k, v in state["model"].items()}
+        model.load_state_dict(net_state)
         optimizer.load_state_dict(state["optimizer"])
         scheduler.load_state_dict(state["scheduler"])
         start_epoch, step, best = state["epoch"] + 1, state["step"], state["best_psnr"]
         history = state["history"]
         _set_rng_state(state["rng"])
-    elif main:
-        output.mkdir(parents=True, exist_ok=True)
-        save_config(config, output / "config.yaml")
+    else:
+        if config.init_weights is not None:
+            load_weights(model, _resolve_weights(config.init_weights))
+        if main:
+            output.mkdir(parents=True, exist_ok=True)
+            save_config(config, output / "config.yaml")
 
     net = model
     if world > 1:
@@ -287,6 +310,11 @@ def train(
                     if sample is not None and config.log_images:
                         for key, image in sample.items():
                             writer.add_image(f"val/{key}", image, step)
+            if real_val_sequences:  # logged only, never used to choose a checkpoint
+                record["real_val_psnr"], _ = validate(net, real_val_sequences, device)
+                if writer is not None:
+                    writer.add_scalar("val/real_psnr", record["real_val_psnr"], step)
+            if val_sequences:
                 if best is None or record["val_psnr"] > best:
                     best = record["val_psnr"]
                     save_model(output / "best.safetensors", net,
@@ -305,16 +333,18 @@ def train(
 
 def _save_state(output: Path, net: DeblurNet, optimizer, scheduler, epoch: int, step: int,
                 best: float | None, history: list[dict[str, Any]], config: TrainConfig) -> None:
-    """Weights, then optimiser/schedule/RNG state; the state file marks the epoch finished."""
-    save_model(output / "last.safetensors", net,
-               extra={"epoch": epoch + 1, "step": step, "config": config.to_dict()})
-    with atomic_path(output / "history.jsonl") as tmp:
-        tmp.write_text("".join(json.dumps(r) + "\n" for r in history))
-    state = {"optimizer": optimizer.state_dict(), "scheduler": scheduler.state_dict(),
+    """One atomic checkpoint file first (weights + optimiser/schedule/RNG state, ``last_state.pt``),
+    then the files derived from it (``last.safetensors``, ``history.jsonl``), each atomic too."""
+    state = {"model": {k: v.detach().cpu().clone() for k, v in net.state_dict().items()},
+             "optimizer": optimizer.state_dict(), "scheduler": scheduler.state_dict(),
              "epoch": epoch, "step": step, "best_psnr": best, "history": history,
              "rng": _rng_state()}
     with atomic_path(output / "last_state.pt") as tmp:
         torch.save(state, tmp)
+    save_model(output / "last.safetensors", net,
+               extra={"epoch": epoch + 1, "step": step, "config": config.to_dict()})
+    with atomic_path(output / "history.jsonl") as tmp:
+        tmp.write_text("".join(json.dumps(r) + "\n" for r in history))
 
 
 def _summary_writer(output: Path, config: TrainConfig):

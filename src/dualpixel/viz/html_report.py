@@ -1,7 +1,8 @@
 """A self-contained HTML report: images next to ``index.html``, a metrics table, captions.
 
 The page carries a small script that, once loaded, checks that every image decoded and writes the
-result into ``#image-check`` (``"images ok: N/N"``), so a headless browser can verify the report.
+result into the hidden ``#image-check`` (``"images ok: N/N"``), so a headless browser can verify
+the report without the text showing on the page.
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ def write_html_report(report: Report, output: str | Path) -> Path:
         if text:
             parts.append(f"<p>{text}</p>")
         parts += [_figure(f) for f in figures]
-    parts.append(f"<p>{report.footer}</p><p id='image-check'>images not checked</p>{_CHECK}")
+    parts.append(f"<p>{report.footer}</p><p id='image-check' hidden>images not checked</p>{_CHECK}")
     parts.append("</body></html>")
     path = output / "index.html"
     with atomic_path(path) as tmp:

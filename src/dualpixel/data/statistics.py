@@ -1,0 +1,257 @@
+"""Statistics of DP datasets: disparity, blur size, noise and gradient content (issue: matching
+synthetic data to a camera).
+
+Everything is measured at the resolution the images are stored at (the resolution a network sees),
+per ``patch x patch`` block of the grey (channel-mean) image:
+
+- **disparity** (px): the horizontal shift ``d`` of the right view against the left,
+  ``R(x) ~ L(x - d)``, found by minimising the SSD of the horizontal gradients over integer shifts
+  and refined by a parabola through the three best. Positive means the right view lies to the right
+  (with our convention, a point behind the focal plane, CoC r > 0). Only textured blocks count.
+- **blur** (px): the std of the Gaussian that best maps the target onto the combined input (least
+  squares over the block), from a grid of 0 .. ``max_sigma`` px in 0.25 px steps. Needs a target;
+  only blocks whose target has texture count (a flat block has no measurable blur).
+- **noise**: the std of the input's noise per image, in [0, 1] units: Immerkaer's (1996) 3x3
+  Laplacian-difference filter (which cancels locally linear image content and has gain 6 on white
+  noise) with a median-absolute-deviation estimate of its std, robust to edges.
+- **gradient**: the fraction of input pixels whose gradient magnitude (central differences of the
+  grey image, per pixel) exceeds 0.05, per image.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from dualpixel.data.layout import (
+    DPSequence,
+    discover_dp_dataset,
+    discover_scene_folders,
+    read_frame,
+)
+from dualpixel.errors import InputFileError, ParameterError
+
+__all__ = [
+    "DatasetStatistics",
+    "FrameStatistics",
+    "dataset_statistics",
+    "discover_any",
+    "frame_statistics",
+]
+
+PERCENTILES = (25, 50, 75, 90)
+BLUR_STEP = 0.25
+GRADIENT_THRESHOLD = 0.05
+
+
+@dataclass
+class FrameStatistics:
+    """Per-block and per-image measurements of one frame (see the module docstring)."""
+
+    disparity: np.ndarray  # (n,) signed px, textured blocks
+    blur: np.ndarray  # (m,) px, textured target blocks; empty without a target
+    noise: float
+    gradient_fraction: float
+
+
+@dataclass
+class DatasetStatistics:
+    """Measurements pooled over a dataset's frames, with percentile summaries."""
+
+    name: str
+    frames: int
+    size: tuple[int, int]  # (H, W) of the first frame
+    disparity: np.ndarray
+    blur: np.ndarray
+    noise: np.ndarray
+    gradient_fraction: np.ndarray
+    max_blur: float = 8.0
+    extra: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        """Percentiles (p25, p50, p75, p90) of every statistic, JSON-ready."""
+
+        def pct(values: np.ndarray) -> dict[str, float] | None:
+            if values.size == 0:
+                return None
+            return {f"p{p}": round(float(np.percentile(values, p)), 4) for p in PERCENTILES}
+
+        return {
+            "name": self.name, "frames": self.frames, "size": f"{self.size[1]}x{self.size[0]}",
+            "abs_disparity_px": pct(np.abs(self.disparity)),
+            "disparity_px": pct(self.disparity),
+            "blur_sigma_px": pct(self.blur),
+            "blur_at_max_fraction": (round(float(np.mean(self.blur >= self.max_blur)), 4)
+                                     if self.blur.size else None),
+            "noise_std": pct(self.noise),
+            "gradient_fraction": pct(self.gradient_fraction),
+        }
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    return image.mean(axis=-1, dtype=np.float32)
+
+
+def _block_sums(values: np.ndarray, patch: int) -> np.ndarray:
+    """Sum over non-overlapping ``patch`` blocks (the remainder at the borders is dropped)."""
+    rows, cols = values.shape[0] // patch, values.shape[1] // patch
+    trimmed = values[: rows * patch, : cols * patch]
+    return trimmed.reshape(rows, patch, cols, patch).sum(axis=(1, 3))
+
+
+def _textured(grey: np.ndarray, patch: int, threshold: float) -> np.ndarray:
+    """Blocks whose mean absolute horizontal gradient exceeds ``threshold`` (bool per block)."""
+    gradient = np.abs(np.diff(grey, axis=1, append=grey[:, -1:]))
+    return _block_sums(gradient, patch) / patch**2 > threshold
+
+
+def block_disparity(
+    left: np.ndarray, right: np.ndarray, *, patch: int = 64, max_shift: int = 12,
+    min_texture: float = 0.004,
+) -> np.ndarray:
+    """Signed horizontal shift of ``right`` against ``left`` per textured block, px ``(n,)``."""
+    gl, gr = (np.diff(_grey(v), axis=1) for v in (left, right))
+    width = gl.shape[1]
+    if width <= 2 * max_shift + 1:
+        raise ParameterError(f"images must be wider than {2 * max_shift + 1} px, got {width + 1}")
+    core = slice(max_shift, width - max_shift)
+    costs = []
+    for shift in range(-max_shift, max_shift + 1):
+        # R(x) = L(x - d): compare R at x with L at x - d
+        diff = gr[:, core] - gl[:, max_shift - shift : width - max_shift - shift]
+        costs.append(_block_sums(diff * diff, patch))
+    cost = np.stack(costs)  # (S, rows, cols)
+    best = cost.argmin(axis=0)
+    inner = np.clip(best, 1, cost.shape[0] - 2)
+    c0 = np.take_along_axis(cost, (inner - 1)[None], 0)[0]
+    c1 = np.take_along_axis(cost, inner[None], 0)[0]
+    c2 = np.take_along_axis(cost, (inner + 1)[None], 0)[0]
+    curvature = c0 - 2 * c1 + c2
+    offset = np.where(curvature > 0, 0.5 * (c0 - c2) / np.maximum(curvature, 1e-12), 0.0)
+    shift = inner - max_shift + np.clip(offset, -0.5, 0.5)
+    textured = _textured(_grey(left)[:, core], patch, min_texture)
+    return shift[textured].astype(np.float32)
+
+
+def block_blur(
+    combined: np.ndarray, target: np.ndarray, *, patch: int = 64, max_sigma: float = 8.0,
+    min_texture: float = 0.01,
+) -> np.ndarray:
+    """Std (px) of the Gaussian that best maps ``target`` to ``combined``, per textured block."""
+    grey_in, grey_target = _grey(combined), _grey(target)
+    sigmas = np.arange(0.0, max_sigma + BLUR_STEP / 2, BLUR_STEP)
+    costs = []
+    for sigma in sigmas:
+        blurred = grey_target if sigma == 0 else cv2.GaussianBlur(
+            grey_target, (0, 0), float(sigma), borderType=cv2.BORDER_REFLECT
+        )
+        costs.append(_block_sums((blurred - grey_in) ** 2, patch))
+    best = np.stack(costs).argmin(axis=0)
+    textured = _textured(grey_target, patch, min_texture)
+    return sigmas[best][textured].astype(np.float32)
+
+
+def noise_level(image: np.ndarray) -> float:
+    """Noise std of an ``(H, W, 3)`` image in [0, 1] (Immerkaer filter + MAD, channel mean)."""
+    kernel = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
+    filtered = cv2.filter2D(np.ascontiguousarray(image, np.float32), -1, kernel)[1:-1, 1:-1]
+    mad = np.median(np.abs(filtered.reshape(-1, filtered.shape[-1])), axis=0)
+    return float(np.mean(mad / (0.6745 * 6.0)))
+
+
+def gradient_fraction(image: np.ndarray, threshold: float = GRADIENT_THRESHOLD) -> float:
+    """Fraction of pixels whose grey gradient magnitude (central differences) exceeds
+    ``threshold``."""
+    gy, gx = np.gradient(_grey(image))
+    return float(np.mean(np.hypot(gx, gy) > threshold))
+
+
+def frame_statistics(
+    left: np.ndarray, right: np.ndarray, target: np.ndarray | None = None,
+    combined: np.ndarray | None = None, *, patch: int = 64, max_sigma: float = 8.0,
+) -> FrameStatistics:
+    """Measure one frame; images are float ``(H, W, 3)`` in [0, 1] of one size.
+
+    ``combined`` defaults to the mean of the views (DPDD brightness convention).
+    """
+    shapes = {a.shape for a in (left, right, target, combined) if a is not None}
+    if len(shapes) != 1:
+        raise ParameterError(f"left, right, target and combined must share one size, got {shapes}")
+    if min(left.shape[:2]) < patch:
+        raise ParameterError(f"images of {left.shape[1]}x{left.shape[0]} are smaller than the "
+                             f"{patch}-px blocks")
+    if combined is None:
+        combined = (left + right) / 2.0
+    blur = (block_blur(combined, target, patch=patch, max_sigma=max_sigma)
+            if target is not None else np.zeros(0, np.float32))
+    return FrameStatistics(
+        disparity=block_disparity(left, right, patch=patch),
+        blur=blur,
+        noise=noise_level(combined),
+        gradient_fraction=gradient_fraction(combined),
+    )
+
+
+def discover_any(root: str | Path, split: str | None = None) -> list[DPSequence]:
+    """Sequences of a DPDD-layout folder (``split``, default "test" then "train") or of a folder of
+    scene folders (``scene/view0.png ...``, as ``../shared/data/canon-dp-real``)."""
+    root = Path(root)
+    if not root.is_dir():
+        raise InputFileError(root, "folder not found")
+    dpdd_splits = [s for s in ("test", "train", "val") if (root / f"{s}_l").is_dir()]
+    if dpdd_splits:  # the split only means something for the DPDD layout
+        return discover_dp_dataset(root, split or dpdd_splits[0], require_target=False)
+    sequences, _ = discover_scene_folders(root)
+    return sequences
+
+
+def dataset_statistics(
+    root: str | Path, *, split: str | None = None, limit: int | None = None, patch: int = 64,
+    max_sigma: float = 8.0, name: str | None = None, progress: bool = False,
+) -> DatasetStatistics:
+    """Pool :func:`frame_statistics` over the frames of a dataset (at most ``limit`` frames, taken
+    evenly across sequences)."""
+    from tqdm import tqdm
+
+    if limit is not None and limit < 1:
+        raise ParameterError(f"limit must be >= 1, got {limit}")
+    sequences = discover_any(root, split)
+    frames = [f for s in sequences for f in s.frames]
+    if limit is not None and limit < len(frames):
+        frames = [frames[int(i)] for i in np.linspace(0, len(frames) - 1, limit).round()]
+    pooled: dict[str, list] = {"disparity": [], "blur": [], "noise": [], "gradient": []}
+    size = (sequences[0].height, sequences[0].width)
+    for paths in tqdm(frames, desc=f"statistics of {Path(root).name}", disable=not progress):
+        images = read_frame(paths)
+        combined = None
+        if paths.combined is not None:
+            from dualpixel.io.images import read_rgb
+
+            combined = read_rgb(paths.combined)
+            if combined.shape != images["left"].shape:
+                raise InputFileError(paths.combined, "size differs from the views")
+        stats = frame_statistics(images["left"], images["right"], images.get("target"), combined,
+                                 patch=patch, max_sigma=max_sigma)
+        pooled["disparity"].append(stats.disparity)
+        pooled["blur"].append(stats.blur)
+        pooled["noise"].append(stats.noise)
+        pooled["gradient"].append(stats.gradient_fraction)
+    return DatasetStatistics(
+        name=name or Path(root).name, frames=len(frames), size=size,
+        disparity=np.concatenate(pooled["disparity"]), blur=np.concatenate(pooled["blur"]),
+        noise=np.asarray(pooled["noise"], np.float32),
+        gradient_fraction=np.asarray(pooled["gradient"], np.float32), max_blur=max_sigma,
+    )
+
+
+def write_summary(stats: list[DatasetStatistics], path: str | Path) -> Path:
+    """Write the summaries of ``stats`` as one JSON file, atomically."""
+    from dualpixel.io.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps([s.summary() for s in stats], indent=2))
+    return Path(path)

@@ -1,0 +1,98 @@
+"""Training data like real DP photographs: photo-layout scenes, textures, defocus profiles, the
+Pixel 4 PSF bank, and a dataset written with them."""
+
+import json
+
+import numpy as np
+import pytest
+
+from dualpixel.errors import ParameterError
+from dualpixel.optics import DEFOCUS_PROFILES, PIXEL4_PSF_BANK, DefocusProfile, coc_radius
+from dualpixel.synthesis.dataset import SynthConfig, read_manifest, synthesize_dataset
+from dualpixel.synthesis.scenes import SceneConfig, render_scene, write_scene_folder
+from dualpixel.synthesis.textures import photographs, random_texture
+
+
+def test_textures_are_varied_reproducible_and_in_range():
+    assert len(photographs()) >= 15  # far more than the 8 photographs used before
+    textures = [random_texture(np.random.default_rng(s), 48, 64) for s in range(12)]
+    for t in textures:
+        assert t.shape == (48, 64, 3) and t.dtype == np.float32
+        assert 0 <= t.min() and t.max() <= 1
+    assert np.array_equal(textures[3], random_texture(np.random.default_rng(3), 48, 64))
+    means = [float(t.mean()) for t in textures]
+    assert np.std(means) > 0.03
+
+
+def test_photo_layout_has_a_subject_at_the_focus_and_a_background_behind():
+    config = SceneConfig(width=160, height=120, frames=3, layout="photo")
+    focused = 0
+    for seed in range(8):
+        frames, focus = render_scene(seed, config)
+        again, focus_again = render_scene(seed, config)
+        assert focus == focus_again and np.array_equal(frames[0][1], again[0][1])
+        depth = frames[0][1]
+        assert np.isfinite(depth).all() and depth.min() > 0
+        # much of the frame lies behind the subject (background, ground, objects) ...
+        assert np.mean(depth > focus * 1.5) > 0.2
+        # ... and the focus distance is the subject's depth, except for an occasional miss
+        focused += np.mean(np.abs(depth / focus - 1) < 0.1) > 0.05
+    assert focused >= 6
+
+
+def test_photo_scene_folder_records_the_focus_distance(tmp_path):
+    config = SceneConfig(width=64, height=48, frames=2, layout="photo")
+    write_scene_folder(tmp_path, 2, config, seed=1, progress=False)
+    recorded = json.loads((tmp_path / "seq_000" / "scene.json").read_text())
+    assert recorded["focus_distance"] > 0 and recorded["layout"] == "photo"
+
+
+def test_bad_layout_is_refused():
+    with pytest.raises(ParameterError, match="layout"):
+        SceneConfig(layout="forest")
+
+
+def test_defocus_profile_scales_with_the_frame_and_focuses():
+    profile = DEFOCUS_PROFILES["dslr-840"]
+    rng = np.random.default_rng(0)
+    full = profile.camera(np.random.default_rng(5), 3.0, 840)
+    half = profile.camera(np.random.default_rng(5), 3.0, 420)
+    depths = np.array([3.0, 1e9, 1.5])
+    r_full, r_half = coc_radius(depths, full), coc_radius(depths, half)
+    assert r_full[0] == pytest.approx(0.0, abs=1e-9)
+    low, high = profile.infinity_coc
+    assert low <= r_full[1] <= high
+    assert r_half[1] == pytest.approx(r_full[1] / 2, rel=1e-6)  # relative to the frame
+    assert r_full[2] < 0  # in front of the focus
+    assert abs(coc_radius(np.array([1e-3]), full)[0]) == pytest.approx(profile.max_coc_radius)
+    draws = [coc_radius(np.array([1e9]), profile.camera(rng, 2.0, 840))[0] for _ in range(200)]
+    assert low <= min(draws) and max(draws) <= high and np.std(draws) > 1
+    with pytest.raises(ParameterError, match="infinity_coc"):
+        DefocusProfile("bad", 840, (5.0, 1.0), 10.0)
+
+
+def test_pixel4_bank_spans_the_fitted_shapes():
+    alphas = {p.alpha for p in PIXEL4_PSF_BANK}
+    kappas = {p.kappa for p in PIXEL4_PSF_BANK}
+    assert min(alphas) <= 0.4 <= max(alphas) and 0.21 in kappas
+
+
+def test_dataset_with_a_profile_uses_the_scene_focus(tmp_path):
+    scenes = tmp_path / "scenes"
+    write_scene_folder(scenes, 2, SceneConfig(width=96, height=64, frames=2, layout="photo"),
+                       seed=2, progress=False)
+    config = SynthConfig(cameras=("dslr-840",), psf_bank="pixel4", bit_depth=8,
+                         noise_model="poisson-gaussian", noise_sigmas=(0.01,), max_layers=60)
+    summary = synthesize_dataset(scenes, "rgbd", tmp_path / "dp", config, progress=False)
+    assert summary["status"] == "complete"
+    records = read_manifest(tmp_path / "dp" / "manifest.jsonl")
+    focus = json.loads((scenes / "seq_000" / "scene.json").read_text())["focus_distance"]
+    first = next(r for r in records.values() if r["key"].startswith("train/seq_001/"))
+    assert first["camera"]["name"] == "dslr-840"
+    assert first["camera"]["focus_distance"] == pytest.approx(focus)
+    assert first["camera"]["max_coc_radius"] == pytest.approx(30.0 * 96 / 840)
+    assert any(p.as_dict() == first["psf"] for p in PIXEL4_PSF_BANK)
+    with pytest.raises(ParameterError, match="psf_bank"):
+        SynthConfig(psf_bank="canon")
+    with pytest.raises(ParameterError, match="dslr-840"):
+        SynthConfig(cameras=("dslr",))
