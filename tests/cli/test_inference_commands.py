@@ -35,14 +35,14 @@ def test_deblur_pair_keeps_16_bits_and_checks_sizes(checkpoint, tmp_path):
     cv2.imwrite(str(tmp_path / "r.png"), np.zeros((30, 52, 3), np.uint8))
     bad = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
               "--output", tmp_path / "o.png", "--checkpoint", checkpoint)
-    assert bad.exit_code == 2 and "r.png" in bad.output and "differs" in bad.output
+    assert bad.exit_code == 1 and "r.png" in bad.output and "differs" in bad.output
     (tmp_path / "r.png").write_bytes(b"broken")
     bad = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
               "--output", tmp_path / "o.png", "--checkpoint", checkpoint)
-    assert bad.exit_code == 2 and "r.png: cannot be decoded" in bad.output
+    assert bad.exit_code == 1 and "r.png: cannot be decoded" in bad.output
     missing = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "l.png",
                   "--output", tmp_path / "o.png", "--checkpoint", tmp_path / "none.safetensors")
-    assert missing.exit_code == 2 and "none.safetensors: checkpoint not found" in missing.output
+    assert missing.exit_code == 1 and "none.safetensors: checkpoint not found" in missing.output
 
 
 def test_deblur_sequence_folder_and_dataset(checkpoint, tiny_synthetic_dataset, tmp_path):
@@ -113,7 +113,7 @@ def test_eval_prediction_folders_and_niqe_commands(shared_dir, tmp_path):
     assert score.exit_code == 0 and "s0.png" in score.output
     (pred / "s1.png").unlink()
     bad = run("eval", "--pred", pred, "--target", target, "--output", tmp_path / "r2")
-    assert bad.exit_code == 2 and "prediction missing" in bad.output
+    assert bad.exit_code == 1 and "prediction missing" in bad.output
 
 
 def test_export_command(checkpoint, tmp_path):

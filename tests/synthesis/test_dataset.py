@@ -190,7 +190,7 @@ def test_scenes_then_synth_end_to_end_through_the_cli(tmp_path):
     assert left.dtype == np.uint8 and left.shape == (40, 72, 3)
     bad = runner.invoke(cli, ["synth", "--input", str(tmp_path / "nowhere"), "--output",
                               str(tmp_path / "x")])
-    assert bad.exit_code == 2 and "nowhere" in bad.output
+    assert bad.exit_code == 1 and "nowhere" in bad.output
 
 
 def test_preview_and_custom_noise_sigmas_through_the_cli(scene_dir, tmp_path):
@@ -209,7 +209,7 @@ def test_preview_and_custom_noise_sigmas_through_the_cli(scene_dir, tmp_path):
     assert image is not None and image.shape[1] > 800
     missing = runner.invoke(cli, ["preview", "--dataset", str(tmp_path), "--output",
                                   str(tmp_path / "q.png")])
-    assert missing.exit_code == 2 and "manifest.jsonl" in missing.output
+    assert missing.exit_code == 1 and "manifest.jsonl" in missing.output
 
 
 def test_exr_depth_is_read_or_refused_with_a_clear_reason(tmp_path):

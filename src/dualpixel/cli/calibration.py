@@ -8,13 +8,13 @@ from pathlib import Path
 import click
 import numpy as np
 
-from dualpixel.cli.main import CONTEXT, _size, cli
+from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
 
 
-@cli.command(context_settings=CONTEXT)
+@click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--kind", type=click.Choice(["disks", "squares"]), required=True,
               help="disks: PSF target (S1); squares: distortion target (S3).")
-@click.option("--size", default="1920x1080", callback=_size, help="Display resolution WxH.")
+@click.option("--size", default="1920x1080", callback=parse_size, help="Display resolution WxH.")
 @click.option("--spacing", type=int, default=60, help="Distance between disk/square centres.")
 @click.option("--radius-fraction", type=float, default=0.1,
               help="Disk radius as a fraction of the spacing (disks).")
@@ -38,7 +38,7 @@ def pattern(kind: str, size: tuple[int, int], spacing: int, radius_fraction: flo
     click.echo(f"wrote {output} ({width}x{height}, {detail})")
 
 
-@cli.group(context_settings=CONTEXT)
+@click.group(cls=DPGroup, context_settings=CONTEXT)
 def calibrate() -> None:
     """Estimate DP PSFs, fit the PSF model and radial distortion (supplement S1-S3)."""
 
@@ -151,3 +151,6 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
     c1, c2, c3 = fit.distortion.coefficients
     click.echo(json.dumps({"c1": c1, "c2": c2, "c3": c3, "correlation": fit.correlation,
                            "evaluations": fit.evaluations}))
+
+
+COMMANDS = (pattern, calibrate)

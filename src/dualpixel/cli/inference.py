@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.main import CONTEXT, cli
+from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
 
@@ -20,7 +20,7 @@ def _load(checkpoint: str, device: str):
     return load_model(resolve_checkpoint(checkpoint), device=resolved), resolved
 
 
-@cli.command(context_settings=CONTEXT)
+@click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--left", type=click.Path(exists=True, path_type=Path), default=None,
               help="Left view, or a folder of left frames (a sequence, in name order).")
 @click.option("--right", type=click.Path(exists=True, path_type=Path), default=None,
@@ -97,7 +97,7 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
     return result
 
 
-@cli.command("eval", context_settings=CONTEXT)
+@click.command("eval", cls=DPCommand, context_settings=CONTEXT)
 @click.option("--dataset", type=click.Path(file_okay=False, exists=True, path_type=Path),
               default=None, help="DPDD-layout test set, or one folder per scene (view0/view1/"
               "input/target, extra images = other methods).")
@@ -199,7 +199,7 @@ def _draw_comparisons(examples, outputs, results, method, output: Path) -> None:
                           title=example.name, scores=scores)
 
 
-@cli.group(context_settings=CONTEXT)
+@click.group(cls=DPGroup, context_settings=CONTEXT)
 def niqe() -> None:
     """NIQE with a reference model fitted from sharp images."""
 
@@ -241,7 +241,7 @@ def niqe_score(images: tuple[Path, ...], model: Path | None) -> None:
         click.echo(f"{path}\t{score(read_rgb(path), reference):.4f}")
 
 
-@cli.command(context_settings=CONTEXT)
+@click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True)
 @click.option("--size", default="512x512", help="Frame size WIDTHxHEIGHT the graph is made for.")
@@ -253,7 +253,6 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
     """Export a checkpoint to ONNX, or as a half-precision safetensors checkpoint."""
     import torch
 
-    from dualpixel.cli.main import _size
     from dualpixel.inference.onnx_export import export_onnx
     from dualpixel.models import read_metadata, save_model
     from dualpixel.weights import resolve_checkpoint
@@ -263,12 +262,12 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
         extra = read_metadata(resolve_checkpoint(checkpoint))["extra"]
         save_model(output, model, dtype=torch.float16, extra={**extra, "source": str(checkpoint)})
     else:
-        width, height = _size(None, None, size)
+        width, height = parse_size(None, None, size)
         export_onnx(model, output, height=height, width=width, step=step)
     click.echo(f"wrote {output}")
 
 
-@cli.command(context_settings=CONTEXT)
+@click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
               default=Path("demo-output"), help="Report folder (index.html).")
 @click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
@@ -300,3 +299,6 @@ def demo(output: Path, checkpoint: str, left, right, target, rgb, depth, depth_s
         click.echo(f"PSNR input {mean['combined']['psnr']:.2f} dB -> output "
                    f"{mean['output']['psnr']:.2f} dB (mean over frames)")
     click.echo(f"report: {result.report.resolve()}  ({result.seconds:.1f} s)")
+
+
+COMMANDS = (deblur, evaluate_command, niqe, export, demo)

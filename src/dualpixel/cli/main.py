@@ -1,220 +1,28 @@
-"""Entry point of the ``dualpixel`` command (click). Each command parses, converts and calls the
-library once; the work lives in the library so a notebook user can call it directly."""
+"""Entry point of the ``dualpixel`` command (click): the group, assembled from the command
+modules. Each command parses, converts and calls the library once; the work lives in the
+library so a notebook user can call it directly. Errors: see :mod:`dualpixel.cli.common`."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
-import numpy as np
 
 from dualpixel import __version__
-from dualpixel.errors import DualPixelError
+from dualpixel.cli import calibration, inference, synthesis, training
+from dualpixel.cli.common import CONTEXT, DPGroup
 
-CONTEXT = {"help_option_names": ["-h", "--help"], "show_default": True}
-
-
-class _Group(click.Group):
-    """Turns the library's own errors into a one-line message and exit status 2."""
-
-    def invoke(self, ctx: click.Context):
-        try:
-            return super().invoke(ctx)
-        except DualPixelError as error:
-            raise click.UsageError(str(error), ctx) from error
+__all__ = ["cli"]
 
 
-@click.group(cls=_Group, context_settings=CONTEXT)
+@click.group(cls=DPGroup, context_settings=CONTEXT)
 @click.version_option(__version__, prog_name="dualpixel")
 def cli() -> None:
     """dualpixel: dual-pixel defocus deblurring (Abuolaim et al., ICCV 2021)."""
 
 
-def _float_list(_ctx, _param, value: str) -> list[float]:
-    try:
-        return [float(v) for v in value.split(",") if v.strip()]
-    except ValueError:
-        raise click.BadParameter(f"expected comma-separated numbers, got {value!r}") from None
-
-
-@cli.command(context_settings=CONTEXT)
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
-              default=Path("psf_figure.png"), help="PNG figure to write.")
-@click.option("--radii", default="-12,-6,-2,2,6,12", callback=_float_list,
-              help="Signed CoC radii in pixels (comma-separated).")
-@click.option("--n", "order", type=float, default=3.0, help="Butterworth order n.")
-@click.option("--alpha", type=float, default=0.4, help="Cutoff factor, D_o = alpha * 2|r|.")
-@click.option("--beta", type=float, default=0.2, help="Minimum of the rescaled Butterworth term.")
-@click.option("--kappa", type=float, default=0.14, help="Gaussian smoothing std per pixel of r.")
-@click.option("--save", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Also store the kernels as .npz (left, right, combined, radii, ...).")
-def psf(output: Path, radii: list[float], order: float, alpha: float, beta: float,
-        kappa: float, save: Path | None) -> None:
-    """Render DP PSFs of our model beside Punnappurath et al.'s (like the paper's Fig. 5)."""
-    from dualpixel.io.atomic import atomic_path
-    from dualpixel.optics.psf import PSFParams
-    from dualpixel.viz.psf_figure import render_psf_figure
-
-    if not radii:
-        raise click.BadParameter("give at least one radius", param_hint="--radii")
-    params = PSFParams(n=order, alpha=alpha, beta=beta, kappa=kappa)
-    kernels = render_psf_figure(output, radii, params)
-    click.echo(f"wrote {output}")
-    if save is not None:
-        ours, theirs = kernels["ours"].numpy(), kernels["punnappurath"].numpy()
-        with atomic_path(save) as tmp:
-            with open(tmp, "wb") as handle:
-                np.savez(
-                    handle, left=ours[0], right=ours[1], combined=ours[2],
-                    radii=np.asarray(radii), punnappurath_left=theirs[0],
-                    punnappurath_right=theirs[1], punnappurath_combined=theirs[2],
-                    params=np.asarray([order, alpha, beta, kappa]),
-                )
-        click.echo(f"wrote {save}")
-
-
-def _size(_ctx, _param, value: str) -> tuple[int, int]:
-    try:
-        width, height = (int(v) for v in value.lower().split("x"))
-    except ValueError:
-        raise click.BadParameter(f"expected WIDTHxHEIGHT, e.g. 320x240, got {value!r}") from None
-    return width, height
-
-
-@cli.command(context_settings=CONTEXT)
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="RGB-D folder to write (one subfolder per sequence).")
-@click.option("--sequences", type=click.IntRange(1), default=2, help="Number of sequences.")
-@click.option("--frames", type=click.IntRange(1), default=4, help="Frames per sequence.")
-@click.option("--size", default="320x240", callback=_size, help="Frame size WIDTHxHEIGHT.")
-@click.option("--leaves", type=click.IntRange(0), default=28, help="Shapes per scene.")
-@click.option("--seed", type=int, default=0, help="Scene seed.")
-@click.option("--layout", type=click.Choice(["leaves", "photo"]), default="leaves",
-              help="leaves: shapes at random depths; photo: an in-focus subject, ground plane, "
-                   "background and occluders, with richer textures (writes the focus distance).")
-def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], leaves: int,
-           seed: int, layout: str) -> None:
-    """Render procedural RGB-D sequences (the built-in default input)."""
-    from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
-
-    config = SceneConfig(width=size[0], height=size[1], frames=frames, leaves=leaves,
-                         layout=layout)
-    write_scene_folder(output, sequences, config, seed=seed)
-    click.echo(f"wrote {sequences} sequences of {frames} frames to {output}")
-
-
-@cli.command(context_settings=CONTEXT)
-@click.option("--input", "input_dir", type=click.Path(file_okay=False, path_type=Path),
-              required=True, help="SYNTHIA-SF root or RGB-D folder.")
-@click.option("--format", "fmt", type=click.Choice(["synthia", "rgbd"]), default="rgbd",
-              help="Input layout.")
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
-              required=True, help="Dataset folder (DPDD layout).")
-@click.option("--cameras", default="set0,set1,set2,set3,set4",
-              help="Camera presets set0..set4 and/or defocus profiles relative to the frame "
-                   "(e.g. dslr-840), comma-separated; one output sequence per input and camera.")
-@click.option("--layers", type=click.IntRange(1), default=500, help="Maximum depth layers.")
-@click.option("--bit-depth", type=click.Choice(["8", "16"]), default="16", help="PNG bit depth.")
-@click.option("--noise/--no-noise", default=True, help="Signal-dependent noise (Sec. 2.3).")
-@click.option("--noise-model", type=click.Choice(["multiplicative", "poisson-gaussian"]),
-              default="multiplicative", help="The paper's formula, or Foi et al.'s model.")
-@click.option("--noise-sigmas", default=None,
-              help="Noise strengths to draw from, comma-separated [default: the paper's "
-                   "0.05, 0.055, ..., 0.5].")
-@click.option("--distortion/--no-distortion", default=True, help="Radial distortion (Eq. 5).")
-@click.option("--psf-model", type=click.Choice(["ours", "punnappurath", "disk", "gaussian"]),
-              default="ours", help="DP PSF model (the others for the paper's ablations).")
-@click.option("--psf-bank", type=click.Choice(["paper", "pixel4"]), default="paper",
-              help="PSF shapes to draw from: the paper's 48, or around the real Pixel 4 fits.")
-@click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
-@click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
-@click.option("--depth-scale", type=float, default=0.001,
-              help="Metres per unit of 16-bit depth PNGs.")
-@click.option("--seed", type=int, default=0, help="Seed of PSF shapes, noise and its draws.")
-@click.option("--device", default="cpu", help="torch device, e.g. cpu or cuda.")
-@click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
-def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bit_depth: str,
-          noise: bool, noise_model: str, noise_sigmas: str | None, distortion: bool,
-          psf_model: str, psf_bank: str, split: str, max_depth: float, depth_scale: float,
-          seed: int, device: str, workers: int) -> None:
-    """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
-    from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
-    from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
-
-    sigmas = PAPER_NOISE_SIGMAS
-    if noise_sigmas:
-        sigmas = tuple(_float_list(None, None, noise_sigmas))
-    config = SynthConfig(
-        cameras=tuple(c.strip() for c in cameras.split(",") if c.strip()),
-        psf_model=psf_model, psf_bank=psf_bank, max_layers=layers, bit_depth=int(bit_depth),
-        noise=noise,
-        noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
-        max_depth=max_depth, depth_scale=depth_scale, split=split,
-    )
-    summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device)
-    click.echo(f"{summary['status']}: {summary['frames_done']}/{summary['frames_total']} frames "
-               f"in {output}")
-
-
-@cli.command(context_settings=CONTEXT)
-@click.option("--dataset", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="Dataset folder written by `dualpixel synth`.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
-              default=Path("preview.png"), help="PNG contact sheet to write.")
-@click.option("--rows", type=click.IntRange(1), default=5, help="Sequences to show.")
-def preview(dataset: Path, output: Path, rows: int) -> None:
-    """Show a synthetic dataset: target, left, right, combined and defocus per sequence."""
-    from dualpixel.viz.dataset_preview import render_dataset_preview
-
-    click.echo(f"wrote {render_dataset_preview(dataset, output, rows=rows)}")
-
-
-@cli.command(context_settings=CONTEXT)
-@click.argument("datasets", nargs=-1, required=True,
-                type=click.Path(file_okay=False, path_type=Path))
-@click.option("--split", default=None,
-              help="Split of DPDD-layout folders [default: test, else train]; scene folders "
-                   "(scene/view0.png ...) need none.")
-@click.option("--limit", type=click.IntRange(1), default=None,
-              help="At most this many frames per dataset, spread evenly over its sequences.")
-@click.option("--patch", type=click.IntRange(16), default=64, help="Block size in pixels.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Histogram figure (PNG) of all datasets side by side.")
-@click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
-              default=None, help="Write the percentiles as JSON too.")
-def stats(datasets: tuple[Path, ...], split: str | None, limit: int | None, patch: int,
-          output: Path | None, json_path: Path | None) -> None:
-    """Measure DP datasets: disparity, blur, noise and gradient content (percentiles).
-
-    Give two datasets to compare them, e.g. synthetic training data beside real photographs.
-    """
-    from dualpixel.data.statistics import dataset_statistics, write_summary
-
-    measured = [dataset_statistics(d, split=split, limit=limit, patch=patch, progress=True)
-                for d in datasets]
-    rows = [("frames", lambda s: str(s["frames"])), ("size", lambda s: s["size"])]
-    for key, label in (("abs_disparity_px", "|disparity| px"), ("blur_sigma_px", "blur std px"),
-                       ("noise_std", "noise std"), ("gradient_fraction", "gradient frac.")):
-        for p in ("p25", "p50", "p75", "p90"):
-            rows.append((f"{label} {p}", lambda s, k=key, p=p: "-" if s[k] is None else
-                         f"{s[k][p]:.4g}"))
-    summaries = [m.summary() for m in measured]
-    click.echo(f"{'':<22}" + "".join(f"{s['name'][:20]:>22}" for s in summaries))
-    for label, value in rows:
-        click.echo(f"{label:<22}" + "".join(f"{value(s):>22}" for s in summaries))
-    if json_path is not None:
-        click.echo(f"wrote {write_summary(measured, json_path)}")
-    if output is not None:
-        from dualpixel.viz.statistics_figure import render_statistics_figure
-
-        click.echo(f"wrote {render_statistics_figure(measured, output)}")
+for _module in (synthesis, training, inference, calibration):
+    for _command in _module.COMMANDS:
+        cli.add_command(_command)
 
 
 if __name__ == "__main__":  # pragma: no cover
     cli()
-
-
-# Commands defined in their own modules register themselves on ``cli`` when imported.
-from dualpixel.cli import calibration as _calibration  # noqa: E402, F401
-from dualpixel.cli import inference as _inference  # noqa: E402, F401
-from dualpixel.cli import training as _training  # noqa: E402, F401

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.main import CONTEXT, cli
+from dualpixel.cli.common import CONTEXT, DPCommand
 
 
-@cli.command(context_settings=CONTEXT)
+@click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--width", type=float, default=1.0, help="Width multiplier of every layer.")
 def models(width: float) -> None:
     """List the networks with their inputs and parameter counts."""
@@ -36,7 +36,7 @@ def _overrides(_ctx, _param, values: tuple[str, ...]) -> dict[str, str]:
     return result
 
 
-@cli.command(context_settings=CONTEXT)
+@click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--config", "config_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="YAML/JSON config (keys of dualpixel.training.TrainConfig).")
 @click.option("--set", "overrides", multiple=True, callback=_overrides, metavar="KEY=VALUE",
@@ -60,3 +60,6 @@ def train(config_path: Path | None, overrides: dict[str, str], output: Path, res
         return
     best = "n/a" if result.best_psnr is None else f"{result.best_psnr:.2f} dB"
     click.echo(f"trained {result.step} steps; best validation PSNR {best}; run in {output}")
+
+
+COMMANDS = (models, train)

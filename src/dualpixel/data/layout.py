@@ -12,6 +12,7 @@ Synthetic sequences, as ``dualpixel synth`` writes them: the same folders with o
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -111,15 +112,35 @@ def _frames(
     return frames
 
 
+def _check_finished(description: Path) -> None:
+    """Refuse a dataset ``dualpixel synth`` has not finished (its frames may be half-written)."""
+    if not description.is_file():
+        return  # a real dataset (DPDD) has no description
+    try:
+        status = json.loads(description.read_text())
+    except (json.JSONDecodeError, OSError) as error:
+        raise InputFileError(description, f"cannot be read ({error})") from None
+    if isinstance(status, dict) and status.get("status", "complete") != "complete":
+        raise InputFileError(
+            description, f"says the dataset is unfinished ({status.get('frames_done', '?')}/"
+            f"{status.get('frames_total', '?')} frames); rerun `dualpixel synth` with the same "
+            "settings to finish it"
+        )
+
+
 def discover_dp_dataset(
-    root: str | Path, split: str = "train", *, require_target: bool = True
+    root: str | Path, split: str = "train", *, require_target: bool = True,
+    allow_incomplete: bool = False,
 ) -> list[DPSequence]:
     """All examples of ``split`` under a DPDD-layout ``root`` (real pairs or ``seq_NNN`` folders).
 
     Raises :class:`InputFileError` naming the folder or file for a missing view folder, a missing
-    view or target, images of different sizes, or no images at all.
+    view or target, images of different sizes, or no images at all, and for a synthetic dataset
+    whose ``dataset.json`` says it is unfinished (unless ``allow_incomplete``).
     """
     root = Path(root)
+    if not allow_incomplete:
+        _check_finished(root / "dataset.json")
     left_root = root / f"{split}_l" / "source"
     right_root = root / f"{split}_r" / "source"
     combined_root = root / f"{split}_c" / "source"

@@ -8,7 +8,10 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["atomic_path"]
+__all__ = ["PARTIAL_GLOB", "atomic_path", "remove_partials"]
+
+#: Names of the temporary files of :func:`atomic_path` (hidden, ``.partial`` before the suffix).
+PARTIAL_GLOB = ".*.partial*"
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -34,3 +37,17 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def remove_partials(folder: str | Path) -> int:
+    """Delete the temporary files a killed writer left under ``folder`` (recursively); return how
+    many. Call it when a job (re)starts in a folder no other process is writing."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return 0
+    removed = 0
+    for leftover in folder.rglob(PARTIAL_GLOB):
+        if leftover.is_file():
+            leftover.unlink(missing_ok=True)
+            removed += 1
+    return removed

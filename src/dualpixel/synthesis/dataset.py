@@ -35,8 +35,8 @@ import torch
 from tqdm import tqdm
 
 from dualpixel import __version__
-from dualpixel.errors import InputFileError, ParameterError
-from dualpixel.io.atomic import atomic_path
+from dualpixel.errors import InputFileError, ParameterError, check_range
+from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
 from dualpixel.optics.psf import PSF_MODELS, PSFModel
@@ -93,10 +93,12 @@ class SynthConfig:
             raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}")
         if self.bit_depth not in (8, 16):
             raise ParameterError(f"bit_depth must be 8 or 16, got {self.bit_depth}")
-        if not self.noise_sigmas or min(self.noise_sigmas) < 0:
-            raise ParameterError(
-                f"noise_sigmas must be non-negative values, got {self.noise_sigmas}"
-            )
+        if not self.noise_sigmas:
+            raise ParameterError("noise_sigmas must hold at least one value")
+        for sigma in self.noise_sigmas:
+            check_range("noise_sigmas", sigma, 0.0, 1.0)
+        check_range("max_depth", self.max_depth, 0.0, low_inclusive=False)
+        check_range("depth_scale", self.depth_scale, 0.0, low_inclusive=False)
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
 
@@ -234,6 +236,11 @@ def read_manifest(path: Path) -> dict[str, dict]:
     return records
 
 
+def _write_manifest(path: Path, records: list[dict]) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in records))
+
+
 def _check_or_write_description(root: Path, description: dict) -> None:
     path = root / "dataset.json"
     if path.is_file():
@@ -243,7 +250,8 @@ def _check_or_write_description(root: Path, description: dict) -> None:
             raise InputFileError(path, "is corrupt; remove the output folder and rerun") from None
         mine = {k: description[k] for k in ("config", "input", "format")}
         theirs = {k: existing.get(k) for k in mine}
-        if mine != theirs:
+        # A run that finished no frame holds nothing to protect: new settings may take over.
+        if mine != theirs and read_manifest(root / "manifest.jsonl"):
             differ = sorted(
                 key for key in set(mine["config"]) | set(theirs["config"] or {})
                 if mine["config"].get(key) != (theirs["config"] or {}).get(key)
@@ -312,6 +320,7 @@ def synthesize_dataset(
         "status": "incomplete",
     }
     _check_or_write_description(root, description)
+    remove_partials(root)  # temporary files of writes a kill interrupted
     manifest_path = root / "manifest.jsonl"
     done = read_manifest(manifest_path)
     pending = [job for job in jobs if job.key not in done]
@@ -328,6 +337,9 @@ def synthesize_dataset(
             done[record["key"]] = record
             bar.update(1)
     bar.close()
+    # The manifest is appended in completion order (a journal); rewrite it in plan order so the
+    # same seed gives the same bytes whatever the number of workers or interruptions.
+    _write_manifest(manifest_path, [done[job.key] for job in jobs if job.key in done])
     finished = sum(job.key in done for job in jobs)
     description.update(frames_done=finished,
                        status="complete" if finished == len(jobs) else "incomplete")

@@ -36,7 +36,7 @@ from dualpixel.data.dataset import DPPatchDataset, PatchConfig
 from dualpixel.data.layout import DPSequence, discover_dp_dataset
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
-from dualpixel.io.atomic import atomic_path
+from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.models.checkpoint import load_weights, save_model
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
@@ -215,6 +215,8 @@ def train(
         raise InputFileError(output / "last_state.pt", "nothing to resume (no finished epoch)")
     if resume:
         _check_resumable(output, config)
+        if main:
+            remove_partials(output)  # what a killed checkpoint write left behind
 
     torch.manual_seed(config.seed)
     random.seed(config.seed)
@@ -249,6 +251,8 @@ def train(
         start_epoch, step, best = state["epoch"] + 1, state["step"], state["best_psnr"]
         history = state["history"]
         _set_rng_state(state["rng"])
+        if main:
+            _write_derived(output, model, state["epoch"], step, history, config)
     else:
         if config.init_weights is not None:
             load_weights(model, _resolve_weights(config.init_weights))
@@ -341,6 +345,13 @@ def _save_state(output: Path, net: DeblurNet, optimizer, scheduler, epoch: int, 
              "rng": _rng_state()}
     with atomic_path(output / "last_state.pt") as tmp:
         torch.save(state, tmp)
+    _write_derived(output, net, epoch, step, history, config)
+
+
+def _write_derived(output: Path, net: DeblurNet, epoch: int, step: int,
+                   history: list[dict[str, Any]], config: TrainConfig) -> None:
+    """``last.safetensors`` and ``history.jsonl`` from the checkpoint's content; rewritten on
+    resume, so a kill between the state file and these cannot leave them stale."""
     save_model(output / "last.safetensors", net,
                extra={"epoch": epoch + 1, "step": step, "config": config.to_dict()})
     with atomic_path(output / "history.jsonl") as tmp:

@@ -1,0 +1,94 @@
+"""What every command shares: error reporting, context settings and option parsers.
+
+Error contract of the ``dualpixel`` command (README "What the commands guarantee"):
+
+- a bad option value (:class:`~dualpixel.errors.ParameterError`, click's own checks) is a usage
+  error: the subcommand's usage line, one message, exit status 2;
+- any other failure the library reports on purpose (a bad input file, an unwritable output, not
+  enough memory or disk) prints ``Error: <path>: <problem>`` and exits with status 1;
+- neither prints a Python traceback.
+"""
+
+from __future__ import annotations
+
+import errno
+
+import click
+
+from dualpixel.errors import DualPixelError, ParameterError
+
+__all__ = ["CONTEXT", "DPCommand", "DPGroup", "float_list", "parse_size"]
+
+CONTEXT = {"help_option_names": ["-h", "--help"], "show_default": True}
+
+
+def _os_error_message(error: OSError) -> str:
+    where = error.filename if error.filename is not None else "output"
+    if error.errno == errno.ENOSPC:
+        return f"{where}: no space left on device"
+    if isinstance(error, PermissionError):
+        return f"{where}: permission denied (not writable or readable by this user)"
+    return f"{where}: {error.strerror or error}"
+
+
+def _report(error: BaseException, ctx: click.Context) -> click.ClickException:
+    """The click exception that reports ``error`` for the command of ``ctx``."""
+    if isinstance(error, ParameterError):
+        return click.UsageError(str(error), ctx)
+    if isinstance(error, DualPixelError):
+        return click.ClickException(str(error))
+    if isinstance(error, MemoryError):
+        return click.ClickException(
+            "not enough memory for this request; use smaller images, --tile or fewer workers"
+        )
+    assert isinstance(error, OSError)
+    return click.ClickException(_os_error_message(error))
+
+
+class DPCommand(click.Command):
+    """A command whose library errors end in one clear message (see the module docstring)."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except (DualPixelError, MemoryError, OSError) as error:
+            raise _report(error, ctx) from error
+
+
+class DPGroup(click.Group):
+    """A group whose commands and subgroups are :class:`DPCommand` / :class:`DPGroup`."""
+
+    command_class = DPCommand
+    group_class = type  # subgroups are of this class too
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except (DualPixelError, MemoryError, OSError) as error:  # errors while resolving
+            raise _report(error, ctx) from error
+
+
+def float_list(_ctx, param, value: str | None) -> list[float] | None:
+    """Parse ``"1,2.5,3"``; refuse NaN and infinity (a click callback)."""
+    if value is None:
+        return None
+    try:
+        numbers = [float(v) for v in value.split(",") if v.strip()]
+    except ValueError:
+        raise click.BadParameter(f"expected comma-separated numbers, got {value!r}",
+                                 param=param) from None
+    if any(n != n or n in (float("inf"), float("-inf")) for n in numbers):
+        raise click.BadParameter(f"numbers must be finite, got {value!r}", param=param)
+    return numbers
+
+
+def parse_size(_ctx, param, value: str) -> tuple[int, int]:
+    """Parse ``WIDTHxHEIGHT`` into positive integers (a click callback)."""
+    try:
+        width, height = (int(v) for v in value.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected WIDTHxHEIGHT, e.g. 320x240, got {value!r}",
+                                 param=param) from None
+    if width < 1 or height < 1:
+        raise click.BadParameter(f"width and height must be >= 1, got {value!r}", param=param)
+    return width, height

@@ -1,0 +1,78 @@
+"""A training run killed (SIGKILL) while it writes a checkpoint resumes to the same weights as an
+uninterrupted run (issue #12)."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+import torch
+
+from dualpixel.models import load_model
+from dualpixel.training import train
+from tests.training.test_trainer import tiny_config
+
+# Runs the tiny training in a child process that kills itself (SIGKILL: no cleanup, no finally)
+# at the chosen moment of the second epoch's checkpoint.
+_CHILD = textwrap.dedent("""
+    import os, signal, sys
+    import torch
+    from dualpixel.training import load_config, train
+    from dualpixel.training import trainer
+
+    moment, data, output = sys.argv[1], sys.argv[2], sys.argv[3]
+    calls = {"state": 0, "weights": 0}
+    real_save, real_save_model = torch.save, trainer.save_model
+
+    def save(obj, path, *args, **kwargs):  # last_state.pt
+        calls["state"] += 1
+        if moment == "state" and calls["state"] == 2:
+            with open(path, "wb") as handle:  # half a file under the temporary name
+                handle.write(b"PK" * 1000)
+            os.kill(os.getpid(), signal.SIGKILL)
+        return real_save(obj, path, *args, **kwargs)
+
+    def save_model(path, *args, **kwargs):  # last.safetensors, after the state file
+        calls["weights"] += 1
+        if moment == "weights" and calls["weights"] == 2:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return real_save_model(path, *args, **kwargs)
+
+    torch.save, trainer.save_model = save, save_model
+    values = dict(model="rdpd", width=0.125, synthetic_data=data, patch_size=32,
+                  sequence_batch=2, sequence_frames=2, epochs=2, iterations_per_epoch=3,
+                  workers=0, learning_rate=1e-3, tensorboard=False, lr_halve_every=1)
+    train(load_config(None, values), output, progress=False)
+""")
+
+
+@pytest.mark.parametrize("moment", ["state", "weights"])
+def test_kill_during_checkpoint_write_resumes_to_the_same_weights(
+        tiny_synthetic_dataset, tmp_path, moment):
+    config = tiny_config(tiny_synthetic_dataset, lr_halve_every=1)
+    straight = train(config, tmp_path / "straight", progress=False)
+
+    killed = tmp_path / "killed"
+    child = subprocess.run(
+        [sys.executable, "-c", _CHILD, moment, str(tiny_synthetic_dataset), str(killed)],
+        capture_output=True, text=True, timeout=300,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    assert child.returncode == -signal.SIGKILL, child.stderr
+    if moment == "state":  # killed mid-write: epoch 1 is the last consistent checkpoint
+        assert list(killed.glob(".*.partial*"))
+        assert torch.load(killed / "last_state.pt", weights_only=False)["epoch"] == 0
+    else:  # killed after the state file: last.safetensors still holds epoch 1
+        assert torch.load(killed / "last_state.pt", weights_only=False)["epoch"] == 1
+
+    resumed = train(config, killed, resume=True, progress=False)
+    assert resumed.step == straight.step == 6
+    assert not list(killed.glob(".*.partial*"))
+    a = load_model(tmp_path / "straight" / "last.safetensors").state_dict()
+    b = load_model(killed / "last.safetensors").state_dict()
+    for key in a:
+        torch.testing.assert_close(a[key], b[key], rtol=0, atol=0)
+    history = (killed / "history.jsonl").read_text().splitlines()
+    assert len(history) == 2
