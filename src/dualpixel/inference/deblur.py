@@ -1,8 +1,10 @@
 """Deblurring whole frames and sequences with a trained network (paper Sec. 5, "full resolution").
 
 :class:`Deblurrer` runs frames in order and carries the ConvLSTM state from each frame to the next
-(call :meth:`Deblurrer.reset` between sequences), which gives the same result as running the frames
-as one sequence through ``DeblurNet.forward``. With ``tile`` set, frames are processed in
+(call :meth:`Deblurrer.reset` between sequences) when the model is temporal (trained on
+sequences; ``DeblurNet.temporal``); a model trained on single frames starts every frame afresh.
+Carrying gives the same result as running the frames as one sequence through
+``DeblurNet.forward``. With ``tile`` set, frames are processed in
 overlapping tiles (see :mod:`dualpixel.inference.tiling`) so memory stays bounded by the tile size.
 On CUDA, ``half=True`` runs in float16 autocast and the model uses channels-last memory.
 """
@@ -75,6 +77,8 @@ class Deblurrer:
     def __call__(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
         """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3)."""
         x = frame_tensor(self.model, left, right).to(self.device)
+        if not self.model.temporal:
+            self._state = None  # trained on single frames: every frame starts from zero state
         autocast = self.half and self.device.type == "cuda"
         with torch.autocast("cuda", dtype=torch.float16, enabled=autocast):
             if self.tile is None:

@@ -50,6 +50,7 @@ def save_model(
         "width": repr(float(net.width)),
         "peepholes": json.dumps(net.shape.peepholes),
         "residual": json.dumps(net.shape.residual),
+        "temporal": json.dumps(bool(net.temporal)),
         "extra": json.dumps(extra or {}, sort_keys=True),
     }
     with atomic_path(path) as tmp:
@@ -75,8 +76,20 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
         "width": float(metadata["width"]),
         "peepholes": json.loads(metadata["peepholes"]),
         "residual": json.loads(metadata.get("residual", "false")),
+        "temporal": _temporal(metadata),
         "extra": json.loads(metadata.get("extra", "{}")),
     }
+
+
+def _temporal(metadata: dict[str, str]) -> bool:
+    """Whether the checkpoint's model carries state between frames (see ``DeblurNet.temporal``);
+    for files written before the flag existed, from the training config they store."""
+    if "temporal" in metadata:
+        return bool(json.loads(metadata["temporal"]))
+    config = json.loads(metadata.get("extra", "{}")).get("config") or {}
+    if config:
+        return bool(config.get("synthetic_data")) and not config.get("synthetic_as_frames")
+    return True
 
 
 def load_weights(model: torch.nn.Module, path: str | Path) -> None:
@@ -107,4 +120,5 @@ def load_model(path: str | Path, *, device: str | torch.device = "cpu") -> Deblu
     model = build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
                         residual=meta["residual"])
     load_weights(model, path)
+    model.temporal = model.temporal and meta["temporal"]
     return model.to(device).eval()

@@ -88,6 +88,10 @@ class DeblurNet(nn.Module):
     def __init__(self, shape: NetworkShape) -> None:
         super().__init__()
         self.shape = shape
+        #: Whether inference carries the ConvLSTM state from frame to frame. False for a model
+        #: trained on single frames only (sRDPD+ and real pairs): its state was always zero in
+        #: training, so carrying one across frames would feed it inputs it never saw.
+        self.temporal = shape.recurrent
         widths = shape.encoder
         self.encoders = nn.ModuleList()
         cin = shape.in_channels

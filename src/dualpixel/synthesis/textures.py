@@ -22,7 +22,7 @@ import os
 import cv2
 import numpy as np
 
-__all__ = ["PHOTOGRAPH_SOURCES", "photographs", "random_texture"]
+__all__ = ["PHOTOGRAPH_SOURCES", "load_photograph", "photographs", "random_texture"]
 
 #: (module, name) of every photograph used, all installed with scikit-image and matplotlib.
 PHOTOGRAPH_SOURCES: tuple[tuple[str, str], ...] = (
@@ -55,6 +55,15 @@ def _load(module: str, name: str) -> np.ndarray | None:
     if image.ndim == 2:
         image = image[:, :, None]
     return np.ascontiguousarray(image[:, :, :3], dtype=np.float32) / 255.0
+
+
+def load_photograph(name: str) -> np.ndarray | None:
+    """One photograph of :data:`PHOTOGRAPH_SOURCES` by name, float32 ``(H, W, 1 or 3)`` in
+    [0, 1]; None when this installation lacks it."""
+    for module, known in PHOTOGRAPH_SOURCES:
+        if known == name:
+            return _load(module, name)
+    raise KeyError(f"unknown photograph {name!r}")
 
 
 @functools.lru_cache(maxsize=1)

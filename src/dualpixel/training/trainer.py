@@ -228,6 +228,9 @@ def train(
 
     model = build_model(config.model, width=config.width, peepholes=config.peepholes,
                         lstm_dropout=config.lstm_dropout, residual=config.residual).to(device)
+    # Single frames only (sRDPD+, real pairs): inference must not carry state between frames.
+    model.temporal = model.temporal and bool(config.synthetic_data) and not (
+        config.synthetic_as_frames)
     use_cuda = device.type == "cuda"
     if use_cuda and config.channels_last:
         model = model.to(memory_format=torch.channels_last)
