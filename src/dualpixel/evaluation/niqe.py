@@ -5,8 +5,9 @@ from the DP GT images").
 Features (the standard 36): on the luminance (0-255), at the original scale and at half scale
 (antialiased bicubic, as MATLAB's ``imresize``), mean-subtracted contrast-normalised (MSCN)
 coefficients with a 7x7 Gaussian window (sigma 7/6); per block of 96x96 pixels (48x48 at half
-scale) an asymmetric generalised Gaussian fit of the MSCN values (shape, mean scale) and of their products with the four neighbours (horizontal,
-vertical, two diagonals: shape, mean, left and right scale). A reference model is the mean and
+scale) an asymmetric generalised Gaussian fit of the MSCN values (shape, mean scale) and of
+their products with the four neighbours (horizontal, vertical, two diagonals: shape, mean, left
+and right scale). A reference model is the mean and
 covariance of the features of the sharpest blocks (sharpness > 0.75 x the image's sharpest) of the
 reference images; an image's score is the Mahalanobis-like distance between its block statistics
 and the model's. Lower is more natural.
