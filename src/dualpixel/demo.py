@@ -27,6 +27,7 @@ from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import read_depth, read_rgb, write_png
 from dualpixel.models import load_model
 from dualpixel.viz.comparison import render_comparison
+from dualpixel.viz.figures import save_figure
 from dualpixel.viz.html_report import Figure, Report, write_html_report
 from dualpixel.weights import DEFAULT_CHECKPOINT, resolve_checkpoint
 
@@ -68,9 +69,7 @@ def _colour_map(values: np.ndarray, path: Path, label: str, *, cmap: str,
     fig.colorbar(shown, ax=ax, fraction=0.046, pad=0.04, label=label)
     ax.axis("off")
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 def _views_gif(left: np.ndarray, right: np.ndarray, path: Path) -> None:

@@ -11,6 +11,7 @@ from pathlib import Path
 __all__ = [
     "DualPixelError",
     "InputFileError",
+    "OutputFileError",
     "ParameterError",
     "check_range",
 ]
@@ -31,6 +32,18 @@ class InputFileError(DualPixelError, ValueError):
         self.path = Path(path)
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
+
+
+class OutputFileError(DualPixelError, OSError):
+    """An output cannot be written (a folder, no permission, disk full); names the path."""
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = Path(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.problem}"
 
 
 def check_range(

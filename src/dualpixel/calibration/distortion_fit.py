@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 import torch
 
-from dualpixel.errors import ParameterError
+from dualpixel.errors import ParameterError, check_range
 from dualpixel.optics.distortion import DivisionDistortion, distort_image
 
 __all__ = ["DistortionFit", "fit_distortion"]
@@ -47,6 +47,10 @@ def _ncc(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
                                                   (b * b).sum(dim=(-2, -1)))
 
 
+#: Below this normalised cross-correlation the capture is not taken to show the pattern.
+MIN_CORRELATION = 0.3
+
+
 def fit_distortion(
     capture: np.ndarray,
     pattern: np.ndarray,
@@ -68,6 +72,8 @@ def fit_distortion(
         levels: refinement levels of the local 3-D search (steps halve each level).
         initial_step: step of the first local level.
     """
+    check_range("working_width", working_width, 16)
+    check_range("blur", blur, 0.0)
     if abs(capture.shape[0] / capture.shape[1] - pattern.shape[0] / pattern.shape[1]) > 0.01:
         raise ParameterError(f"capture {capture.shape[:2]} and pattern {pattern.shape[:2]} differ "
                              "in aspect ratio; crop the capture to the pattern first")
@@ -101,4 +107,9 @@ def fit_distortion(
             moved = score(new_best) > score(best) + 1e-12
             best = new_best if moved else best
         step /= 2
+    if not np.isfinite(score(best)) or score(best) < MIN_CORRELATION:
+        raise ParameterError(
+            f"the capture does not match the pattern (best correlation {score(best):.3g} < "
+            f"{MIN_CORRELATION}); capture the square pattern in focus, centred and cropped to it"
+        )
     return DistortionFit(DivisionDistortion(*best, name="fitted"), score(best), len(cache))

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dualpixel.errors import ParameterError
+from dualpixel.memory import require_memory
 
 __all__ = ["DiskGrid", "disk_grid_pattern", "render_disk", "square_grid_pattern"]
 
@@ -60,8 +61,14 @@ def render_disk(size: int, centre: tuple[float, float], radius: float) -> np.nda
     return inside.reshape(size, ss, size, ss).mean(axis=(1, 3))
 
 
+def _require_pattern_memory(width: int, height: int) -> None:
+    # the float32 image, its 3-channel copy and the 8-bit output: about 20 bytes per pixel
+    require_memory(20.0 * width * height, f"a {width}x{height} pattern")
+
+
 def disk_grid_pattern(grid: DiskGrid) -> np.ndarray:
     """The disk-grid target: white disks on black."""
+    _require_pattern_memory(grid.width, grid.height)
     image = np.zeros((grid.height, grid.width), np.float32)
     half = int(np.ceil(grid.radius)) + 2
     size = 2 * half + 1
@@ -78,6 +85,7 @@ def square_grid_pattern(width: int = 1920, height: int = 1080, *, square: int = 
     centred in the image."""
     if not 0 < square < spacing:
         raise ParameterError(f"need 0 < square < spacing, got {square} and {spacing}")
+    _require_pattern_memory(width, height)
     ss = SUPERSAMPLING
 
     def coverage(length: int) -> np.ndarray:

@@ -21,7 +21,7 @@ from scipy.fft import next_fast_len
 from skimage.filters import threshold_otsu
 
 from dualpixel.calibration.patterns import render_disk
-from dualpixel.errors import ParameterError
+from dualpixel.errors import ParameterError, check_range
 
 __all__ = ["PSFEstimate", "derivative_filters", "estimate_psfs", "locate_disks"]
 
@@ -120,7 +120,16 @@ def estimate_psfs(
     """
     if kernel_size % 2 == 0 or kernel_size < 3:
         raise ParameterError(f"kernel_size must be odd and >= 3, got {kernel_size}")
+    check_range("radius", radius, 0.5, kernel_size)  # a disk of < 1 px diameter has no edge
+    check_range("lam", lam, 0.0)
+    check_range("smoothness", smoothness, 0.0)
+    check_range("iterations", iterations, 1)
+    if not views:
+        raise ParameterError("no views to estimate PSFs from")
     names = list(views)
+    shapes = {n: np.shape(views[n]) for n in names}
+    if len(set(shapes.values())) > 1:
+        raise ParameterError(f"the views differ in size: {shapes}")
     stack = np.stack([np.asarray(views[n], np.float64) for n in names])
     if centres is None:  # from the combined image: its PSF is symmetric, so centres are unbiased
         combined = views["combined"] if "combined" in views else stack.sum(0)

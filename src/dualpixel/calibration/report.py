@@ -13,6 +13,7 @@ import torch
 from dualpixel.calibration.psf_fit import PSFFit
 from dualpixel.io.atomic import atomic_path
 from dualpixel.optics.psf import PSFParams, dp_psf
+from dualpixel.viz.figures import save_figure
 
 __all__ = ["model_kernels", "summarise_fits", "write_fit_report"]
 
@@ -74,9 +75,7 @@ def _figure(fits: list[PSFFit], measured: dict[str, np.ndarray], path: Path, cou
                 ax.axis("off")
     fig.suptitle("Measured DP PSFs vs Punnappurath et al. and our fitted model (cf. Fig. S2)")
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 def write_fit_report(fits: list[PSFFit], measured: dict[str, np.ndarray], output: str | Path,

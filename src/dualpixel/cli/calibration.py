@@ -15,7 +15,8 @@ from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
 @click.option("--kind", type=click.Choice(["disks", "squares"]), required=True,
               help="disks: PSF target (S1); squares: distortion target (S3).")
 @click.option("--size", default="1920x1080", callback=parse_size, help="Display resolution WxH.")
-@click.option("--spacing", type=int, default=60, help="Distance between disk/square centres.")
+@click.option("--spacing", type=click.IntRange(2), default=60,
+              help="Distance between disk/square centres.")
 @click.option("--radius-fraction", type=float, default=0.1,
               help="Disk radius as a fraction of the spacing (disks).")
 @click.option("--square", type=int, default=None, help="Square side (squares; default spacing/2).")
@@ -24,8 +25,10 @@ def pattern(kind: str, size: tuple[int, int], spacing: int, radius_fraction: flo
             square: int | None, output: Path) -> None:
     """Write a calibration target to show full-screen on a display."""
     from dualpixel.calibration.patterns import DiskGrid, disk_grid_pattern, square_grid_pattern
-    from dualpixel.io.images import write_png
+    from dualpixel.io.atomic import check_writable
+    from dualpixel.io.images import check_image_path, write_png
 
+    check_writable(check_image_path(output))
     width, height = size
     if kind == "disks":
         grid = DiskGrid(width, height, spacing, radius_fraction)
@@ -57,7 +60,8 @@ def _grey(path: Path) -> np.ndarray:
               help="Combined capture (default: left + right).")
 @click.option("--radius", type=float, required=True,
               help="Sharp disk radius in capture pixels (radius fraction x spacing in pixels).")
-@click.option("--kernel-size", type=int, default=61, help="Odd size of the estimated PSFs.")
+@click.option("--kernel-size", type=click.IntRange(3), default=61,
+              help="Odd size of the estimated PSFs.")
 @click.option("--lam", type=float, default=0.1, help="Weight of the l1 term.")
 @click.option("--smoothness", type=float, default=0.1,
               help="Extra ||grad E||^2 weight (ours; 0 = the supplement's objective).")
@@ -71,10 +75,15 @@ def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, 
     from dualpixel.io.atomic import atomic_path
 
     views = {"left": _grey(left), "right": _grey(right)}
-    views["combined"] = _grey(combined) if combined else views["left"] + views["right"]
     for name, path in (("right", right), ("combined", combined)):
-        if path is not None and views[name].shape != views["left"].shape:
-            raise InputFileError(path, f"size differs from {left.name}")
+        if path is not None:
+            views[name] = views[name] if name == "right" else _grey(path)
+            if views[name].shape != views["left"].shape:
+                found, expected = views[name].shape, views["left"].shape
+                raise InputFileError(path, f"size {found[1]}x{found[0]} differs from {left.name} "
+                                           f"({expected[1]}x{expected[0]})")
+    if combined is None:
+        views["combined"] = views["left"] + views["right"]
     estimate = estimate_psfs(views, radius=radius, kernel_size=kernel_size, lam=lam,
                              smoothness=smoothness)
     with atomic_path(output) as tmp, open(tmp, "wb") as handle:
@@ -82,38 +91,20 @@ def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, 
     click.echo(f"estimated {len(estimate.centres)} PSF(s) per view; wrote {output}")
 
 
-def _load_psfs(path: Path) -> np.ndarray:
-    from dualpixel.errors import InputFileError
-
-    if not path.is_file():
-        raise InputFileError(path, "file not found")
-    try:
-        data = np.load(path) if path.suffix == ".npy" else np.load(path)["left"]
-    except (OSError, ValueError, KeyError) as error:
-        raise InputFileError(path, f"cannot read PSFs ({error})") from None
-    data = np.asarray(data, np.float64)
-    if data.ndim == 2:
-        data = data[None]
-    if data.ndim != 3 or data.shape[1] != data.shape[2] or data.shape[1] % 2 == 0:
-        raise InputFileError(path, f"expected PSFs of shape (N, S, S) with odd S, got {data.shape}")
-    if not np.isfinite(data).all() or (data < -1e-6).any():
-        raise InputFileError(path, "PSFs must be finite and non-negative")
-    return data
-
-
 @calibrate.command("fit-psf", context_settings=CONTEXT)
 @click.option("--left", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Measured left PSFs, .npy (N, S, S).")
+              help="Measured left PSFs: .npy (N, S, S), or the .npz of estimate-psf.")
 @click.option("--right", type=click.Path(dir_okay=False, path_type=Path), required=True)
 @click.option("--report", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Folder for fits.csv, summary.json/.md and figure.png.")
-@click.option("--limit", type=int, default=None, help="Fit only the first N pairs.")
+@click.option("--limit", type=click.IntRange(1), default=None, help="Fit only the first N pairs.")
 @click.option("--grid", type=click.Choice(["paper", "bank"]), default="paper",
               help="paper: the full S2 search; bank: only the 48-PSF bank's values (quick).")
 def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str) -> None:
     """Fit our PSF model and Punnappurath et al.'s to measured DP PSFs (S2)."""
     import time
 
+    from dualpixel.calibration.measured_psfs import load_measured_psfs
     from dualpixel.calibration.psf_fit import (
         BANK_SEARCH_GRID,
         PAPER_SEARCH_GRID,
@@ -122,7 +113,7 @@ def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str)
     from dualpixel.calibration.report import write_fit_report
     from dualpixel.errors import InputFileError
 
-    lefts, rights = _load_psfs(left), _load_psfs(right)
+    lefts, rights = load_measured_psfs(left, "left"), load_measured_psfs(right, "right")
     if lefts.shape != rights.shape:
         raise InputFileError(right, f"shape {rights.shape} differs from {left.name} {lefts.shape}")
     lefts, rights = lefts[:limit], rights[:limit]
@@ -142,7 +133,8 @@ def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str)
               help="In-focus capture of the square pattern, centred and cropped to it.")
 @click.option("--pattern", "pattern_path", type=click.Path(dir_okay=False, path_type=Path),
               required=True, help="The pattern image that was displayed.")
-@click.option("--working-width", type=int, default=480, help="Search resolution (width).")
+@click.option("--working-width", type=click.IntRange(16), default=480,
+              help="Search resolution (width).")
 def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int) -> None:
     """Fit division-model coefficients c1, c2, c3 (S3)."""
     from dualpixel.calibration.distortion_fit import fit_distortion

@@ -12,8 +12,8 @@ _CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safete
 
 
 def _load(checkpoint: str, device: str):
+    from dualpixel.device import resolve_device
     from dualpixel.models import load_model
-    from dualpixel.training.trainer import resolve_device
     from dualpixel.weights import resolve_checkpoint
 
     resolved = resolve_device(device)
@@ -33,57 +33,26 @@ def _load(checkpoint: str, device: str):
 @click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
 @click.option("--tile", type=int, default=None,
               help="Tile size (multiple of 16) for bounded memory; default: whole frames.")
-@click.option("--overlap", type=int, default=192, help="Tile overlap in pixels.")
+@click.option("--overlap", type=click.IntRange(0), default=None,
+              help="Tile overlap in pixels  [default: min(192, tile/2)].")
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--half", is_flag=True, help="float16 on CUDA.")
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: str, output: Path,
-           checkpoint: str, tile: int | None, overlap: int, device: str, half: bool) -> None:
+           checkpoint: str, tile: int | None, overlap: int | None, device: str,
+           half: bool) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder."""
     from tqdm import tqdm
 
-    from dualpixel.data.layout import discover_dp_dataset, image_files
-    from dualpixel.errors import InputFileError
     from dualpixel.inference import Deblurrer
-    from dualpixel.io.images import read_rgb_with_depth, write_png
+    from dualpixel.inference.jobs import plan_deblur_jobs, run_deblur_jobs
 
-    if (dataset is None) == (left is None):
-        raise click.UsageError("give --left and --right, or --input")
     model, resolved = _load(checkpoint, device)
+    jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
+                            needs_right=model.spec.views == 2)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, half=half)
-    needs_right = model.spec.views == 2
-    jobs: list[list[tuple[Path, Path | None, Path]]] = []  # sequences of (left, right, out)
-    if dataset is not None:
-        for sequence in discover_dp_dataset(dataset, split, require_target=False):
-            folder = output / sequence.name if len(sequence.frames) > 1 else output
-            jobs.append([(f.left, f.right, folder / f"{f.left.stem}.png") for f in sequence.frames])
-    elif left.is_dir():
-        if right is None and needs_right:
-            raise click.UsageError("--right is required for this model")
-        lefts = list(image_files(left).values())
-        if not lefts:
-            raise InputFileError(left, "no images found")
-        sequence = []
-        for path in lefts:
-            other = right / path.name if right is not None else None
-            if other is not None and not other.is_file():
-                raise InputFileError(other, f"right frame for {path.name} is missing")
-            sequence.append((path, other, output / path.name))
-        jobs.append(sequence)
-    else:
-        if right is None and needs_right:
-            raise click.UsageError("--right is required for this model")
-        jobs.append([(left, right, output)])
-    total = sum(len(job) for job in jobs)
-    with tqdm(total=total, desc="deblurring", unit="frame") as bar:
-        for job in jobs:
-            deblurrer.reset()
-            for left_path, right_path, out_path in job:
-                left_image, bits = read_rgb_with_depth(left_path)
-                right_image = read_rgb_with_depth(right_path)[0] if right_path else None
-                if right_image is not None and right_image.shape != left_image.shape:
-                    raise InputFileError(right_path, f"size differs from {left_path.name}")
-                write_png(out_path, deblurrer(left_image, right_image), bit_depth=bits)
-                bar.update()
+    total = sum(len(sequence) for sequence in jobs)
+    for _ in tqdm(run_deblur_jobs(deblurrer, jobs), total=total, desc="deblurring", unit="frame"):
+        pass
     click.echo(f"wrote {total} frame(s) to {output}")
 
 
@@ -122,7 +91,8 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
               help="Side-by-side figures for the first N images.")
 @click.option("--save-outputs", is_flag=True, help="Also write the model's outputs (PNG).")
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
-@click.option("--overlap", type=int, default=192, help="Tile overlap in pixels.")
+@click.option("--overlap", type=click.IntRange(0), default=None,
+              help="Tile overlap in pixels  [default: min(192, tile/2)].")
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
@@ -137,8 +107,12 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         write_reports,
     )
     from dualpixel.evaluation.niqe import resolve_niqe_model
+    from dualpixel.io.atomic import check_writable
     from dualpixel.io.images import write_png
 
+    if output.exists() and not output.is_dir():
+        raise click.BadParameter(f"{output} is a file; give a folder", param_hint="--output")
+    check_writable(output / "summary.json")  # before evaluating anything
     niqe = None if no_niqe else resolve_niqe_model(niqe_model)
     cats = read_categories(categories) if categories else None
     meta = {"niqe_model": None if niqe is None else f"{niqe_model or 'builtin'} ({niqe.source})"}
@@ -249,12 +223,16 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
     from dualpixel.models import read_metadata, save_model
     from dualpixel.weights import resolve_checkpoint
 
+    suffix = {"onnx": ".onnx", "safetensors-fp16": ".safetensors"}[fmt]
+    if output.suffix.lower() != suffix:
+        raise click.BadParameter(f"a {fmt} export is written to a {suffix} file, got {output}",
+                                 param_hint="--output")
+    width, height = parse_size(None, None, size)
     model, _ = _load(checkpoint, "cpu")
     if fmt == "safetensors-fp16":
         extra = read_metadata(resolve_checkpoint(checkpoint))["extra"]
         save_model(output, model, dtype=torch.float16, extra={**extra, "source": str(checkpoint)})
     else:
-        width, height = parse_size(None, None, size)
         export_onnx(model, output, height=height, width=width, step=step)
     click.echo(f"wrote {output}")
 

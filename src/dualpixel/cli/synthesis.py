@@ -24,12 +24,16 @@ from dualpixel.cli.common import CONTEXT, DPCommand, float_list, parse_size
 def psf(output: Path, radii: list[float], order: float, alpha: float, beta: float,
         kappa: float, save: Path | None) -> None:
     """Render DP PSFs of our model beside Punnappurath et al.'s (like the paper's Fig. 5)."""
-    from dualpixel.io.atomic import atomic_path
+    from dualpixel.io.atomic import atomic_path, check_writable
     from dualpixel.optics.psf import PSFParams
+    from dualpixel.viz.figures import check_figure_path
     from dualpixel.viz.psf_figure import render_psf_figure
 
     if not radii:
         raise click.BadParameter("give at least one radius", param_hint="--radii")
+    check_writable(check_figure_path(output))
+    if save is not None:
+        check_writable(save)
     params = PSFParams(n=order, alpha=alpha, beta=beta, kappa=kappa)
     kernels = render_psf_figure(output, radii, params)
     click.echo(f"wrote {output}")
@@ -129,7 +133,11 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bi
 @click.option("--rows", type=click.IntRange(1), default=5, help="Sequences to show.")
 def preview(dataset: Path, output: Path, rows: int) -> None:
     """Show a synthetic dataset: target, left, right, combined and defocus per sequence."""
+    from dualpixel.io.atomic import check_writable
     from dualpixel.viz.dataset_preview import render_dataset_preview
+    from dualpixel.viz.figures import check_figure_path
+
+    check_writable(check_figure_path(output))
 
     click.echo(f"wrote {render_dataset_preview(dataset, output, rows=rows)}")
 
@@ -154,7 +162,13 @@ def stats(datasets: tuple[Path, ...], split: str | None, limit: int | None, patc
     Give two datasets to compare them, e.g. synthetic training data beside real photographs.
     """
     from dualpixel.data.statistics import dataset_statistics, write_summary
+    from dualpixel.io.atomic import check_writable
+    from dualpixel.viz.figures import check_figure_path
 
+    if output is not None:  # refuse a bad output before measuring
+        check_writable(check_figure_path(output))
+    if json_path is not None:
+        check_writable(json_path)
     measured = [dataset_statistics(d, split=split, limit=limit, patch=patch, progress=True)
                 for d in datasets]
     rows = [("frames", lambda s: str(s["frames"])), ("size", lambda s: s["size"])]

@@ -19,10 +19,22 @@ import torch
 from dualpixel.data.layout import DPSequence, read_frame
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
-from dualpixel.inference.tiling import deblur_tiled
+from dualpixel.inference.tiling import TileGrid, deblur_tiled
 from dualpixel.models.unet import DeblurNet
 
-__all__ = ["Deblurrer", "deblur_sequence", "frame_tensor", "load_sequence_frames"]
+__all__ = [
+    "Deblurrer", "deblur_sequence", "default_overlap", "frame_tensor", "load_sequence_frames",
+]
+
+
+def default_overlap(tile: int) -> int:
+    """192 px (wide enough for the network's receptive field at full width), at most half the
+    tile, in steps of 16.
+
+    >>> default_overlap(512), default_overlap(128)
+    (192, 64)
+    """
+    return min(192, tile // 2 // 16 * 16)
 
 
 def load_sequence_frames(sequence: DPSequence) -> list[dict[str, np.ndarray]]:
@@ -52,17 +64,21 @@ class Deblurrer:
         model: the network (put in eval mode here).
         device: where it runs.
         tile: tile size (multiple of 16) for bounded memory, or ``None`` for whole frames.
-        overlap: tile overlap in pixels.
+        overlap: tile overlap in pixels (default: :func:`default_overlap` of the tile).
         half: float16 autocast on CUDA (ignored on the CPU).
     """
 
     model: DeblurNet
     device: str | torch.device = "cpu"
     tile: int | None = None
-    overlap: int = 192
+    overlap: int | None = None
     half: bool = False
 
     def __post_init__(self) -> None:
+        if self.tile is not None:
+            if self.overlap is None:
+                self.overlap = default_overlap(self.tile)
+            TileGrid(self.tile, self.overlap)  # refuse a bad tile or overlap now
         self.device = torch.device(self.device)
         self.model = self.model.to(self.device).eval()
         if self.device.type == "cuda":

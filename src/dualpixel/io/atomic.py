@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["PARTIAL_GLOB", "atomic_path", "remove_partials"]
+from dualpixel.errors import OutputFileError
+
+__all__ = ["PARTIAL_GLOB", "atomic_path", "check_writable", "remove_partials"]
 
 #: Names of the temporary files of :func:`atomic_path` (hidden, ``.partial`` before the suffix).
 PARTIAL_GLOB = ".*.partial*"
@@ -24,7 +27,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     The temporary name keeps the suffix, so writers that infer the format from it still work.
     """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    check_writable(target)
     fd, tmp_name = tempfile.mkstemp(
         prefix=f".{target.stem}.", suffix=f".partial{target.suffix}", dir=target.parent
     )
@@ -34,9 +37,38 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         yield tmp
         os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the usual permissions
         os.replace(tmp, target)
+    except OSError as error:
+        tmp.unlink(missing_ok=True)
+        raise _output_error(target, error) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _output_error(target: Path, error: OSError) -> OutputFileError:
+    if error.errno == errno.ENOSPC:
+        return OutputFileError(target, "no space left on device")
+    if isinstance(error, PermissionError):
+        return OutputFileError(target, "permission denied (folder not writable)")
+    return OutputFileError(target, f"could not be written ({error.strerror or error})")
+
+
+def check_writable(path: str | Path) -> Path:
+    """Make ``path``'s folder and check a file can be written there, before any long work; raise
+    :class:`OutputFileError` naming the path otherwise (an existing folder, a read-only folder,
+    a parent that is a file)."""
+    target = Path(path)
+    if target.is_dir():
+        raise OutputFileError(target, "is a folder; give a file name")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputFileError(target, "its parent is a file, not a folder") from None
+    except OSError as error:
+        raise _output_error(target, error) from None
+    if not os.access(target.parent, os.W_OK | os.X_OK):
+        raise OutputFileError(target, "permission denied (folder not writable)")
+    return target
 
 
 def remove_partials(folder: str | Path) -> int:

@@ -11,10 +11,12 @@ import numpy as np
 os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
 import cv2
 
-from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.errors import InputFileError, OutputFileError, ParameterError
 from dualpixel.io.atomic import atomic_path
 
 __all__ = [
+    "WRITE_FORMATS",
+    "check_image_path",
     "decode_synthia_depth",
     "quantise",
     "read_depth",
@@ -131,14 +133,39 @@ def quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
     return np.rint(np.clip(image.astype(np.float64), 0.0, 1.0) * peak).astype(np.int64)
 
 
+#: Output formats by suffix, with the bit depths they store.
+WRITE_FORMATS: dict[str, tuple[int, ...]] = {
+    ".png": (8, 16), ".tif": (8, 16), ".tiff": (8, 16), ".jpg": (8,), ".jpeg": (8,), ".bmp": (8,),
+}
+
+
+def check_image_path(path: str | Path) -> Path:
+    """Refuse an output image path whose suffix names no format we write (before any work)."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputFileError(path, "is a folder; give an image file name")
+    if path.suffix.lower() not in WRITE_FORMATS:
+        raise OutputFileError(
+            path, f"unknown image format {path.suffix or '(no suffix)'}; use one of "
+            f"{', '.join(WRITE_FORMATS)}"
+        )
+    return path
+
+
 def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16) -> None:
-    """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer levels) atomically, as PNG
-    or any format OpenCV writes with that suffix (TIFF keeps 16 bits too)."""
+    """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer levels of ``bit_depth``)
+    atomically, as PNG or the format of the suffix (TIFF keeps 16 bits; JPEG and BMP store 8, so
+    16-bit levels are rescaled, never clipped)."""
+    path = check_image_path(path)
+    if bit_depth not in (8, 16):
+        raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
     if np.issubdtype(image.dtype, np.floating):
         image = quantise(image, bit_depth)
-    elif bit_depth not in (8, 16):
-        raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
-    data = image.astype(np.uint8 if bit_depth == 8 else np.uint16)
+    stored = bit_depth if bit_depth in WRITE_FORMATS[path.suffix.lower()] else 8
+    if stored != bit_depth:  # 16-bit levels into an 8-bit format
+        image = np.rint(np.asarray(image, dtype=np.float64) / 257.0).astype(np.int64)
+    data = np.clip(image, 0, 255 if stored == 8 else 65535).astype(
+        np.uint8 if stored == 8 else np.uint16)
     if data.ndim == 3:
         data = cv2.cvtColor(data, cv2.COLOR_RGB2BGR)
     with atomic_path(path) as tmp:

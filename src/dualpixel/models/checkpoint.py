@@ -71,6 +71,16 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
         raise InputFileError(path, f"not a readable safetensors checkpoint ({error})") from None
     if metadata.get("format") != FORMAT:
         raise InputFileError(path, "not a dualpixel model checkpoint (no architecture metadata)")
+    missing = [key for key in ("model", "width", "peepholes") if key not in metadata]
+    if missing:
+        raise InputFileError(path, f"checkpoint metadata lacks {', '.join(missing)}")
+    try:
+        return _parse_metadata(metadata)
+    except (ValueError, TypeError, AttributeError) as error:
+        raise InputFileError(path, f"checkpoint metadata is malformed ({error})") from None
+
+
+def _parse_metadata(metadata: dict[str, str]) -> dict[str, Any]:
     return {
         "model": metadata["model"],
         "width": float(metadata["width"]),

@@ -35,6 +35,7 @@ import torch
 from tqdm import tqdm
 
 from dualpixel import __version__
+from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, ParameterError, check_range
 from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.images import quantise, save_npy, write_png
@@ -307,6 +308,7 @@ def synthesize_dataset(
         The ``dataset.json`` description (with ``status`` and frame counts).
     """
     config = config or SynthConfig()
+    device = str(resolve_device(device))  # refuse an unknown or absent device before any work
     root = Path(output_dir)
     sequences = discover_sequences(input_dir, fmt, split=config.split)
     jobs = plan_jobs(sequences, config, fmt)

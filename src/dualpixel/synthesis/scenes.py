@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import functools
 import json
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import cv2
@@ -271,6 +271,35 @@ def render_scene(
     return frames, focus
 
 
+SCENES_DESCRIPTION = "scenes.json"
+
+
+def _check_or_write_description(root: Path, settings: dict) -> None:
+    """Refuse a folder holding scenes made with other settings (kept frames would not match)."""
+    from dualpixel.errors import InputFileError
+    from dualpixel.io.atomic import atomic_path
+
+    path = root / SCENES_DESCRIPTION
+    if path.is_file():
+        try:
+            existing = json.loads(path.read_text())
+        except json.JSONDecodeError:
+            raise InputFileError(path, "is corrupt; remove the folder and rerun") from None
+        if existing != settings:
+            mine, theirs = settings["config"], existing.get("config", {})
+            differ = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
+            differ += ["seed"] if existing.get("seed") != settings["seed"] else []
+            raise InputFileError(root, "holds scenes made with other settings (differs in "
+                                       f"{', '.join(differ)}); choose another output folder")
+        return
+    if root.is_dir() and any(root.glob("seq_*")):
+        raise InputFileError(root, f"holds sequences without a {SCENES_DESCRIPTION} (made by "
+                                   "something else); choose another output folder")
+    root.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(settings, indent=2, sort_keys=True) + "\n")
+
+
 def write_scene_folder(
     output: str | Path, sequences: int, config: SceneConfig, *, seed: int = 0,
     progress: bool = True,
@@ -285,6 +314,7 @@ def write_scene_folder(
     from dualpixel.io.images import save_npy, write_png
 
     root = Path(output)
+    _check_or_write_description(root, {"config": asdict(config), "seed": seed})
     folders = []
     for k in tqdm(range(sequences), desc="rendering scenes", unit="seq", disable=not progress):
         folder = root / f"seq_{k:03d}"

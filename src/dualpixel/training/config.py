@@ -130,14 +130,15 @@ def load_config(
         if not isinstance(loaded, dict):
             raise InputFileError(path, "expected a mapping of config keys")
         values.update(loaded)
-    values.update(overrides or {})
     known = {f.name: f for f in dataclasses.fields(TrainConfig)}
-    unknown = sorted(set(values) - set(known))
-    if unknown:
-        where = f" in {path}" if path is not None else ""
-        raise ParameterError(
-            f"unknown config key(s){where}: {', '.join(unknown)}; known: {', '.join(known)}"
-        )
+    for source, keys in ((f" in {path}", set(values)), (" in the overrides (--set)",
+                                                        set(overrides or {}))):
+        unknown = sorted(keys - set(known))
+        if unknown:
+            raise ParameterError(
+                f"unknown config key(s){source}: {', '.join(unknown)}; known: {', '.join(known)}"
+            )
+    values.update(overrides or {})
     return TrainConfig(**{k: _coerce(k, known[k].type, v) for k, v in values.items()})
 
 

@@ -34,6 +34,7 @@ from tqdm import tqdm
 
 from dualpixel.data.dataset import DPPatchDataset, PatchConfig
 from dualpixel.data.layout import DPSequence, discover_dp_dataset
+from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.io.atomic import atomic_path, remove_partials
@@ -44,13 +45,6 @@ from dualpixel.training.config import TrainConfig, load_config, save_config
 from dualpixel.training.losses import DeblurLoss
 
 __all__ = ["DataKind", "TrainResult", "resolve_device", "train"]
-
-
-def resolve_device(name: str) -> torch.device:
-    """``auto`` -> CUDA when available, else CPU; otherwise the named device."""
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
 
 
 @dataclass

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dualpixel.io.atomic import atomic_path
+from dualpixel.viz.figures import save_figure
 
 __all__ = ["render_comparison", "sharpest_window"]
 
@@ -66,6 +66,4 @@ def render_comparison(
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)

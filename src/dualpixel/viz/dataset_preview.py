@@ -11,9 +11,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from dualpixel.errors import InputFileError
-from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import read_rgb
 from dualpixel.synthesis.dataset import read_manifest
+from dualpixel.viz.figures import save_figure
 
 __all__ = ["render_dataset_preview"]
 
@@ -57,7 +57,5 @@ def render_dataset_preview(dataset: str | Path, output: str | Path, *, rows: int
             f"n={psf['n']:g} a={psf['alpha']:g} b={psf['beta']:g}\n"
             f"noise {record['noise_sigma']}", fontsize=8,
         )
-    with atomic_path(output) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
+    save_figure(fig, output, dpi=100)
     return Path(output)

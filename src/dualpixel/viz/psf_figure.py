@@ -11,8 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from dualpixel.io.atomic import atomic_path
 from dualpixel.optics.psf import DPKernels, PSFParams, dp_psf, kernel_size
+from dualpixel.viz.figures import save_figure
 
 __all__ = ["psf_figure_kernels", "render_psf_figure"]
 
@@ -65,7 +65,5 @@ def render_psf_figure(
         f"kappa={params.kappa:g}); each view sums to 1/2",
         fontsize=10,
     )
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
     return kernels

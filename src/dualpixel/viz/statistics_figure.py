@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from dualpixel.data.statistics import DatasetStatistics
-from dualpixel.io.atomic import atomic_path
+from dualpixel.viz.figures import save_figure
 
 __all__ = ["render_statistics_figure"]
 
@@ -43,7 +43,5 @@ def render_statistics_figure(stats: list[DatasetStatistics], output: str | Path)
         ax.set_title(title, fontsize=9)
         ax.set_yticks([])
     axes[0].legend(fontsize=7, loc="upper left")
-    with atomic_path(output) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    save_figure(fig, output, dpi=110)
     return Path(output)
