@@ -87,7 +87,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--noise/--no-noise", default=True, help="Signal-dependent noise (Sec. 2.3).")
 @click.option("--noise-model", type=click.Choice(["multiplicative", "poisson-gaussian"]),
               default="multiplicative", help="The paper's formula, or Foi et al.'s model.")
-@click.option("--noise-sigmas", default=None,
+@click.option("--noise-sigmas", default=None, callback=float_list,
               help="Noise strengths to draw from, comma-separated [default: the paper's "
                    "0.05, 0.055, ..., 0.5].")
 @click.option("--distortion/--no-distortion", default=True, help="Radial distortion (Eq. 5).")
@@ -103,7 +103,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--device", default="cpu", help="torch device, e.g. cpu or cuda.")
 @click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
 def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bit_depth: str,
-          noise: bool, noise_model: str, noise_sigmas: str | None, distortion: bool,
+          noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
           psf_model: str, psf_bank: str, split: str, max_depth: float, depth_scale: float,
           seed: int, device: str, workers: int) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
@@ -112,7 +112,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bi
 
     sigmas = PAPER_NOISE_SIGMAS
     if noise_sigmas:
-        sigmas = tuple(float_list(None, None, noise_sigmas))
+        sigmas = tuple(noise_sigmas)
     config = SynthConfig(
         cameras=tuple(c.strip() for c in cameras.split(",") if c.strip()),
         psf_model=psf_model, psf_bank=psf_bank, max_layers=layers, bit_depth=int(bit_depth),
