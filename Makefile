@@ -33,7 +33,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests $(wildcard benchmarks)
 
 test: $(STAMP) lint browser
-	$(BIN)/python -m pytest -n 2 -q tests
+	$(BIN)/python -m pytest -n 2 -q --doctest-modules src/dualpixel tests
 
 clean:
 	rm -rf $(VENV) $(OUT)

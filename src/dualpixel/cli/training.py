@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -24,6 +25,18 @@ def models(width: float) -> None:
     if width == 1.0:
         keras = count_parameters(build_model("rdpd", peepholes=False))
         click.echo(f"(rdpd without peepholes, as the authors' Keras ConvLSTM2D: {keras:,})")
+    from dualpixel.weights import model_info
+
+    click.echo("\nshipped checkpoints (dualpixel.load_model(NAME), --checkpoint NAME):")
+    for name, info in model_info().items():
+        click.echo(f"  {name}: {info['description']}")
+        click.echo(f"    {info['model']} width {info['width']:g}, residual {info['residual']}, "
+                   f"state carried between frames: {info['temporal']}, "
+                   f"{info['parameters']:,} parameters, {info['bytes'] / 1e6:.1f} MB, "
+                   f"sha256 {info['sha256'][:16]}...")
+        for key in ("metrics", "training_data"):
+            if key in info["training"]:
+                click.echo(f"    {key}: {json.dumps(info['training'][key])}")
 
 
 def _overrides(_ctx, _param, values: tuple[str, ...]) -> dict[str, str]:

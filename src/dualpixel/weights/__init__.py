@@ -11,7 +11,7 @@ from pathlib import Path
 
 from dualpixel.errors import InputFileError
 
-__all__ = ["CHECKPOINTS", "DEFAULT_CHECKPOINT", "resolve_checkpoint"]
+__all__ = ["CHECKPOINTS", "DEFAULT_CHECKPOINT", "model_info", "resolve_checkpoint"]
 
 #: name -> (file in this package, description)
 CHECKPOINTS: dict[str, tuple[str, str]] = {
@@ -42,3 +42,27 @@ def resolve_checkpoint(name_or_path: str | Path) -> Path:
             path, f"checkpoint not found (not a file, nor a registry name: {known})"
         )
     return path
+
+
+def model_info() -> dict[str, dict]:
+    """Per shipped checkpoint: description, architecture, parameter count, size, sha256 and the
+    training metadata stored in the file (``extra``)."""
+    import hashlib
+
+    from dualpixel.models import build_model, read_metadata
+    from dualpixel.models.registry import count_parameters
+
+    info = {}
+    for name, (_, description) in CHECKPOINTS.items():
+        path = resolve_checkpoint(name)
+        meta = read_metadata(path)
+        network = build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
+                              residual=meta["residual"])
+        info[name] = {
+            "description": description, "model": meta["model"], "width": meta["width"],
+            "residual": meta["residual"], "temporal": meta["temporal"],
+            "parameters": count_parameters(network), "bytes": path.stat().st_size,
+            "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
+            "training": meta["extra"],
+        }
+    return info

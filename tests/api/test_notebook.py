@@ -1,0 +1,74 @@
+"""The top-level API as a notebook uses it (issue #13): arrays in, the same kind of arrays out."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+import dualpixel
+
+
+def scene(height=48, width=64):
+    rng = np.random.default_rng(0)
+    rgb = np.clip(rng.random((height, width, 3)) * 0.8 + 0.1, 0, 1)
+    depth = np.where(np.arange(width)[None, :] < width // 2, 2.0, 8.0) * np.ones((height, 1))
+    return rgb, depth
+
+
+def test_synthesise_deblur_and_score_with_numpy():
+    rgb, depth = scene()
+    frame = dualpixel.synthesize(rgb, depth, camera="dslr-840", seed=3)
+    assert frame["left"].shape == rgb.shape and isinstance(frame["left"], np.ndarray)
+    assert frame["defocus"].shape == depth.shape
+    model = dualpixel.load_model("rdpd-light")  # by name, from the package
+    sharp = dualpixel.deblur(frame["left"], frame["right"], model=model, device="cpu")
+    assert sharp.shape == rgb.shape and sharp.dtype == np.float32
+    assert 0 <= sharp.min() and sharp.max() <= 1
+    for metric in (dualpixel.psnr, dualpixel.ssim, dualpixel.mae):
+        assert np.isfinite(metric(sharp, frame["target"]))
+    # integer images by their range: the same result as the float ones
+    as_uint8 = [np.rint(frame[k] * 255).astype(np.uint8) for k in ("left", "right")]
+    from_uint8 = dualpixel.deblur(*as_uint8, model=model, device="cpu")
+    from_float = dualpixel.deblur(*(a / 255.0 for a in as_uint8), model=model, device="cpu")
+    np.testing.assert_allclose(from_uint8, from_float, atol=1e-6)
+
+
+def test_torch_in_torch_out_and_batches_are_independent_pairs():
+    rgb, depth = scene()
+    tensor = torch.from_numpy(rgb).permute(2, 0, 1).float()
+    frame = dualpixel.synthesize(tensor, torch.from_numpy(depth), camera="set1", seed=1)
+    assert isinstance(frame["left"], torch.Tensor) and frame["left"].shape == (3, 48, 64)
+    single = dualpixel.deblur(frame["left"], frame["right"], device="cpu")
+    assert isinstance(single, torch.Tensor) and single.shape == (3, 48, 64)
+    batch = dualpixel.deblur(torch.stack([frame["left"]] * 2), torch.stack([frame["right"]] * 2),
+                             device="cpu")
+    assert batch.shape == (2, 3, 48, 64)
+    torch.testing.assert_close(batch[1], single)  # no state carried from pair 0 to pair 1
+    numpy_out = dualpixel.deblur(frame["left"].permute(1, 2, 0).numpy(),
+                                 frame["right"].permute(1, 2, 0).numpy(), device="cpu")
+    np.testing.assert_allclose(single.permute(1, 2, 0).numpy(), numpy_out, atol=1e-6)
+
+
+def test_clear_errors_and_the_listing():
+    rgb, depth = scene()
+    with pytest.raises(ValueError, match="left .* and right .* differ"):
+        dualpixel.deblur(rgb, rgb[:10])
+    with pytest.raises(ValueError, match=r"float values must lie in \[0, 1\]"):
+        dualpixel.deblur(rgb * 255, rgb * 255)
+    with pytest.raises(ValueError, match="camera must be one of"):
+        dualpixel.synthesize(rgb, depth, camera="set9")
+    with pytest.raises(ValueError, match="checkpoint not found"):
+        dualpixel.load_model("no-such-model")
+    models = dualpixel.list_models()
+    assert {"rdpd-light", "srdpd-light"} <= set(models)
+    info = models["rdpd-light"]
+    assert info["parameters"] > 1_000_000 and len(info["sha256"]) == 64
+    assert set(dualpixel.__all__) >= {"deblur", "synthesize", "load_model", "list_models", "psnr"}
+
+
+def test_import_is_light():
+    code = "import sys, dualpixel; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
