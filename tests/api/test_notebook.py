@@ -53,7 +53,7 @@ def test_torch_in_torch_out_and_batches_are_independent_pairs():
 
 def test_clear_errors_and_the_listing():
     rgb, depth = scene()
-    with pytest.raises(ValueError, match="left .* and right .* differ"):
+    with pytest.raises(ValueError, match=r"left .* and right .* differ"):
         dualpixel.deblur(rgb, rgb[:10])
     with pytest.raises(ValueError, match=r"float values must lie in \[0, 1\]"):
         dualpixel.deblur(rgb * 255, rgb * 255)

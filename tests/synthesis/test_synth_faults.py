@@ -94,3 +94,27 @@ def test_a_run_that_finished_nothing_does_not_lock_its_folder(scenes, tmp_path):
     assert synthesize_dataset(scenes, "rgbd", out, other, progress=False)["status"] == "complete"
     with pytest.raises(InputFileError, match="differs in seed"):
         synthesize_dataset(scenes, "rgbd", out, SynthConfig(**CONFIG), progress=False)
+
+
+def test_three_shards_merged_equal_the_single_run(scenes, tmp_path):
+    from click.testing import CliRunner
+
+    from dualpixel.cli.main import cli
+
+    synthesize_dataset(scenes, "rgbd", tmp_path / "single", SynthConfig(**CONFIG), workers=2,
+                       progress=False)
+    args = ["synth", "--input", str(scenes), "--cameras", "set0,set4", "--layers", "40",
+            "--seed", "3", "--workers", "2"]
+    runner = CliRunner()
+    for k in range(3):
+        result = runner.invoke(cli, [*args, "--output", str(tmp_path / f"part{k}"), "--shard",
+                                     f"{k}/3"])
+        assert result.exit_code == 0, result.output
+    parts = [str(tmp_path / f"part{k}") for k in (2, 0, 1)]  # any order
+    incomplete = runner.invoke(cli, ["merge-shards", *parts[:2], "--output", str(tmp_path / "m")])
+    assert incomplete.exit_code == 2 and "exactly once" in incomplete.output
+    merged = runner.invoke(cli, ["merge-shards", *parts, "--output", str(tmp_path / "merged")])
+    assert merged.exit_code == 0, merged.output
+    assert every_file(tmp_path / "merged") == every_file(tmp_path / "single")
+    bad = runner.invoke(cli, [*args, "--output", str(tmp_path / "x"), "--shard", "3/3"])
+    assert bad.exit_code == 2 and "--shard" in bad.output

@@ -102,10 +102,13 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--seed", type=int, default=0, help="Seed of PSF shapes, noise and its draws.")
 @click.option("--device", default="cpu", help="torch device, e.g. cpu or cuda.")
 @click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
+@click.option("--shard", default=None, callback=lambda _c, p, v: _shard(p, v), metavar="K/N",
+              help="Render only the K-th of N interleaved parts of the frames (0-based), e.g. "
+                   "K=$SLURM_ARRAY_TASK_ID; join the N folders with `dualpixel merge-shards`.")
 def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bit_depth: str,
           noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
           psf_model: str, psf_bank: str, split: str, max_depth: float, depth_scale: float,
-          seed: int, device: str, workers: int) -> None:
+          seed: int, device: str, workers: int, shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
@@ -120,9 +123,35 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, bi
         noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
     )
-    summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device)
+    summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device,
+                                 shard=shard)
     click.echo(f"{summary['status']}: {summary['frames_done']}/{summary['frames_total']} frames "
                f"in {output}")
+
+
+def _shard(param, value: str | None) -> tuple[int, int] | None:
+    if value is None:
+        return None
+    try:
+        index, count = (int(v) for v in value.split("/"))
+    except ValueError:
+        raise click.BadParameter(f"expected K/N, e.g. 0/4, got {value!r}", param=param) from None
+    if count < 1 or not 0 <= index < count:
+        raise click.BadParameter(f"need 0 <= K < N, got {value!r}", param=param)
+    return index, count
+
+
+@click.command("merge-shards", cls=DPCommand, context_settings=CONTEXT)
+@click.argument("shards", nargs=-1, required=True,
+                type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="New dataset folder: the same files as one `synth` run without --shard.")
+def merge_shards_command(shards: tuple[Path, ...], output: Path) -> None:
+    """Join the folders of `synth --shard K/N` (all N of them) into one dataset."""
+    from dualpixel.synthesis.dataset import merge_shards
+
+    summary = merge_shards(list(shards), output)
+    click.echo(f"merged {len(shards)} shards: {summary['frames_done']} frames in {output}")
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -189,4 +218,4 @@ def stats(datasets: tuple[Path, ...], split: str | None, limit: int | None, patc
         click.echo(f"wrote {render_statistics_figure(measured, output)}")
 
 
-COMMANDS = (psf, scenes, synth, preview, stats)
+COMMANDS = (psf, scenes, synth, merge_shards_command, preview, stats)

@@ -39,6 +39,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         os.replace(tmp, target)
     except OSError as error:
         tmp.unlink(missing_ok=True)
+        if error.filename not in (None, str(tmp), str(target)):
+            raise  # about another file (e.g. a source being copied): its own message
         raise _output_error(target, error) from None
     except BaseException:
         tmp.unlink(missing_ok=True)

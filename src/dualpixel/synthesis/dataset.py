@@ -36,7 +36,7 @@ from tqdm import tqdm
 
 from dualpixel import __version__
 from dualpixel.device import resolve_device
-from dualpixel.errors import InputFileError, ParameterError, check_range
+from dualpixel.errors import InputFileError, OutputFileError, ParameterError, check_range
 from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
@@ -57,7 +57,7 @@ from dualpixel.synthesis.inputs import (
     load_frame,
 )
 
-__all__ = ["SynthConfig", "read_manifest", "synthesize_dataset"]
+__all__ = ["SynthConfig", "merge_shards", "read_manifest", "synthesize_dataset"]
 
 
 @dataclass(frozen=True)
@@ -237,6 +237,88 @@ def read_manifest(path: Path) -> dict[str, dict]:
     return records
 
 
+def _check_shard(shard: tuple[int, int]) -> tuple[int, int]:
+    index, count = (int(v) for v in shard)
+    if count < 1 or not 0 <= index < count:
+        raise ParameterError(f"shard must be K/N with 0 <= K < N, got {index}/{count}")
+    return index, count
+
+
+def _description(config: SynthConfig, input_dir: str | Path, fmt: InputFormat,
+                 frames: int) -> dict:
+    return {
+        "config": config.as_dict(),
+        "input": str(Path(input_dir).resolve()),
+        "format": fmt,
+        "version": __version__,
+        "frames_total": frames,
+        "status": "incomplete",
+    }
+
+
+def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
+                 progress: bool = True) -> dict:
+    """Join the folders of ``synth --shard K/N`` (all N, each complete) into ``output_dir``:
+    files, manifest and ``dataset.json`` byte-identical to a single run's. The input folder the
+    shards were made from must be readable here (the frame plan is rebuilt from it)."""
+    import shutil
+
+    roots = [Path(s) for s in shards]
+    if not roots:
+        raise ParameterError("no shard folders given")
+    descriptions = []
+    for root in roots:
+        path = root / "dataset.json"
+        if not path.is_file():
+            raise InputFileError(path, "not found (not a dataset folder of `synth --shard`)")
+        try:
+            description = json.loads(path.read_text())
+        except json.JSONDecodeError:
+            raise InputFileError(path, "is corrupt") from None
+        if "shard" not in description:
+            raise InputFileError(path, "is not a shard (made without --shard)")
+        if description.get("status") != "complete":
+            raise InputFileError(path, "shard is unfinished; rerun its `synth --shard` first")
+        descriptions.append(description)
+    first = descriptions[0]
+    for root, description in zip(roots, descriptions):
+        for key in ("config", "input", "format", "version"):
+            if description[key] != first[key]:
+                raise InputFileError(root / "dataset.json", f"{key} differs from {roots[0]}'s")
+    count = first["shard"][1]
+    indices = sorted(d["shard"][0] for d in descriptions)
+    if indices != list(range(count)) or any(d["shard"][1] != count for d in descriptions):
+        raise ParameterError(f"need each of the shards 0..{count - 1} of {count} exactly once, "
+                             f"got {', '.join(f'{i}/{count}' for i in indices)}")
+    values = dict(first["config"])
+    values["cameras"] = tuple(values["cameras"])
+    values["noise_sigmas"] = tuple(values["noise_sigmas"])
+    config = SynthConfig(**values)
+    sequences = discover_sequences(first["input"], first["format"], split=config.split)
+    jobs = plan_jobs(sequences, config, first["format"])
+    by_index = {d["shard"][0]: root for root, d in zip(roots, descriptions)}
+    owner = {job.key: by_index[i % count] for i, job in enumerate(jobs)}
+    records = {}
+    for root in roots:
+        records.update(read_manifest(root / "manifest.jsonl"))
+    missing = [job.key for job in jobs if job.key not in records]
+    if missing:
+        raise InputFileError(owner[missing[0]] / "manifest.jsonl",
+                             f"lacks {len(missing)} frame(s), e.g. {missing[0]}")
+    out = Path(output_dir)
+    if out.exists() and any(out.iterdir()):
+        raise OutputFileError(out, "is not empty; merge into a new folder")
+    for job in tqdm(jobs, desc="merging shards", unit="frame", disable=not progress):
+        for relative in records[job.key]["outputs"].values():
+            with atomic_path(out / relative) as tmp:
+                shutil.copyfile(owner[job.key] / relative, tmp)
+    _write_manifest(out / "manifest.jsonl", [records[job.key] for job in jobs])
+    description = _description(config, first["input"], first["format"], len(jobs))
+    description.update(frames_done=len(jobs), status="complete")
+    _write_json(out / "dataset.json", description)
+    return description
+
+
 def _write_manifest(path: Path, records: list[dict]) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in records))
@@ -249,14 +331,14 @@ def _check_or_write_description(root: Path, description: dict) -> None:
             existing = json.loads(path.read_text())
         except json.JSONDecodeError:
             raise InputFileError(path, "is corrupt; remove the output folder and rerun") from None
-        mine = {k: description[k] for k in ("config", "input", "format")}
+        mine = {k: description.get(k) for k in ("config", "input", "format", "shard")}
         theirs = {k: existing.get(k) for k in mine}
         # A run that finished no frame holds nothing to protect: new settings may take over.
         if mine != theirs and read_manifest(root / "manifest.jsonl"):
             differ = sorted(
                 key for key in set(mine["config"]) | set(theirs["config"] or {})
                 if mine["config"].get(key) != (theirs["config"] or {}).get(key)
-            ) + [k for k in ("input", "format") if mine[k] != theirs[k]]
+            ) + [k for k in ("input", "format", "shard") if mine[k] != theirs[k]]
             raise InputFileError(
                 root, "holds a dataset made with a different configuration (differs in "
                 f"{', '.join(differ)}); choose another output folder"
@@ -291,6 +373,7 @@ def synthesize_dataset(
     device: str = "cpu",
     progress: bool = True,
     limit: int | None = None,
+    shard: tuple[int, int] | None = None,
 ) -> dict:
     """Synthesise a whole dataset (see the module docstring); resumes an interrupted run.
 
@@ -303,6 +386,9 @@ def synthesize_dataset(
         device: torch device for rendering ("cpu", "cuda").
         progress: show a progress bar.
         limit: stop after this many new frames (leaves the dataset incomplete; for tests).
+        shard: ``(k, n)``: render only frames ``k, k + n, k + 2n, ...`` of the plan (0 <= k < n),
+            e.g. one task of a scheduler's array job; :func:`merge_shards` joins the n folders
+            into the dataset a single run writes, byte for byte.
 
     Returns:
         The ``dataset.json`` description (with ``status`` and frame counts).
@@ -312,15 +398,13 @@ def synthesize_dataset(
     root = Path(output_dir)
     sequences = discover_sequences(input_dir, fmt, split=config.split)
     jobs = plan_jobs(sequences, config, fmt)
+    if shard is not None:
+        index, count = _check_shard(shard)
+        jobs = jobs[index::count]
     root.mkdir(parents=True, exist_ok=True)
-    description = {
-        "config": config.as_dict(),
-        "input": str(Path(input_dir).resolve()),
-        "format": fmt,
-        "version": __version__,
-        "frames_total": len(jobs),
-        "status": "incomplete",
-    }
+    description = _description(config, input_dir, fmt, len(jobs))
+    if shard is not None:
+        description["shard"] = [index, count]
     _check_or_write_description(root, description)
     remove_partials(root)  # temporary files of writes a kill interrupted
     manifest_path = root / "manifest.jsonl"
