@@ -316,7 +316,8 @@ def dp_psf(
     radii = _as_radii(radius, dtype, device)
     scalar = radii.ndim == 0
     radii = radii.reshape(-1)
-    needed = kernel_size(float(radii.abs().max()) if radii.numel() else 0.0, model, params.kappa)
+    needed = kernel_size(float(radii.detach().abs().max()) if radii.numel() else 0.0, model,
+                         params.kappa)
     if size is None:
         size = needed
     elif size < 1 or size % 2 == 0:

@@ -32,14 +32,32 @@ def sharpest_window(
     return int(y), int(x)
 
 
+def largest_gain_window(
+    blurred: np.ndarray, restored: np.ndarray, target: np.ndarray, size: int
+) -> tuple[int, int]:
+    """Top-left corner of the ``size`` window where ``restored`` removes the most squared error
+    of ``blurred`` against ``target``: where a method's effect is best seen."""
+    from scipy import ndimage
+
+    gain = ((blurred - target) ** 2 - (restored - target) ** 2).mean(axis=-1)
+    local = ndimage.uniform_filter(gain, size)
+    half = size // 2
+    inner = local[half : gain.shape[0] - half, half : gain.shape[1] - half]
+    if inner.size == 0:
+        return 0, 0
+    y, x = np.unravel_index(np.argmax(inner), inner.shape)
+    return int(y), int(x)
+
+
 def render_comparison(
     panels: dict[str, np.ndarray], path: str | Path, *, crop: int | None = None,
-    title: str = "", scores: dict[str, str] | None = None,
+    title: str = "", scores: dict[str, str] | None = None, crop_by: str | None = None,
 ) -> None:
     """Draw each image (row 1) and the same zoomed crop of each (row 2); write a PNG atomically.
 
     The crop (outlined in row 1) is the window where the target (or last panel) has the most
-    detail that the ``input`` panel lacks.
+    detail that the ``input`` panel lacks, or, with ``crop_by`` naming a panel, the window where
+    that panel gains most over ``input`` (:func:`largest_gain_window`).
     """
     import matplotlib
 
@@ -51,7 +69,10 @@ def render_comparison(
     reference = panels.get("target", panels[names[-1]])
     height, width = reference.shape[:2]
     crop = crop or max(16, min(height, width) // 4)
-    top, left = sharpest_window(reference, crop, panels.get("input"))
+    if crop_by is not None and "input" in panels:
+        top, left = largest_gain_window(panels["input"], panels[crop_by], reference, crop)
+    else:
+        top, left = sharpest_window(reference, crop, panels.get("input"))
     fig, axes = plt.subplots(2, len(names), figsize=(3.2 * len(names), 3.2 * height / width + 3.4),
                              squeeze=False)
     for column, name in enumerate(names):
