@@ -93,3 +93,14 @@ def test_onnx_matches_pytorch(tiny_model, tmp_path):
     out2, _, _ = run_onnx(tmp_path / "step.onnx", x2.numpy(), hidden, cell)
     assert np.abs(out1 - y1.numpy()).max() < 1e-4
     assert np.abs(out2 - y2.numpy()).max() < 1e-4
+    # exported at 40x56, run at another size (not a multiple of 16): height and width are dynamic
+    x3 = torch.rand(1, 7, 66, 90)
+    with torch.no_grad():
+        y3, state3 = tiny_model.step(x3)
+        y4, _ = tiny_model.step(x3, state3)
+    (frame3,) = run_onnx(tmp_path / "frame.onnx", x3.numpy())
+    assert frame3.shape == (1, 3, 66, 90) and np.abs(frame3 - y3.numpy()).max() < 1e-4
+    zeros3 = np.zeros(state_shape(tiny_model, 66, 90), np.float32)
+    _, hidden3, cell3 = run_onnx(tmp_path / "step.onnx", x3.numpy(), zeros3, zeros3)
+    out4, _, _ = run_onnx(tmp_path / "step.onnx", x3.numpy(), hidden3, cell3)
+    assert np.abs(out4 - y4.numpy()).max() < 1e-4

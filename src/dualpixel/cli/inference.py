@@ -210,7 +210,8 @@ def niqe_score(images: tuple[Path, ...], model: str | None) -> None:
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True)
-@click.option("--size", default="512x512", help="Frame size WIDTHxHEIGHT the graph is made for.")
+@click.option("--size", default="512x512",
+              help="Frame size WIDTHxHEIGHT the graph is traced at (it runs at any size).")
 @click.option("--step", is_flag=True, help="One recurrent step with the state as input/output.")
 @click.option("--format", "fmt", type=click.Choice(["onnx", "safetensors-fp16"]), default="onnx",
               help="onnx (needs: pip install 'dualpixel[onnx]'), or a half-precision copy of the "

@@ -3,8 +3,8 @@
 The single-frame graph maps the model input ``(1, C, H, W)`` to the output ``(1, 3, H, W)``
 (a recurrent model starts from a zero state). The step graph takes ``input, hidden, cell`` and
 returns ``output, next_hidden, next_cell``; the state is ``(1, 512*width, H/16, W/16)`` for
-``H, W`` rounded up to multiples of 16, and zeros for the first frame. Both are exported for a
-fixed frame size. Needs the ``onnx`` extra (``onnx``, ``onnxscript``; ``onnxruntime`` to verify).
+``H, W`` rounded up to multiples of 16, and zeros for the first frame. Height and width are
+dynamic: a graph exported at one size runs at any other (``dynamic=False`` fixes them). Needs the ``onnx`` extra (``onnx``, ``onnxscript``; ``onnxruntime`` to verify).
 """
 
 from __future__ import annotations
@@ -51,9 +51,9 @@ def state_shape(model: DeblurNet, height: int, width: int) -> tuple[int, int, in
 
 def export_onnx(
     model: DeblurNet, path: str | Path, *, height: int, width: int, step: bool = False,
-    opset: int = 18,
+    opset: int = 18, dynamic: bool = True,
 ) -> Path:
-    """Write ``model`` as ONNX for ``height x width`` frames (``step``: one recurrent step)."""
+    """Write ``model`` as ONNX, traced at ``height x width`` (``step``: one recurrent step)."""
     model = model.cpu().eval()
     x = torch.rand(1, model.shape.in_channels, height, width)
     if step:
@@ -63,11 +63,17 @@ def export_onnx(
     else:
         wrapper, args, names_in, names_out = _Frame(model), (x,), ["input"], ["output"]
     wrapper.eval()
+    spatial = {2: torch.export.Dim.AUTO, 3: torch.export.Dim.AUTO}
+    dynamic_shapes = None
+    if dynamic:
+        dynamic_shapes = ({"x": spatial, "hidden": spatial, "cell": spatial} if step
+                          else {"x": spatial})
     path = Path(path)
     with atomic_path(path) as tmp:
         torch.onnx.export(
             wrapper, args, str(tmp), input_names=names_in, output_names=names_out,
             opset_version=opset, dynamo=True, external_data=False, verbose=False,
+            dynamic_shapes=dynamic_shapes,
         )
     return path
 
