@@ -3,8 +3,9 @@
 The single-frame graph maps the model input ``(1, C, H, W)`` to the output ``(1, 3, H, W)``
 (a recurrent model starts from a zero state). The step graph takes ``input, hidden, cell`` and
 returns ``output, next_hidden, next_cell``; the state is ``(1, 512*width, H/16, W/16)`` for
-``H, W`` rounded up to multiples of 16, and zeros for the first frame. Height and width are
-dynamic: a graph exported at one size runs at any other (``dynamic=False`` fixes them). Needs the ``onnx`` extra (``onnx``, ``onnxscript``; ``onnxruntime`` to verify).
+``H, W`` rounded up to multiples of 16, and zeros for the first frame. Height and width
+are dynamic: a graph exported at one size runs at any other (``dynamic=False`` fixes them).
+Needs the ``onnx`` extra (``onnx``, ``onnxscript``; ``onnxruntime`` to verify).
 """
 
 from __future__ import annotations
