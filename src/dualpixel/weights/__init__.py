@@ -11,7 +11,9 @@ from pathlib import Path
 
 from dualpixel.errors import InputFileError
 
-__all__ = ["CHECKPOINTS", "DEFAULT_CHECKPOINT", "model_info", "resolve_checkpoint"]
+__all__ = [
+    "CHECKPOINTS", "DEFAULT_CHECKPOINT", "model_card", "model_info", "resolve_checkpoint",
+]
 
 #: name -> (file in this package, description)
 CHECKPOINTS: dict[str, tuple[str, str]] = {
@@ -66,3 +68,8 @@ def model_info() -> dict[str, dict]:
             "training": meta["extra"],
         }
     return info
+
+
+def model_card() -> str:
+    """The model card (Markdown) of the shipped checkpoints."""
+    return resources.files(__name__).joinpath("MODEL_CARD.md").read_text(encoding="utf-8")
