@@ -122,6 +122,7 @@ def run_demo(
     camera: str = "dslr-840",
     seed: int = DEMO_SEED,
     device: str = "cpu",
+    tile: int | None = None,
     progress: bool = True,
 ) -> DemoResult:
     """Run the demo and write ``output/index.html``; see the module docstring."""
@@ -133,6 +134,11 @@ def run_demo(
     if left is not None and rgb is not None:
         raise ParameterError("give either a left/right pair or an RGB-D frame, not both")
     checkpoint_path = resolve_checkpoint(checkpoint)
+    from dualpixel.device import resolve_device
+    from dualpixel.io.atomic import check_writable
+
+    device = str(resolve_device(device))
+    check_writable(Path(output) / "index.html")  # before any work
     model = load_model(checkpoint_path, device=device)
     mode = "pair" if left is not None else "rgbd" if rgb is not None else "procedural"
     count = 1 if mode != "procedural" else frames
@@ -159,7 +165,7 @@ def run_demo(
             rgbd, focus = render_scene(seed, config)
         sequence, recipe_info = _synthetic_frames(rgbd, camera, seed, bar, focus)
 
-    deblurrer = Deblurrer(model, device=device)
+    deblurrer = Deblurrer(model, device=device, tile=tile)
     timings = []
     for index, frame in enumerate(sequence):
         tick = time.perf_counter()
@@ -187,7 +193,7 @@ def run_demo(
 
     figures = _figures(sequence, output, recipe_info)
     if mode == "procedural":
-        real_rows, metrics["real"], real_figure = _real_scene(model, device, output)
+        real_rows, metrics["real"], real_figure = _real_scene(model, device, output, tile)
         rows += real_rows
         figures.insert(0, real_figure)
     bar.update()
@@ -213,12 +219,13 @@ def run_demo(
     return DemoResult(path, metrics, seconds)
 
 
-def _real_scene(model, device: str, output: Path) -> tuple[list[list[str]], dict, tuple]:
+def _real_scene(model, device: str, output: Path,
+                tile: int | None = None) -> tuple[list[list[str]], dict, tuple]:
     """Deblur the shipped real Canon scene; compare with DPDNet's published output."""
     folder = real_scene_dir()
     images = {name: read_rgb(folder / f"{name}.png") for name in
               ("view0", "view1", "input", "target", "dpdnet")}
-    ours = Deblurrer(model, device=device)(images["view0"], images["view1"])
+    ours = Deblurrer(model, device=device, tile=tile)(images["view0"], images["view1"])
     write_png(output / "frames" / "real_output.png", ours, bit_depth=8)
     target = images["target"]
     panels = {"input": images["input"], "ours": ours, "DPDNet (published)": images["dpdnet"],

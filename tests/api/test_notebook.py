@@ -72,3 +72,11 @@ def test_import_is_light():
     code = "import sys, dualpixel; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_registry_refuses_duplicate_names_and_ships_its_model_card():
+    from dualpixel.weights import model_card, register_checkpoint
+
+    with pytest.raises(ValueError, match="already registered"):
+        register_checkpoint("rdpd-light", "other.safetensors", "a second model of that name")
+    assert "# Model card" in model_card() and "canon" in model_card().lower()

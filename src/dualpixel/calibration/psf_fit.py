@@ -34,8 +34,8 @@ from tqdm import tqdm
 from dualpixel.calibration.psf_estimation import derivative_filters
 from dualpixel.errors import ParameterError
 from dualpixel.optics.psf import (
-    _gaussian_blur,
     butterworth_disk_terms,
+    gaussian_blur_kernels,
     mix_butterworth_terms,
     punnappurath_left_psf,
     split_views,
@@ -155,7 +155,7 @@ def _our_left_kernels(terms: tuple[torch.Tensor, torch.Tensor], radii: torch.Ten
                       betas: torch.Tensor, kappa: float) -> torch.Tensor:
     """Left kernels (sum 1) for every beta x radius, beta-major, from ``[C]`` and ``[B o C]``:
     the blur is linear, so it is applied to the two terms once and every beta mixes them."""
-    smooth = [_gaussian_blur(t, kappa * radii.abs()) for t in terms]
+    smooth = [gaussian_blur_kernels(t, kappa * radii.abs()) for t in terms]
     every_radius = radii.repeat(len(betas))
     mixed = mix_butterworth_terms(smooth[0][None], smooth[1][None], every_radius,
                                   betas[:, None, None, None], 0.0)

@@ -95,8 +95,9 @@ def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, 
 @click.option("--left", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Measured left PSFs: .npy (N, S, S), or the .npz of estimate-psf.")
 @click.option("--right", type=click.Path(dir_okay=False, path_type=Path), required=True)
-@click.option("--report", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="Folder for fits.csv, summary.json/.md and figure.png.")
+@click.option("--output", "-o", "--report", "report",
+              type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Folder for fits.csv, summary.json/.md and figure.png (--report: old name).")
 @click.option("--limit", type=click.IntRange(1), default=None, help="Fit only the first N pairs.")
 @click.option("--grid", type=click.Choice(["paper", "bank"]), default="paper",
               help="paper: the full S2 search; bank: only the 48-PSF bank's values (quick).")

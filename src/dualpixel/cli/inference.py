@@ -257,14 +257,17 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
               help="Defocus profile (dslr-840) or camera preset (set0..set4) for synthesis.")
 @click.option("--frames", type=click.IntRange(1, 30), default=3, help="Procedural frames.")
 @click.option("--seed", type=int, default=2026, help="Procedural scene seed.")
+@click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
+@click.option("--tile", type=int, default=None,
+              help="Tile size (multiple of 16) for bounded memory; default: whole frames.")
 def demo(output: Path, checkpoint: str, left, right, target, rgb, depth, depth_scale: float,
-         camera: str, frames: int, seed: int) -> None:
+         camera: str, frames: int, seed: int, device: str, tile: int | None) -> None:
     """Synthesise, deblur with the shipped model, evaluate, and write an HTML report."""
     from dualpixel.demo import run_demo
 
     result = run_demo(output, checkpoint=checkpoint, left=left, right=right, target=target,
                       rgb=rgb, depth=depth, depth_scale=depth_scale, camera=camera,
-                      frames=frames, seed=seed)
+                      frames=frames, seed=seed, device=device, tile=tile)
     mean = result.metrics.get("mean")
     if mean:
         click.echo(f"PSNR input {mean['combined']['psnr']:.2f} dB -> output "

@@ -100,7 +100,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--depth-scale", type=float, default=0.001,
               help="Metres per unit of 16-bit depth PNGs.")
 @click.option("--seed", type=int, default=0, help="Seed of PSF shapes, noise and its draws.")
-@click.option("--device", default="cpu", help="torch device, e.g. cpu or cuda.")
+@click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
 @click.option("--shard", default=None, callback=lambda _c, p, v: _shard(p, v), metavar="K/N",
               help="Render only the K-th of N interleaved parts of the frames (0-based), e.g. "

@@ -35,8 +35,10 @@ __all__ = [
     "PSFParams",
     "butterworth_combined_psf",
     "butterworth_disk_terms",
+    "check_psf_model",
     "disk_psf",
     "dp_psf",
+    "gaussian_blur_kernels",
     "gaussian_psf",
     "kernel_size",
     "mix_butterworth_terms",
@@ -158,11 +160,18 @@ def disk_psf(radius: torch.Tensor, size: int) -> torch.Tensor:
     return _pixel_integral(_disk_samples(radius, _subpixel_radius(size, radius)))
 
 
+def check_psf_model(model: str) -> str:
+    """The one check of a PSF-model name (``ours``, ``punnappurath``, ``disk``, ``gaussian``)."""
+    if model not in PSF_MODELS:
+        raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}, got {model!r}")
+    return model
+
+
 def _normalise(kernels: torch.Tensor, total: float = 1.0) -> torch.Tensor:
     return kernels * (total / kernels.sum(dim=(-2, -1), keepdim=True))
 
 
-def _gaussian_blur(kernels: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
+def gaussian_blur_kernels(kernels: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
     """Blur each kernel ``(..., K, S, S)`` with its own isotropic Gaussian of std ``sigma[k]``.
 
     Zero-padded "same" filtering written as ``T_k @ H_k @ T_k^T`` with ``T_k`` the banded
@@ -209,7 +218,7 @@ def mix_butterworth_terms(
     r"""``H = G_{\kappa |r|} * ((\beta + (1 - \beta) B) o C)`` from the terms, sums to 1."""
     combined = beta * disk + (1.0 - beta) * butter_disk
     if kappa > 0:
-        combined = _gaussian_blur(combined, kappa * radius.abs())
+        combined = gaussian_blur_kernels(combined, kappa * radius.abs())
     return _normalise(combined)
 
 
@@ -227,7 +236,7 @@ def gaussian_psf(radius: torch.Tensor, size: int) -> torch.Tensor:
     """Isotropic Gaussian, std ``GAUSSIAN_SIGMA_PER_RADIUS * |r|`` (a delta at r = 0), sums to 1."""
     delta = torch.zeros(radius.shape[0], size, size, dtype=radius.dtype, device=radius.device)
     delta[:, size // 2, size // 2] = 1.0
-    return _normalise(_gaussian_blur(delta, GAUSSIAN_SIGMA_PER_RADIUS * radius.abs()))
+    return _normalise(gaussian_blur_kernels(delta, GAUSSIAN_SIGMA_PER_RADIUS * radius.abs()))
 
 
 def split_views(combined: torch.Tensor, radius: torch.Tensor) -> DPKernels:
@@ -308,8 +317,7 @@ def dp_psf(
     >>> round(float(k.left.sum()), 6), round(float(k.combined.sum()), 6)
     (0.5, 1.0)
     """
-    if model not in PSF_MODELS:
-        raise ParameterError(f"model must be one of {', '.join(PSF_MODELS)}, got {model!r}")
+    check_psf_model(model)
     params = params or PSFParams()
     if device is None and isinstance(radius, torch.Tensor):
         device = radius.device

@@ -40,7 +40,7 @@ from dualpixel.errors import InputFileError, OutputFileError, ParameterError, ch
 from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
-from dualpixel.optics.psf import PSF_MODELS, PSFModel
+from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS
 from dualpixel.optics.thin_lens import (
     CAMERA_PRESETS,
@@ -90,8 +90,7 @@ class SynthConfig:
             raise ParameterError(
                 f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {self.psf_bank!r}"
             )
-        if self.psf_model not in PSF_MODELS:
-            raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}")
+        check_psf_model(self.psf_model)
         if self.bit_depth not in (8, 16):
             raise ParameterError(f"bit_depth must be 8 or 16, got {self.bit_depth}")
         if not self.noise_sigmas:
@@ -395,6 +394,9 @@ def synthesize_dataset(
     """
     config = config or SynthConfig()
     device = str(resolve_device(device))  # refuse an unknown or absent device before any work
+    if device.startswith("cuda") and workers > 1:
+        raise ParameterError("workers must be 1 on CUDA (one process drives the GPU); "
+                             "got --workers {workers}".replace("{workers}", str(workers)))
     root = Path(output_dir)
     sequences = discover_sequences(input_dir, fmt, split=config.split)
     jobs = plan_jobs(sequences, config, fmt)

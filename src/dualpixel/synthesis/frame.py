@@ -6,15 +6,15 @@ distortion set, noise strength); :func:`draw_recipe` draws it reproducibly from 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.optics.distortion import DISTORTION_PRESETS, DivisionDistortion, distort_image
-from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, add_noise
-from dualpixel.optics.psf import PSF_MODELS, PSFModel, PSFParams
+from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, add_noise, sample_noise_sigma
+from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
 from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
 from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
 from dualpixel.synthesis.renderer import render_dp_views
@@ -71,8 +71,7 @@ def draw_recipe(
     A preset camera ``setK`` gets the matching distortion preset ``setK`` (supplement S3); any
     other camera (e.g. one drawn from a defocus profile) a preset drawn from ``seed``.
     """
-    if psf_model not in PSF_MODELS:
-        raise ParameterError(f"psf_model must be one of {', '.join(PSF_MODELS)}, got {psf_model!r}")
+    check_psf_model(psf_model)
     if isinstance(camera, str):
         if camera not in CAMERA_PRESETS:
             raise ParameterError(
@@ -81,7 +80,7 @@ def draw_recipe(
         camera = CAMERA_PRESETS[camera]
     rng = np.random.default_rng(seed)
     psf = bank.sample(rng)
-    sigma = float(noise_sigmas[int(rng.integers(len(noise_sigmas)))])
+    sigma = sample_noise_sigma(rng, noise_sigmas)
     warp = DISTORTION_PRESETS.get(camera.name)
     if warp is None:
         presets = list(DISTORTION_PRESETS.values())
@@ -110,7 +109,6 @@ class DPFrame:
     combined: torch.Tensor  # (3, H, W)
     target: torch.Tensor  # (3, H, W), the sharp all-in-focus image
     defocus: torch.Tensor  # (H, W), signed CoC radius in pixels
-    info: dict = field(default_factory=dict)
 
 
 def _noisy_view(view: torch.Tensor, recipe: SequenceRecipe, seed: int) -> torch.Tensor:

@@ -12,22 +12,34 @@ from pathlib import Path
 from dualpixel.errors import InputFileError
 
 __all__ = [
-    "CHECKPOINTS", "DEFAULT_CHECKPOINT", "model_card", "model_info", "resolve_checkpoint",
+    "CHECKPOINTS", "DEFAULT_CHECKPOINT", "model_card", "model_info", "register_checkpoint",
+    "resolve_checkpoint",
 ]
 
-#: name -> (file in this package, description)
-CHECKPOINTS: dict[str, tuple[str, str]] = {
-    "rdpd-light": (
-        "rdpd-light.safetensors",
-        "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-        "with DSLR-like blur (the default; improves real Canon DP photographs)",
-    ),
-    "srdpd-light": (
-        "srdpd-light.safetensors",
-        "previous generation: the same network, one CPU-hour on 320x240 dead-leaves scenes "
-        "(single frames); kept for comparison",
-    ),
-}
+#: name -> (file in this package, description); add entries with :func:`register_checkpoint`.
+CHECKPOINTS: dict[str, tuple[str, str]] = {}
+
+
+def register_checkpoint(name: str, filename: str, description: str) -> None:
+    """Add a shipped checkpoint to the registry; a name can be registered once only."""
+    from dualpixel.errors import ParameterError
+
+    if name in CHECKPOINTS:
+        raise ParameterError(f"checkpoint name {name!r} is already registered "
+                             f"({CHECKPOINTS[name][0]})")
+    CHECKPOINTS[name] = (filename, description)
+
+
+register_checkpoint(
+    "rdpd-light", "rdpd-light.safetensors",
+    "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
+    "with DSLR-like blur (the default; improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "srdpd-light", "srdpd-light.safetensors",
+    "previous generation: the same network, one CPU-hour on 320x240 dead-leaves scenes "
+    "(single frames); kept for comparison",
+)
 DEFAULT_CHECKPOINT = "rdpd-light"
 
 
