@@ -43,6 +43,35 @@ class PSFEstimate:
     centres: np.ndarray
     gains: dict[str, np.ndarray]
 
+    def save(self, path) -> None:
+        """Write ``centres`` and one ``(N, K, K)`` array per view as ``.npz``, atomically."""
+        from dualpixel.io.atomic import atomic_path
+
+        with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+            np.savez(handle, centres=self.centres, **self.psfs)
+
+
+def read_captures(left, right, combined=None) -> dict[str, np.ndarray]:
+    """Grey captures ``{"left", "right", "combined"}`` (combined = left + right when not given)
+    from image files, refusing files of different sizes by name."""
+    from pathlib import Path
+
+    from dualpixel.errors import InputFileError
+    from dualpixel.io.images import read_rgb
+
+    paths = {"left": Path(left), "right": Path(right)}
+    if combined is not None:
+        paths["combined"] = Path(combined)
+    views = {name: read_rgb(path).mean(axis=2) for name, path in paths.items()}
+    for name, path in paths.items():
+        if views[name].shape != views["left"].shape:
+            found, expected = views[name].shape, views["left"].shape
+            raise InputFileError(path, f"size {found[1]}x{found[0]} differs from "
+                                       f"{paths['left'].name} ({expected[1]}x{expected[0]})")
+    if combined is None:
+        views["combined"] = views["left"] + views["right"]
+    return views
+
 
 def locate_disks(image: np.ndarray, *, min_area: int = 4) -> np.ndarray:
     """Intensity-weighted centroids ``(N, 2)`` (x, y) of bright blobs, row-major order."""

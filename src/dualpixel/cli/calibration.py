@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 
 import click
-import numpy as np
 
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
 
@@ -37,19 +36,13 @@ def pattern(kind: str, size: tuple[int, int], spacing: int, radius_fraction: flo
     else:
         image = square_grid_pattern(width, height, square=square or spacing // 2, spacing=spacing)
         detail = f"squares of {square or spacing // 2} px every {spacing} px"
-    write_png(output, np.repeat(image[:, :, None], 3, axis=2), bit_depth=8)
+    write_png(output, image, bit_depth=8)
     click.echo(f"wrote {output} ({width}x{height}, {detail})")
 
 
 @click.group(cls=DPGroup, context_settings=CONTEXT)
 def calibrate() -> None:
     """Estimate DP PSFs, fit the PSF model and radial distortion (supplement S1-S3)."""
-
-
-def _grey(path: Path) -> np.ndarray:
-    from dualpixel.io.images import read_rgb
-
-    return read_rgb(path).mean(axis=2)
 
 
 @calibrate.command("estimate-psf", context_settings=CONTEXT)
@@ -70,24 +63,11 @@ def _grey(path: Path) -> np.ndarray:
 def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, kernel_size: int,
                  lam: float, smoothness: float, output: Path) -> None:
     """Non-blind PSF estimation per disk and view (S1)."""
-    from dualpixel.calibration.psf_estimation import estimate_psfs
-    from dualpixel.errors import InputFileError
-    from dualpixel.io.atomic import atomic_path
+    from dualpixel.calibration.psf_estimation import estimate_psfs, read_captures
 
-    views = {"left": _grey(left), "right": _grey(right)}
-    for name, path in (("right", right), ("combined", combined)):
-        if path is not None:
-            views[name] = views[name] if name == "right" else _grey(path)
-            if views[name].shape != views["left"].shape:
-                found, expected = views[name].shape, views["left"].shape
-                raise InputFileError(path, f"size {found[1]}x{found[0]} differs from {left.name} "
-                                           f"({expected[1]}x{expected[0]})")
-    if combined is None:
-        views["combined"] = views["left"] + views["right"]
-    estimate = estimate_psfs(views, radius=radius, kernel_size=kernel_size, lam=lam,
-                             smoothness=smoothness)
-    with atomic_path(output) as tmp, open(tmp, "wb") as handle:
-        np.savez(handle, centres=estimate.centres, **estimate.psfs)
+    estimate = estimate_psfs(read_captures(left, right, combined), radius=radius,
+                             kernel_size=kernel_size, lam=lam, smoothness=smoothness)
+    estimate.save(output)
     click.echo(f"estimated {len(estimate.centres)} PSF(s) per view; wrote {output}")
 
 
@@ -139,8 +119,9 @@ def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str)
 def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int) -> None:
     """Fit division-model coefficients c1, c2, c3 (S3)."""
     from dualpixel.calibration.distortion_fit import fit_distortion
+    from dualpixel.io.images import read_rgb
 
-    fit = fit_distortion(_grey(capture), _grey(pattern_path), working_width=working_width)
+    fit = fit_distortion(read_rgb(capture), read_rgb(pattern_path), working_width=working_width)
     c1, c2, c3 = fit.distortion.coefficients
     click.echo(json.dumps({"c1": c1, "c2": c2, "c3": c3, "correlation": fit.correlation,
                            "evaluations": fit.evaluations}))

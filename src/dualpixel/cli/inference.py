@@ -98,78 +98,22 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
                      niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
                      device) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
-    from dualpixel.data.layout import discover_dp_dataset, discover_scene_folders
-    from dualpixel.evaluation.evaluate import (
-        evaluate,
-        evaluate_folders,
-        examples_from_sequences,
-        read_categories,
-        write_reports,
-    )
-    from dualpixel.evaluation.niqe import resolve_niqe_model
-    from dualpixel.io.atomic import check_writable
-    from dualpixel.io.images import write_png
+    from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 
-    if output.exists() and not output.is_dir():
-        raise click.BadParameter(f"{output} is a file; give a folder", param_hint="--output")
-    check_writable(output / "summary.json")  # before evaluating anything
-    niqe = None if no_niqe else resolve_niqe_model(niqe_model)
-    cats = read_categories(categories) if categories else None
-    meta = {"niqe_model": None if niqe is None else f"{niqe_model or 'builtin'} ({niqe.source})"}
-    if pred is not None or target is not None:
-        if pred is None or target is None or dataset is not None:
-            raise click.UsageError("give --pred and --target together, without --dataset")
-        results = evaluate_folders(pred, target, niqe_model=niqe, categories=cats)
-    else:
-        if dataset is None:
-            raise click.UsageError("give --dataset, or --pred and --target")
-        if (dataset / f"{split}_l").is_dir():
-            sequences, others = discover_dp_dataset(dataset, split), {}
-        else:
-            sequences, others = discover_scene_folders(dataset)
-        examples = examples_from_sequences(sequences, others, compare)
-        deblurrer, method = None, "model"
-        if not no_model:
-            from dualpixel.inference import Deblurrer
+    request = EvaluationRequest(
+        output=output, dataset=dataset, split=split, pred=pred, target=target, compare=compare,
+        categories=categories, niqe_model=niqe_model, niqe=not no_niqe, figures=figures,
+        save_outputs=save_outputs)
+    deblurrer, method, meta = None, "model", {}
+    if not no_model and pred is None and target is None:
+        from dualpixel.inference import Deblurrer
 
-            model, resolved = _load(checkpoint, device)
-            deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap)
-            method = Path(checkpoint).stem
-            meta["checkpoint"] = str(checkpoint)
-        drawn: dict[str, object] = {}
-
-        def keep(example, image):
-            if save_outputs:
-                write_png(output / "outputs" / f"{example.name}.png", image, bit_depth=8)
-            if len(drawn) < figures:
-                drawn[example.name] = image
-
-        results = evaluate(examples, deblur=deblurrer, reset=deblurrer.reset if deblurrer else
-                           None, method=method, niqe_model=niqe, categories=cats,
-                           save_outputs=keep if deblurrer else None)
-        _draw_comparisons(examples[:figures], drawn, results, method, output)
-    write_reports(results, output, meta=meta)
-    click.echo((output / "summary.md").read_text())
+        model, resolved = _load(checkpoint, device)
+        deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap)
+        method, meta = Path(checkpoint).stem, {"checkpoint": str(checkpoint)}
+    summary = run_evaluation(request, deblurrer, method, meta)
+    click.echo(summary.read_text())
     click.echo(f"reports in {output}")
-
-
-def _draw_comparisons(examples, outputs, results, method, output: Path) -> None:
-    """Input, model output, other methods and target side by side, with zoomed crops."""
-    from dualpixel.io.images import read_rgb
-    from dualpixel.viz.comparison import render_comparison
-
-    by_name = {(r.name, r.method): r for r in results}
-    for example in examples:
-        panels = {"input": read_rgb(example.combined) if example.combined else
-                  (read_rgb(example.left) + read_rgb(example.right)) / 2}
-        if example.name in outputs:
-            panels[method] = outputs[example.name]
-        panels.update({m: read_rgb(p) for m, p in sorted(example.others.items())})
-        panels["target"] = read_rgb(example.target)
-        scores = {m: f"{by_name[(example.name, m)].psnr:.2f} dB" for m in panels
-                  if (example.name, m) in by_name}
-        render_comparison(panels, output / f"compare_{example.name.replace('/', '_')}.png",
-                          title=example.name, scores=scores)
 
 
 @click.group(cls=DPGroup, context_settings=CONTEXT)

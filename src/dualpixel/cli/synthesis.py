@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-import numpy as np
 
 from dualpixel.cli.common import CONTEXT, DPCommand, float_list, parse_size
 
@@ -24,10 +23,10 @@ from dualpixel.cli.common import CONTEXT, DPCommand, float_list, parse_size
 def psf(output: Path, radii: list[float], order: float, alpha: float, beta: float,
         kappa: float, save: Path | None) -> None:
     """Render DP PSFs of our model beside Punnappurath et al.'s (like the paper's Fig. 5)."""
-    from dualpixel.io.atomic import atomic_path, check_writable
+    from dualpixel.io.atomic import check_writable
     from dualpixel.optics.psf import PSFParams
     from dualpixel.viz.figures import check_figure_path
-    from dualpixel.viz.psf_figure import render_psf_figure
+    from dualpixel.viz.psf_figure import render_psf_figure, save_psf_kernels
 
     if not radii:
         raise click.BadParameter("give at least one radius", param_hint="--radii")
@@ -38,16 +37,7 @@ def psf(output: Path, radii: list[float], order: float, alpha: float, beta: floa
     kernels = render_psf_figure(output, radii, params)
     click.echo(f"wrote {output}")
     if save is not None:
-        ours, theirs = kernels["ours"].numpy(), kernels["punnappurath"].numpy()
-        with atomic_path(save) as tmp:
-            with open(tmp, "wb") as handle:
-                np.savez(
-                    handle, left=ours[0], right=ours[1], combined=ours[2],
-                    radii=np.asarray(radii), punnappurath_left=theirs[0],
-                    punnappurath_right=theirs[1], punnappurath_combined=theirs[2],
-                    params=np.asarray([order, alpha, beta, kappa]),
-                )
-        click.echo(f"wrote {save}")
+        click.echo(f"wrote {save_psf_kernels(save, kernels, radii, params)}")
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)

@@ -55,7 +55,8 @@ def _unit_range(path: Path, data: np.ndarray) -> np.ndarray:
 
 
 def read_rgb(path: str | Path) -> np.ndarray:
-    """Read an 8- or 16-bit RGB image as float32 ``(H, W, 3)`` in [0, 1] (alpha dropped)."""
+    """Read an 8- or 16-bit RGB (or grey) image as float32 ``(H, W, 3)`` in [0, 1] (alpha
+    dropped; grey copied to the three channels)."""
     return read_rgb_with_depth(path)[0]
 
 
@@ -63,6 +64,8 @@ def read_rgb_with_depth(path: str | Path) -> tuple[np.ndarray, int]:
     """Like :func:`read_rgb`, also returning the file's bit depth (8 or 16)."""
     path = Path(path)
     data = _imread(path)
+    if data.ndim == 2:  # a grey image: the same value in R, G and B
+        data = cv2.merge([data, data, data])
     if data.ndim != 3 or data.shape[2] not in (3, 4):
         shape = "x".join(map(str, data.shape))
         raise InputFileError(path, f"expected an RGB image with 3 channels, got shape {shape}")

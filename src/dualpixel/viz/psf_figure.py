@@ -67,3 +67,18 @@ def render_psf_figure(
     )
     save_figure(fig, path, dpi=110)
     return kernels
+
+
+def save_psf_kernels(path: str | Path, kernels: dict[str, DPKernels], radii: Sequence[float],
+                     params: PSFParams) -> Path:
+    """Write the figure's kernels as ``.npz`` (``left``, ``right``, ``combined`` (N, S, S) of ours,
+    ``punnappurath_*`` of theirs, ``radii``, ``params`` = n, alpha, beta, kappa), atomically."""
+    from dualpixel.io.atomic import atomic_path
+
+    ours, theirs = kernels["ours"].numpy(), kernels["punnappurath"].numpy()
+    with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+        np.savez(handle, left=ours[0], right=ours[1], combined=ours[2], radii=np.asarray(radii),
+                 punnappurath_left=theirs[0], punnappurath_right=theirs[1],
+                 punnappurath_combined=theirs[2],
+                 params=np.asarray([params.n, params.alpha, params.beta, params.kappa]))
+    return Path(path)

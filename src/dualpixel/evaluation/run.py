@@ -1,0 +1,103 @@
+"""A whole evaluation as ``dualpixel eval`` runs it: find the examples, deblur them, score them,
+draw the comparison figures and write the reports (Table 1 layout)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from dualpixel.data.layout import discover_dp_dataset, discover_scene_folders
+from dualpixel.errors import ParameterError
+from dualpixel.evaluation.evaluate import (
+    evaluate,
+    evaluate_folders,
+    examples_from_sequences,
+    read_categories,
+    write_reports,
+)
+from dualpixel.evaluation.niqe import resolve_niqe_model
+from dualpixel.io.atomic import check_writable
+from dualpixel.io.images import read_rgb, write_png
+
+__all__ = ["EvaluationRequest", "draw_comparisons", "run_evaluation"]
+
+
+@dataclass
+class EvaluationRequest:
+    """What to evaluate: ``dataset`` (DPDD layout or scene folders) with a model, or the
+    predictions in ``pred`` against ``target``."""
+
+    output: Path
+    dataset: Path | None = None
+    split: str = "test"
+    pred: Path | None = None
+    target: Path | None = None
+    compare: dict[str, Path] | None = None
+    categories: Path | None = None
+    niqe_model: str | None = None  # builtin, standard or a file; see resolve_niqe_model
+    niqe: bool = True
+    figures: int = 3
+    save_outputs: bool = False
+
+
+def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "model",
+                   meta: dict | None = None) -> Path:
+    """Evaluate and write ``summary.json``/``.md``, ``per_image.csv`` and figures into
+    ``request.output`` (checked writable before any work); returns the summary's path.
+    ``deblurrer``: a :class:`~dualpixel.inference.Deblurrer`, or None to score only the input
+    and the other methods."""
+    output = Path(request.output)
+    if output.exists() and not output.is_dir():
+        raise ParameterError(f"--output {output} is a file; give a folder")
+    check_writable(output / "summary.json")
+    niqe = resolve_niqe_model(request.niqe_model) if request.niqe else None
+    cats = read_categories(request.categories) if request.categories else None
+    meta = dict(meta or {})
+    meta["niqe_model"] = None if niqe is None else \
+        f"{request.niqe_model or 'builtin'} ({niqe.source})"
+    if request.pred is not None or request.target is not None:
+        if request.pred is None or request.target is None or request.dataset is not None:
+            raise ParameterError("give --pred and --target together, without --dataset")
+        results = evaluate_folders(request.pred, request.target, niqe_model=niqe, categories=cats)
+    else:
+        if request.dataset is None:
+            raise ParameterError("give --dataset, or --pred and --target")
+        dataset = Path(request.dataset)
+        if (dataset / f"{request.split}_l").is_dir():
+            sequences, others = discover_dp_dataset(dataset, request.split), {}
+        else:
+            sequences, others = discover_scene_folders(dataset)
+        examples = examples_from_sequences(sequences, others, request.compare or {})
+        drawn: dict[str, object] = {}
+
+        def keep(example, image):
+            if request.save_outputs:
+                write_png(output / "outputs" / f"{example.name}.png", image, bit_depth=8)
+            if len(drawn) < request.figures:
+                drawn[example.name] = image
+
+        results = evaluate(examples, deblur=deblurrer,
+                           reset=deblurrer.reset if deblurrer else None, method=method,
+                           niqe_model=niqe, categories=cats,
+                           save_outputs=keep if deblurrer else None)
+        draw_comparisons(examples[: request.figures], drawn, results, method, output)
+    write_reports(results, output, meta=meta)
+    return output / "summary.md"
+
+
+def draw_comparisons(examples, outputs, results, method: str, output: Path) -> None:
+    """Input, model output, other methods and target side by side, with zoomed crops."""
+    from dualpixel.viz.comparison import render_comparison
+
+    by_name = {(r.name, r.method): r for r in results}
+    for example in examples:
+        panels = {"input": read_rgb(example.combined) if example.combined else
+                  (read_rgb(example.left) + read_rgb(example.right)) / 2}
+        if example.name in outputs:
+            panels[method] = outputs[example.name]
+        panels.update({m: read_rgb(p) for m, p in sorted(example.others.items())})
+        panels["target"] = read_rgb(example.target)
+        scores = {m: f"{by_name[(example.name, m)].psnr:.2f} dB" for m in panels
+                  if (example.name, m) in by_name}
+        render_comparison(panels, output / f"compare_{example.name.replace('/', '_')}.png",
+                          title=example.name, scores=scores)
