@@ -219,4 +219,23 @@ def demo(output: Path, checkpoint: str, left, right, target, rgb, depth, depth_s
     click.echo(f"report: {result.report.resolve()}  ({result.seconds:.1f} s)")
 
 
-COMMANDS = (deblur, evaluate_command, niqe, export, demo)
+@click.command("import-keras", cls=DPCommand, context_settings=CONTEXT)
+@click.argument("weights", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--model", type=click.Choice(["dpdnet", "dpdnet-single"]), default="dpdnet",
+              help="The network the Keras file holds.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Our checkpoint (.safetensors), usable with --checkpoint everywhere.")
+def import_keras(weights: Path, model: str, output: Path) -> None:
+    """Import the authors' published Keras DPDNet weights (.hdf5) into our checkpoint format."""
+    from dualpixel.models import save_model
+    from dualpixel.models.keras_import import import_keras_dpdnet
+
+    if output.suffix.lower() != ".safetensors":
+        raise click.BadParameter(f"expected a .safetensors file, got {output}",
+                                 param_hint="--output")
+    net = import_keras_dpdnet(weights, model=model)
+    save_model(output, net, extra={"source": f"Keras weights {weights.name}"})
+    click.echo(f"wrote {output} ({model}, from {weights})")
+
+
+COMMANDS = (deblur, evaluate_command, niqe, export, demo, import_keras)
