@@ -117,7 +117,6 @@ def make_rgbd(root: Path, names=("a", "b"), size=(40, 30)) -> Path:
         ("nan", "depth/b.npy", "NaN/inf"),
         ("negative", "depth/b.npy", "zero or negative"),
         ("corrupt", "rgb/b.png", "cannot be decoded"),
-        ("grey", "rgb/b.png", "expected an RGB image"),
         ("depth8", "depth/b.png", "must be 16-bit"),
     ],
 )
@@ -135,8 +134,6 @@ def test_bad_input_names_the_file(tmp_path, breakage, culprit, message):
         np.save(root / "depth" / "b.npy", depth)
     elif breakage == "corrupt":
         (root / "rgb" / "b.png").write_bytes(b"\x89PNG\r\n\x1a\nthis is not a png")
-    elif breakage == "grey":
-        cv2.imwrite(str(root / "rgb" / "b.png"), np.zeros((30, 40), np.uint8))
     elif breakage == "depth8":
         (root / "depth" / "b.npy").unlink()
         cv2.imwrite(str(root / "depth" / "b.png"), np.full((30, 40), 9, np.uint8))
@@ -227,3 +224,14 @@ def test_exr_depth_is_read_or_refused_with_a_clear_reason(tmp_path):
         path.write_bytes(b"v/1\x01 not really exr")
         with pytest.raises(InputFileError, match=r"OpenEXR|cannot be decoded"):
             read_depth(path)
+
+
+def test_grey_images_are_read_as_rgb(tmp_path):
+    from dualpixel.io.images import read_rgb
+
+    grey = np.arange(12, dtype=np.uint8).reshape(3, 4) * 20
+    cv2.imwrite(str(tmp_path / "g.png"), grey)
+    image = read_rgb(tmp_path / "g.png")
+    assert image.shape == (3, 4, 3)
+    np.testing.assert_allclose(image[..., 0], grey / 255.0, atol=1e-7)
+    assert np.array_equal(image[..., 0], image[..., 2])

@@ -20,6 +20,7 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from dualpixel.errors import InputFileError
+from dualpixel.io.dpdd import list_files, role_folder
 from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
 
 __all__ = [
@@ -62,11 +63,7 @@ def read_frame(paths: DPFramePaths) -> dict[str, np.ndarray]:
 
 def image_files(folder: Path) -> dict[str, Path]:
     """Images directly in ``folder`` by stem, in name order (hidden and partial files skipped)."""
-    return {
-        p.stem: p
-        for p in sorted(folder.iterdir())
-        if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")
-    }
+    return list_files(folder, IMAGE_SUFFIXES)
 
 
 def _image_size(path: Path) -> tuple[int, int]:
@@ -141,10 +138,8 @@ def discover_dp_dataset(
     root = Path(root)
     if not allow_incomplete:
         _check_finished(root / "dataset.json")
-    left_root = root / f"{split}_l" / "source"
-    right_root = root / f"{split}_r" / "source"
-    combined_root = root / f"{split}_c" / "source"
-    target_root = root / f"{split}_c" / "target"
+    left_root, right_root, combined_root, target_root = (
+        role_folder(root, split, role) for role in ("left", "right", "combined", "target"))
     for folder in (left_root, right_root) + ((target_root,) if require_target else ()):
         if not folder.is_dir():
             raise InputFileError(folder, "folder missing (expected the DPDD layout)")

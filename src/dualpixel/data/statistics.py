@@ -34,6 +34,7 @@ from dualpixel.data.layout import (
     read_frame,
 )
 from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.dpdd import role_folder
 
 __all__ = [
     "DatasetStatistics",
@@ -202,7 +203,7 @@ def discover_any(root: str | Path, split: str | None = None) -> list[DPSequence]
     root = Path(root)
     if not root.is_dir():
         raise InputFileError(root, "folder not found")
-    dpdd_splits = [s for s in ("test", "train", "val") if (root / f"{s}_l").is_dir()]
+    dpdd_splits = [s for s in ("test", "train", "val") if role_folder(root, s, "left").is_dir()]
     if dpdd_splits:  # the split only means something for the DPDD layout
         return discover_dp_dataset(root, split or dpdd_splits[0], require_target=False)
     sequences, _ = discover_scene_folders(root)

@@ -17,6 +17,7 @@ from dualpixel.evaluation.evaluate import (
 )
 from dualpixel.evaluation.niqe import resolve_niqe_model
 from dualpixel.io.atomic import check_writable
+from dualpixel.io.dpdd import role_folder
 from dualpixel.io.images import read_rgb, write_png
 
 __all__ = ["EvaluationRequest", "draw_comparisons", "run_evaluation"]
@@ -63,7 +64,7 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
         if request.dataset is None:
             raise ParameterError("give --dataset, or --pred and --target")
         dataset = Path(request.dataset)
-        if (dataset / f"{request.split}_l").is_dir():
+        if role_folder(dataset, request.split, "left").is_dir():
             sequences, others = discover_dp_dataset(dataset, request.split), {}
         else:
             sequences, others = discover_scene_folders(dataset)

@@ -38,6 +38,7 @@ from dualpixel import __version__
 from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError, check_range
 from dualpixel.io.atomic import atomic_path, remove_partials
+from dualpixel.io.dpdd import frame_paths, read_manifest
 from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
 from dualpixel.optics.psf import PSFModel, check_psf_model
@@ -125,15 +126,8 @@ class FrameJob:
         return f"{self.split}/seq_{self.sequence:03d}/{self.frame.name}"
 
     def paths(self, root: Path) -> dict[str, Path]:
-        seq = f"seq_{self.sequence:03d}"
-        name = self.frame.name
-        return {
-            "combined": root / f"{self.split}_c" / "source" / seq / f"{name}.png",
-            "left": root / f"{self.split}_l" / "source" / seq / f"{name}.png",
-            "right": root / f"{self.split}_r" / "source" / seq / f"{name}.png",
-            "target": root / f"{self.split}_c" / "target" / seq / f"{name}.png",
-            "defocus": root / f"{self.split}_c" / "defocus" / seq / f"{name}.npy",
-        }
+        paths = frame_paths(root, self.split, f"seq_{self.sequence:03d}", self.frame.name)
+        return {role: paths[role] for role in ("combined", "left", "right", "target", "defocus")}
 
 
 def _profile_camera(
@@ -221,19 +215,6 @@ def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
 def _worker(args: tuple) -> dict:
     torch.set_num_threads(1)
     return run_job(*args)
-
-
-def read_manifest(path: Path) -> dict[str, dict]:
-    """Records of finished frames; a torn last line (interrupted append) is ignored."""
-    records: dict[str, dict] = {}
-    if path.is_file():
-        for line in path.read_text().splitlines():
-            try:
-                record = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            records[record["key"]] = record
-    return records
 
 
 def _check_shard(shard: tuple[int, int]) -> tuple[int, int]:

@@ -9,6 +9,7 @@ from typing import Literal
 import numpy as np
 
 from dualpixel.errors import InputFileError
+from dualpixel.io.dpdd import list_files
 from dualpixel.io.images import (
     DEPTH_SUFFIXES,
     IMAGE_SUFFIXES,
@@ -39,19 +40,12 @@ class InputSequence:
     frames: tuple[InputFrame, ...]
 
 
-def _files(folder: Path, suffixes: tuple[str, ...]) -> dict[str, Path]:
-    return {
-        p.stem: p for p in sorted(folder.iterdir())
-        if p.is_file() and p.suffix.lower() in suffixes and not p.name.startswith(".")
-    }
-
-
 def _pair(name: str, split: str, rgb_dir: Path, depth_dir: Path) -> InputSequence:
     for folder in (rgb_dir, depth_dir):
         if not folder.is_dir():
             raise InputFileError(folder, "folder not found")
-    rgb = _files(rgb_dir, IMAGE_SUFFIXES)
-    depth = _files(depth_dir, DEPTH_SUFFIXES)
+    rgb = list_files(rgb_dir, IMAGE_SUFFIXES)
+    depth = list_files(depth_dir, DEPTH_SUFFIXES)
     if not rgb:
         raise InputFileError(rgb_dir, "holds no images")
     missing = sorted(set(rgb) - set(depth))

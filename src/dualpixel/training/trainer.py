@@ -38,6 +38,7 @@ from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.io.atomic import atomic_path, remove_partials
+from dualpixel.io.dpdd import role_folder
 from dualpixel.models.checkpoint import load_weights, save_model
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
@@ -142,7 +143,7 @@ def _real_validation(root: str | None) -> list[DPSequence] | None:
         return None
     from dualpixel.data.layout import discover_scene_folders
 
-    if (Path(root) / "test_l").is_dir():
+    if role_folder(root, "test", "left").is_dir():
         return discover_dp_dataset(root, "test")
     return discover_scene_folders(root)[0]
 

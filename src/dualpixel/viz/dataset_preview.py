@@ -11,8 +11,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from dualpixel.errors import InputFileError
+from dualpixel.io.dpdd import read_manifest
 from dualpixel.io.images import read_rgb
-from dualpixel.synthesis.dataset import read_manifest
 from dualpixel.viz.figures import save_figure
 
 __all__ = ["render_dataset_preview"]
