@@ -45,7 +45,7 @@ from dualpixel.models.unet import DeblurNet
 from dualpixel.training.config import TrainConfig, load_config, save_config
 from dualpixel.training.losses import DeblurLoss
 
-__all__ = ["DataKind", "TrainResult", "resolve_device", "train"]
+__all__ = ["DataKind", "TrainResult", "Trainer", "resolve_device", "train"]
 
 
 @dataclass
@@ -198,139 +198,186 @@ def train(
     config: TrainConfig, output: str | Path, *, resume: bool = False, progress: bool = True
 ) -> TrainResult:
     """Train ``config.model`` and write the run folder ``output`` (see the module docstring)."""
-    output = Path(output)
-    rank, world, device = _setup_distributed(config)
-    main = rank == 0
-    if config.threads is not None:
-        torch.set_num_threads(config.threads)
-    has_run = (output / "last_state.pt").is_file()
-    if has_run and not resume:
-        raise ParameterError(f"{output} already holds a training run; pass --resume to continue it")
-    if resume and not has_run:
-        raise InputFileError(output / "last_state.pt", "nothing to resume (no finished epoch)")
-    if resume:
-        _check_resumable(output, config)
-        if main:
-            remove_partials(output)  # what a killed checkpoint write left behind
+    return Trainer(config, output, resume=resume, progress=progress).run()
 
-    torch.manual_seed(config.seed)
-    random.seed(config.seed)
-    kinds = _data_kinds(config)
-    val_sequences = None
-    if config.val_data is not None:
-        val_sequences = discover_dp_dataset(config.val_data, config.val_split)[: config.val_limit]
-    real_val_sequences = _real_validation(config.real_val_data)
 
-    model = build_model(config.model, width=config.width, peepholes=config.peepholes,
-                        lstm_dropout=config.lstm_dropout, residual=config.residual).to(device)
-    # Single frames only (sRDPD+, real pairs): inference must not carry state between frames.
-    model.temporal = model.temporal and bool(config.synthetic_data) and not (
-        config.synthetic_as_frames)
-    use_cuda = device.type == "cuda"
-    if use_cuda and config.channels_last:
-        model = model.to(memory_format=torch.channels_last)
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
-    scheduler = torch.optim.lr_scheduler.StepLR(optimizer, config.lr_halve_every, gamma=0.5)
-    criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x, config.lambda_y).to(device)
+class Trainer:
+    """One training run in named steps: :meth:`check_folder`, :meth:`build`, :meth:`restore` or
+    :meth:`start`, then per epoch :meth:`train_epoch`, :meth:`validate_epoch` and
+    :meth:`checkpoint`. :func:`train` runs them all."""
 
-    start_epoch, step, best = 0, 0, None
-    history: list[dict[str, Any]] = []
-    if resume:
-        state = torch.load(output / "last_state.pt", map_location="cpu", weights_only=False)
+    def __init__(self, config: TrainConfig, output: str | Path, *, resume: bool = False,
+                 progress: bool = True) -> None:
+        self.config, self.output = config, Path(output)
+        self.resume, self.progress = resume, progress
+        self.rank, self.world, self.device = _setup_distributed(config)
+        self.main = self.rank == 0
+        self.start_epoch, self.step, self.best = 0, 0, None
+        self.history: list[dict[str, Any]] = []
+        self.writer = None
+
+    def run(self) -> TrainResult:
+        self.check_folder()
+        self.build()
+        self.restore() if self.resume else self.start()
+        if self.world > 1:
+            self.model = DistributedDataParallel(
+                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
+        self.writer = _summary_writer(self.output, self.config) if self.main else None
+        for epoch in range(self.start_epoch, self.config.epochs):
+            record = self.train_epoch(epoch)
+            if self.main:
+                self.validate_epoch(epoch, record)
+                self.checkpoint(epoch, record)
+            if self.world > 1:
+                dist.barrier()
+        if self.writer is not None:
+            self.writer.close()
+        return TrainResult(self.output, self.config.epochs, self.step, self.best, self.history)
+
+    def check_folder(self) -> None:
+        """Refuse to overwrite a run, or to resume what is not there or was made otherwise."""
+        config, output = self.config, self.output
+        if config.threads is not None:
+            torch.set_num_threads(config.threads)
+        has_run = (output / "last_state.pt").is_file()
+        if has_run and not self.resume:
+            raise ParameterError(
+                f"{output} already holds a training run; pass --resume to continue it")
+        if self.resume and not has_run:
+            raise InputFileError(output / "last_state.pt", "nothing to resume (no finished epoch)")
+        if self.resume:
+            _check_resumable(output, config)
+            if self.main:
+                remove_partials(output)  # what a killed checkpoint write left behind
+
+    def build(self) -> None:
+        """Data, network, optimiser, schedule and loss."""
+        config, device = self.config, self.device
+        torch.manual_seed(config.seed)
+        random.seed(config.seed)
+        self.kinds = _data_kinds(config)
+        self.val_sequences = None
+        if config.val_data is not None:
+            self.val_sequences = discover_dp_dataset(config.val_data,
+                                                     config.val_split)[: config.val_limit]
+        self.real_val_sequences = _real_validation(config.real_val_data)
+        model = build_model(config.model, width=config.width, peepholes=config.peepholes,
+                            lstm_dropout=config.lstm_dropout, residual=config.residual).to(device)
+        # Single frames only (sRDPD+, real pairs): inference must not carry state between frames.
+        model.temporal = model.temporal and bool(config.synthetic_data) and not (
+            config.synthetic_as_frames)
+        if device.type == "cuda" and config.channels_last:
+            model = model.to(memory_format=torch.channels_last)
+        self.net = self.model = model
+        self.optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+        self.scheduler = torch.optim.lr_scheduler.StepLR(self.optimizer, config.lr_halve_every,
+                                                         gamma=0.5)
+        self.criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x,
+                                    config.lambda_y).to(device)
+        self.iterations = _iterations_per_epoch(config, self.kinds)
+
+    def restore(self) -> None:
+        """Continue from ``last_state.pt``, the one atomic unit of a checkpoint (weights,
+        optimiser, schedule, RNG): a kill while the derived files were rewritten cannot break it."""
+        path = self.output / "last_state.pt"
+        state = torch.load(path, map_location="cpu", weights_only=False)
         if "model" not in state:
-            raise InputFileError(output / "last_state.pt",
-                                 "written by an older version without the weights; start anew")
-        # The state file is the one atomic unit of a checkpoint (weights, optimiser, schedule,
-        # RNG): a kill while last.safetensors or history.jsonl is rewritten cannot break resume.
-        net_state = {k: v.to(device) for k, v in state["model"].items()}
-        model.load_state_dict(net_state)
-        optimizer.load_state_dict(state["optimizer"])
-        scheduler.load_state_dict(state["scheduler"])
-        start_epoch, step, best = state["epoch"] + 1, state["step"], state["best_psnr"]
-        history = state["history"]
+            raise InputFileError(path, "written by an older version without the weights; start "
+                                       "anew")
+        self.net.load_state_dict({k: v.to(self.device) for k, v in state["model"].items()})
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.scheduler.load_state_dict(state["scheduler"])
+        self.start_epoch, self.step = state["epoch"] + 1, state["step"]
+        self.best, self.history = state["best_psnr"], state["history"]
         _set_rng_state(state["rng"])
-        if main:
-            _write_derived(output, model, state["epoch"], step, history, config)
-    else:
-        if config.init_weights is not None:
-            load_weights(model, _resolve_weights(config.init_weights))
-        if main:
-            output.mkdir(parents=True, exist_ok=True)
-            save_config(config, output / "config.yaml")
+        if self.main:
+            _write_derived(self.output, self.net, state["epoch"], self.step, self.history,
+                           self.config)
 
-    net = model
-    if world > 1:
-        model = DistributedDataParallel(model, device_ids=[device.index] if use_cuda else None)
-    writer = _summary_writer(output, config) if main else None
-    iterations = _iterations_per_epoch(config, kinds)
+    def start(self) -> None:
+        """A new run: initial weights (``init_weights``) and the saved config."""
+        if self.config.init_weights is not None:
+            load_weights(self.net, _resolve_weights(self.config.init_weights))
+        if self.main:
+            self.output.mkdir(parents=True, exist_ok=True)
+            save_config(self.config, self.output / "config.yaml")
 
-    for epoch in range(start_epoch, config.epochs):
-        model.train()
+    def train_epoch(self, epoch: int) -> dict[str, Any]:
+        """One epoch of optimisation; returns its record (mean losses, seconds)."""
+        config, device, kinds = self.config, self.device, self.kinds
+        use_cuda = device.type == "cuda"
+        self.model.train()
         loaders = []
         for index, kind in enumerate(kinds):
-            count = len(range(index, iterations, len(kinds)))
-            batches = _epoch_batches(config, index, kind, epoch, count, rank, world)
+            count = len(range(index, self.iterations, len(kinds)))
+            batches = _epoch_batches(config, index, kind, epoch, count, self.rank, self.world)
             loaders.append(iter(DataLoader(
                 kind.dataset, batch_sampler=batches, num_workers=config.workers,
                 pin_memory=use_cuda, persistent_workers=False,
             )))
         totals: dict[str, float] = {}
         started = time.perf_counter()
-        bar = tqdm(range(iterations), desc=f"epoch {epoch + 1}/{config.epochs}",
-                   disable=not (progress and main), leave=False)
+        bar = tqdm(range(self.iterations), desc=f"epoch {epoch + 1}/{config.epochs}",
+                   disable=not (self.progress and self.main), leave=False)
         for iteration in bar:
             kind = kinds[iteration % len(kinds)]
             item = {k: v.to(device, non_blocking=True)
                     for k, v in next(loaders[iteration % len(kinds)]).items()}
-            frames = net.spec.make_input(item["left"], item["right"], item["radial"])
+            frames = self.net.spec.make_input(item["left"], item["right"], item["radial"])
             with torch.autocast("cuda", dtype=torch.bfloat16, enabled=use_cuda and config.amp):
-                prediction, _ = model(frames)
-            loss, parts = criterion(prediction.float(), item["target"])
-            optimizer.zero_grad(set_to_none=True)
+                prediction, _ = self.model(frames)
+            loss, parts = self.criterion(prediction.float(), item["target"])
+            self.optimizer.zero_grad(set_to_none=True)
             loss.backward()
-            optimizer.step()
-            step += 1
+            self.optimizer.step()
+            self.step += 1
             values = {"loss": float(loss.detach()), **{k: float(v) for k, v in parts.items()}}
             for key, value in values.items():
                 totals[key] = totals.get(key, 0.0) + value
             bar.set_postfix(loss=f"{values['loss']:.4g}", kind=kind.name)
-            if writer is not None:
+            if self.writer is not None:
                 for key, value in values.items():
-                    writer.add_scalar(f"train/{key}", value, step)
-                writer.add_scalar("train/learning_rate", optimizer.param_groups[0]["lr"], step)
+                    self.writer.add_scalar(f"train/{key}", value, self.step)
+                self.writer.add_scalar("train/learning_rate",
+                                       self.optimizer.param_groups[0]["lr"], self.step)
         record: dict[str, Any] = {
-            "epoch": epoch + 1, "step": step, "learning_rate": optimizer.param_groups[0]["lr"],
-            **{k: v / iterations for k, v in totals.items()},
+            "epoch": epoch + 1, "step": self.step,
+            "learning_rate": self.optimizer.param_groups[0]["lr"],
+            **{k: v / self.iterations for k, v in totals.items()},
             "seconds": round(time.perf_counter() - started, 3),
         }
-        scheduler.step()
-        if main:
-            if val_sequences:
-                record["val_psnr"], sample = validate(net, val_sequences, device)
-                if writer is not None:
-                    writer.add_scalar("val/psnr", record["val_psnr"], step)
-                    if sample is not None and config.log_images:
-                        for key, image in sample.items():
-                            writer.add_image(f"val/{key}", image, step)
-            if real_val_sequences:  # logged only, never used to choose a checkpoint
-                record["real_val_psnr"], _ = validate(net, real_val_sequences, device)
-                if writer is not None:
-                    writer.add_scalar("val/real_psnr", record["real_val_psnr"], step)
-            if val_sequences:
-                if best is None or record["val_psnr"] > best:
-                    best = record["val_psnr"]
-                    save_model(output / "best.safetensors", net,
-                               extra={"epoch": epoch + 1, "step": step, "val_psnr": best})
-            history.append(record)
-            _save_state(output, net, optimizer, scheduler, epoch, step, best, history, config)
+        self.scheduler.step()
+        return record
+
+    def validate_epoch(self, epoch: int, record: dict[str, Any]) -> None:
+        """Synthetic validation (chooses ``best.safetensors``) and the real scenes (logged only,
+        never used to choose a checkpoint)."""
+        writer, step = self.writer, self.step
+        if self.val_sequences:
+            record["val_psnr"], sample = validate(self.net, self.val_sequences, self.device)
             if writer is not None:
-                writer.flush()
-            tqdm.write(json.dumps(record)) if progress else None
-        if world > 1:
-            dist.barrier()
-    if writer is not None:
-        writer.close()
-    return TrainResult(output, config.epochs, step, best, history)
+                writer.add_scalar("val/psnr", record["val_psnr"], step)
+                if sample is not None and self.config.log_images:
+                    for key, image in sample.items():
+                        writer.add_image(f"val/{key}", image, step)
+        if self.real_val_sequences:
+            record["real_val_psnr"], _ = validate(self.net, self.real_val_sequences, self.device)
+            if writer is not None:
+                writer.add_scalar("val/real_psnr", record["real_val_psnr"], step)
+        if self.val_sequences and (self.best is None or record["val_psnr"] > self.best):
+            self.best = record["val_psnr"]
+            save_model(self.output / "best.safetensors", self.net,
+                       extra={"epoch": epoch + 1, "step": step, "val_psnr": self.best})
+
+    def checkpoint(self, epoch: int, record: dict[str, Any]) -> None:
+        """Append the record and write the checkpoint (state file first, then derived files)."""
+        self.history.append(record)
+        _save_state(self.output, self.net, self.optimizer, self.scheduler, epoch, self.step,
+                    self.best, self.history, self.config)
+        if self.writer is not None:
+            self.writer.flush()
+        tqdm.write(json.dumps(record)) if self.progress else None
 
 
 def _save_state(output: Path, net: DeblurNet, optimizer, scheduler, epoch: int, step: int,
