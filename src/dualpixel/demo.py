@@ -27,11 +27,11 @@ from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import read_depth, read_rgb, write_png
 from dualpixel.models import load_model
 from dualpixel.viz.comparison import render_comparison
-from dualpixel.viz.figures import save_figure
 from dualpixel.viz.html_report import Figure, Report, write_html_report
+from dualpixel.viz.maps import render_colour_map, write_views_gif
 from dualpixel.weights import DEFAULT_CHECKPOINT, resolve_checkpoint
 
-__all__ = ["DemoResult", "run_demo"]
+__all__ = ["DemoFrame", "DemoResult", "run_demo"]
 
 #: Scene seed of the default demo (training used seeds 0 and 1000: see MODEL_CARD.md).
 DEMO_SEED = 2026
@@ -54,37 +54,24 @@ class DemoResult:
     seconds: float
 
 
-def _colour_map(values: np.ndarray, path: Path, label: str, *, cmap: str,
-                symmetric: bool = False) -> None:
-    import matplotlib
+@dataclass
+class DemoFrame:
+    """One frame of the demo, float32 ``(H, W, 3)`` images in [0, 1]; the scene (``rgb``,
+    ``depth`` in metres, ``defocus`` in px) only for synthesised frames."""
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    height, width = values.shape
-    fig, ax = plt.subplots(figsize=(5.2, 5.2 * height / width + 0.3))
-    limit = float(np.abs(values).max()) or 1.0
-    shown = ax.imshow(values, cmap=cmap, vmin=-limit if symmetric else None,
-                      vmax=limit if symmetric else None)
-    fig.colorbar(shown, ax=ax, fraction=0.046, pad=0.04, label=label)
-    ax.axis("off")
-    fig.tight_layout()
-    save_figure(fig, path, dpi=100)
-
-
-def _views_gif(left: np.ndarray, right: np.ndarray, path: Path) -> None:
-    """An animated GIF alternating the left and right views (how DP disparity is usually shown)."""
-    from PIL import Image
-
-    frames = [Image.fromarray((np.clip(v, 0, 1) * 255 + 0.5).astype(np.uint8)) for v in
-              (left, right)]
-    with atomic_path(path) as tmp:
-        frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=600,
-                       loop=0)
+    left: np.ndarray
+    right: np.ndarray
+    combined: np.ndarray
+    target: np.ndarray | None = None
+    output: np.ndarray | None = None
+    rgb: np.ndarray | None = None
+    depth: np.ndarray | None = None
+    defocus: np.ndarray | None = None
 
 
 def _synthetic_frames(rgbd: list[tuple[np.ndarray, np.ndarray]], camera: str, seed: int,
-                      bar: tqdm, focus_distance: float | None = None) -> tuple[list[dict], dict]:
+                      bar: tqdm, focus_distance: float | None = None):
+    """The frames and the :class:`~dualpixel.synthesis.frame.SequenceRecipe` they used."""
     from dualpixel.optics.psf_bank import PIXEL4_PSF_BANK
     from dualpixel.optics.thin_lens import DEFOCUS_PROFILES
     from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
@@ -100,11 +87,11 @@ def _synthetic_frames(rgbd: list[tuple[np.ndarray, np.ndarray]], camera: str, se
     for index, (rgb, depth) in enumerate(rgbd):
         frame = synthesize_frame(rgb, depth, recipe, noise_seed=seed * 1000 + index)
         as_hwc = lambda t: t.permute(1, 2, 0).numpy()  # noqa: E731
-        frames.append({"left": as_hwc(frame.left), "right": as_hwc(frame.right),
-                       "combined": as_hwc(frame.combined), "target": as_hwc(frame.target),
-                       "defocus": frame.defocus.numpy(), "rgb": rgb, "depth": depth})
+        frames.append(DemoFrame(as_hwc(frame.left), as_hwc(frame.right), as_hwc(frame.combined),
+                                target=as_hwc(frame.target), rgb=rgb, depth=depth,
+                                defocus=frame.defocus.numpy()))
         bar.update()
-    return frames, recipe.describe() | {"_recipe": recipe}
+    return frames, recipe
 
 
 def run_demo(
@@ -143,16 +130,13 @@ def run_demo(
     mode = "pair" if left is not None else "rgbd" if rgb is not None else "procedural"
     count = 1 if mode != "procedural" else frames
     bar = tqdm(total=2 * count + 3, desc="demo", unit="step", disable=not progress)
-    recipe_info: dict = {}
+    recipe = None
     if mode == "pair":
         left_image, right_image = read_rgb(left), read_rgb(right)
         if left_image.shape != right_image.shape:
             raise ParameterError(f"{right}: size differs from {left}")
-        frame = {"left": left_image, "right": right_image,
-                 "combined": (left_image + right_image) / 2}
-        if target is not None:
-            frame["target"] = read_rgb(target)
-        sequence = [frame]
+        sequence = [DemoFrame(left_image, right_image, (left_image + right_image) / 2,
+                              target=read_rgb(target) if target is not None else None)]
         bar.update()
     else:
         focus = None
@@ -163,26 +147,25 @@ def run_demo(
 
             config = SceneConfig(width=size[0], height=size[1], frames=frames, layout="photo")
             rgbd, focus = render_scene(seed, config)
-        sequence, recipe_info = _synthetic_frames(rgbd, camera, seed, bar, focus)
+        sequence, recipe = _synthetic_frames(rgbd, camera, seed, bar, focus)
 
     deblurrer = Deblurrer(model, device=device, tile=tile)
     timings = []
     for index, frame in enumerate(sequence):
         tick = time.perf_counter()
-        frame["output"] = deblurrer(frame["left"], frame["right"])
+        frame.output = deblurrer(frame.left, frame.right)
         timings.append(time.perf_counter() - tick)
-        write_png(output / "frames" / f"output_{index:03d}.png", frame["output"], bit_depth=8)
+        write_png(output / "frames" / f"output_{index:03d}.png", frame.output, bit_depth=8)
         bar.update()
 
     rows, metrics = [], {"frames": []}
     for index, frame in enumerate(sequence):
-        if "target" not in frame:
+        if frame.target is None:
             continue
         entry = {"frame": index}
-        for name in ("combined", "output"):
-            entry[name] = {"psnr": psnr(frame[name], frame["target"]),
-                           "ssim": ssim(frame[name], frame["target"]),
-                           "mae": mae(frame[name], frame["target"])}
+        for name, image in (("combined", frame.combined), ("output", frame.output)):
+            entry[name] = {"psnr": psnr(image, frame.target), "ssim": ssim(image, frame.target),
+                           "mae": mae(image, frame.target)}
         metrics["frames"].append(entry)
         rows.append([str(index), *_cells(entry)])
     if metrics["frames"]:
@@ -191,7 +174,7 @@ def run_demo(
         metrics["mean"] = mean
         rows.append(["mean", *_cells(mean)])
 
-    figures = _figures(sequence, output, recipe_info)
+    figures = _figures(sequence, output, recipe)
     if mode == "procedural":
         real_rows, metrics["real"], real_figure = _real_scene(model, device, output, tile)
         rows += real_rows
@@ -200,10 +183,10 @@ def run_demo(
     seconds = time.perf_counter() - started
     metrics.update({"mode": mode, "checkpoint": str(checkpoint), "seconds": seconds,
                     "deblur_seconds_per_frame": float(np.mean(timings)),
-                    "recipe": {k: v for k, v in recipe_info.items() if not k.startswith("_")}})
+                    "recipe": recipe.describe() if recipe is not None else {}})
     report = Report(
         title="dualpixel demo: DP synthesis and deblurring",
-        intro=_intro(mode, checkpoint, recipe_info, len(sequence), seconds, timings),
+        intro=_intro(mode, checkpoint, recipe, len(sequence), seconds, timings),
         tables=[("Metrics against the sharp target (input = combined DP image)",
                  ["frame", "input PSNR", "input SSIM", "input MAE", "output PSNR",
                   "output SSIM", "output MAE"], rows)] if rows else [],
@@ -257,12 +240,13 @@ def _cells(scores: dict) -> list[str]:
             for n in ("combined", "output") for k in ("psnr", "ssim", "mae")]
 
 
-def _intro(mode, checkpoint, recipe_info, count, seconds, timings) -> str:
+def _intro(mode, checkpoint, recipe, count, seconds, timings) -> str:
     source = {"procedural": f"a procedural RGB-D sequence of {count} frames (scene seed "
                             f"{DEMO_SEED}, never used in training)",
               "rgbd": "your RGB-D frame", "pair": "your left/right DP pair"}[mode]
     text = f"Input: {source}. Model: <code>{checkpoint}</code>. "
-    if recipe_info:
+    if recipe is not None:
+        recipe_info = recipe.describe()
         cam, psf = recipe_info["camera"], recipe_info["psf"]
         distortion = recipe_info["distortion"]["name"] if recipe_info["distortion"] else "off"
         text += (f"Synthesis: camera {cam['name']} (f = {cam['focal_length']}, N = "
@@ -273,19 +257,19 @@ def _intro(mode, checkpoint, recipe_info, count, seconds, timings) -> str:
                    f"{seconds:.1f} s.")
 
 
-def _figures(sequence: list[dict], output: Path, recipe_info: dict) -> list:
+def _figures(sequence: list[DemoFrame], output: Path, recipe) -> list:
     first = sequence[0]
     sections = []
-    _views_gif(first["left"], first["right"], output / "views.gif")
+    write_views_gif(first.left, first.right, output / "views.gif")
     sections.append(("Dual-pixel views", [Figure("views.gif", "Left and right DP views, "
                                                  "alternating: defocused regions shift between "
                                                  "them (DP disparity), in-focus ones do not.")],
                      ""))
-    if "rgb" in first:
-        write_png(output / "all_in_focus.png", first["rgb"], bit_depth=8)
-        _colour_map(first["depth"], output / "depth.png", "depth", cmap="viridis")
-        _colour_map(first["defocus"], output / "defocus.png", "signed CoC radius (px)",
-                    cmap="coolwarm", symmetric=True)
+    if first.rgb is not None:
+        write_png(output / "all_in_focus.png", first.rgb, bit_depth=8)
+        render_colour_map(first.depth, output / "depth.png", "depth", cmap="viridis")
+        render_colour_map(first.defocus, output / "defocus.png", "signed CoC radius (px)",
+                          cmap="coolwarm", symmetric=True)
         sections.append(("Scene", [
             Figure("all_in_focus.png", "All-in-focus input frame"),
             Figure("depth.png", "Depth"),
@@ -294,26 +278,25 @@ def _figures(sequence: list[dict], output: Path, recipe_info: dict) -> list:
         ], ""))
     comparisons = []
     for index, frame in enumerate(sequence):
-        panels = {"input": frame["combined"], "output": frame["output"]}
+        panels = {"input": frame.combined, "output": frame.output}
         scores = {}
-        if "target" in frame:
-            panels["target"] = frame["target"]
-            scores = {k: f"{psnr(panels[k], frame['target']):.2f} dB" for k in ("input",
-                                                                               "output")}
+        has_target = frame.target is not None
+        if has_target:
+            panels["target"] = frame.target
+            scores = {k: f"{psnr(panels[k], frame.target):.2f} dB" for k in ("input", "output")}
         name = f"compare_{index:03d}.png"
         render_comparison(panels, output / name, title=f"frame {index}", scores=scores,
-                          crop_by="output" if "target" in frame else None)
+                          crop_by="output" if has_target else None)
         comparisons.append(Figure(name, f"Frame {index}: blurred input, our output"
-                                  + (", sharp target" if "target" in frame else "")
+                                  + (", sharp target" if has_target else "")
                                   + "; bottom row zooms into the outlined crop ("
                                   + ("where our output gains most over the input"
-                                     if "target" in frame else "most detail") + ")"))
+                                     if has_target else "most detail") + ")"))
     sections.append(("Deblurring", comparisons, ""))
-    if "_recipe" in recipe_info:
+    if recipe is not None:
         from dualpixel.viz.psf_figure import render_psf_figure
 
-        recipe = recipe_info["_recipe"]
-        coc = np.abs(np.concatenate([f["defocus"].ravel() for f in sequence]))
+        coc = np.abs(np.concatenate([f.defocus.ravel() for f in sequence]))
         largest = max(2.0, float(np.percentile(coc, 99)))
         radii = sorted({round(-largest, 1), round(-largest / 3, 1), round(largest / 3, 1),
                         round(largest, 1)})

@@ -7,7 +7,7 @@ from __future__ import annotations
 import click
 
 from dualpixel import __version__
-from dualpixel.cli import calibration, inference, synthesis, training
+from dualpixel.cli import calibration, demo, inference, synthesis, training
 from dualpixel.cli.common import CONTEXT, DPGroup
 
 __all__ = ["cli"]
@@ -19,7 +19,7 @@ def cli() -> None:
     """dualpixel: dual-pixel defocus deblurring (Abuolaim et al., ICCV 2021)."""
 
 
-for _module in (synthesis, training, inference, calibration):
+for _module in (synthesis, training, inference, calibration, demo):
     for _command in _module.COMMANDS:
         cli.add_command(_command)
 
