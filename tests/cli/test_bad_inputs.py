@@ -223,3 +223,16 @@ def test_stats_and_niqe_name_the_file(files, tmp_path):
     cv2.imwrite(str(small / "tiny.png"), np.zeros((50, 50, 3), np.uint8))
     assert_clear(invoke("niqe", "fit", "--images", small, "--output", tmp_path / "m.npz"), 1,
                  "tiny.png", "96x96")
+
+
+def test_quiet_silences_progress_bars(tmp_path):
+    import subprocess
+    import sys
+
+    args = ["scenes", "--sequences", "1", "--frames", "1", "--size", "32x24"]
+    loud = subprocess.run([sys.executable, "-m", "dualpixel", *args, "-o", str(tmp_path / "a")],
+                          capture_output=True, text=True, check=True)
+    quiet = subprocess.run([sys.executable, "-m", "dualpixel", "-q", *args, "-o",
+                            str(tmp_path / "b")], capture_output=True, text=True, check=True)
+    assert "rendering scenes" in loud.stderr
+    assert "rendering scenes" not in quiet.stderr and "wrote 1 sequences" in quiet.stdout

@@ -15,8 +15,24 @@ __all__ = ["cli"]
 
 @click.group(cls=DPGroup, context_settings=CONTEXT)
 @click.version_option(__version__, prog_name="dualpixel")
-def cli() -> None:
+@click.option("--quiet", "-q", is_flag=True, help="No progress bars (for logs and scripts).")
+def cli(quiet: bool) -> None:
     """dualpixel: dual-pixel defocus deblurring (Abuolaim et al., ICCV 2021)."""
+    if quiet:
+        _silence_progress_bars()
+
+
+def _silence_progress_bars() -> None:
+    """Every progress bar of the library is a tqdm bar: disable them all for this process."""
+    from tqdm import tqdm
+
+    original = tqdm.__init__
+
+    def quiet_init(self, *args, **kwargs):
+        kwargs["disable"] = True
+        original(self, *args, **kwargs)
+
+    tqdm.__init__ = quiet_init
 
 
 for _module in (synthesis, training, inference, calibration, demo):
