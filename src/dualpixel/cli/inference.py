@@ -67,7 +67,8 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 
 
 @click.command("eval", cls=DPCommand, context_settings=CONTEXT)
-@click.option("--dataset", type=click.Path(file_okay=False, exists=True, path_type=Path),
+@click.option("--input", "--dataset", "dataset",
+              type=click.Path(file_okay=False, exists=True, path_type=Path),
               default=None, help="DPDD-layout test set, or one folder per scene (view0/view1/"
               "input/target, extra images = other methods).")
 @click.option("--split", default="test", help="Split of a DPDD-layout --dataset.")
@@ -122,7 +123,8 @@ def niqe() -> None:
 
 
 @niqe.command("fit", context_settings=CONTEXT)
-@click.option("--images", type=click.Path(file_okay=False, exists=True, path_type=Path),
+@click.option("--input", "--images", "images",
+              type=click.Path(file_okay=False, exists=True, path_type=Path),
               required=True, help="Folder of sharp images (searched recursively).")
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Model file (.npz).")

@@ -145,7 +145,8 @@ def merge_shards_command(shards: tuple[Path, ...], output: Path) -> None:
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.option("--dataset", type=click.Path(file_okay=False, path_type=Path), required=True,
+@click.option("--input", "--dataset", "dataset",
+              type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Dataset folder written by `dualpixel synth`.")
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
               default=Path("preview.png"), help="PNG contact sheet to write.")
