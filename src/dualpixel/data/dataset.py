@@ -15,12 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from scipy import ndimage
 from torch.utils.data import Dataset
 
 from dualpixel.data.layout import DPFramePaths, DPSequence, read_frame
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
+from dualpixel.filters import gradient_magnitude, sharpness
 
 __all__ = ["DPPatchDataset", "PatchConfig", "flip_horizontal", "gradient_magnitude", "sharpness"]
 
@@ -34,17 +34,6 @@ class PatchConfig:
     flips: bool = True
     min_sharpness: float = 0.0  # reject target patches flatter than this (mean Sobel magnitude)
     max_tries: int = 10
-
-
-def gradient_magnitude(image: np.ndarray) -> np.ndarray:
-    """Sobel gradient magnitude of the grey (channel-mean) image, ``(H, W)``."""
-    grey = image.mean(axis=-1)
-    return np.hypot(ndimage.sobel(grey, 0), ndimage.sobel(grey, 1))
-
-
-def sharpness(image: np.ndarray) -> float:
-    """Mean Sobel gradient magnitude of the grey image, a cheap flat-patch detector."""
-    return float(gradient_magnitude(image).mean())
 
 
 def flip_horizontal(item: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:

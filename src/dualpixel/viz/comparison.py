@@ -18,7 +18,7 @@ def sharpest_window(
     ``blurred`` (if given) lacks: where deblurring matters."""
     from scipy import ndimage
 
-    from dualpixel.data.dataset import gradient_magnitude
+    from dualpixel.filters import gradient_magnitude
 
     energy = gradient_magnitude(image)
     if blurred is not None:
