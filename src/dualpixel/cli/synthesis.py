@@ -7,6 +7,9 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, float_list, parse_size
+from dualpixel.optics.psf import PSF_MODELS
+from dualpixel.optics.psf_bank import PSF_BANKS
+from dualpixel.synthesis.scenes import SCENE_LAYOUTS
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -48,7 +51,7 @@ def psf(output: Path, radii: list[float], order: float, alpha: float, beta: floa
 @click.option("--size", default="320x240", callback=parse_size, help="Frame size WIDTHxHEIGHT.")
 @click.option("--leaves", type=click.IntRange(0), default=28, help="Shapes per scene.")
 @click.option("--seed", type=int, default=0, help="Scene seed.")
-@click.option("--layout", type=click.Choice(["leaves", "photo"]), default="leaves",
+@click.option("--layout", type=click.Choice(SCENE_LAYOUTS), default="leaves",
               help="leaves: shapes at random depths; photo: an in-focus subject, ground plane, "
                    "background and occluders, with richer textures (writes the focus distance).")
 def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], leaves: int,
@@ -81,9 +84,9 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               help="Noise strengths to draw from, comma-separated [default: the paper's "
                    "0.05, 0.055, ..., 0.5].")
 @click.option("--distortion/--no-distortion", default=True, help="Radial distortion (Eq. 5).")
-@click.option("--psf-model", type=click.Choice(["ours", "punnappurath", "disk", "gaussian"]),
+@click.option("--psf-model", type=click.Choice(PSF_MODELS),
               default="ours", help="DP PSF model (the others for the paper's ablations).")
-@click.option("--psf-bank", type=click.Choice(["paper", "pixel4"]), default="paper",
+@click.option("--psf-bank", type=click.Choice(list(PSF_BANKS)), default="paper",
               help="PSF shapes to draw from: the paper's 48, or around the real Pixel 4 fits.")
 @click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
