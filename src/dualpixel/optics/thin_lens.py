@@ -196,11 +196,14 @@ class DefocusProfile:
 
 #: Defocus profiles. "dslr-840": a full-frame DSLR with a fast lens at a half-resolution DPDD frame
 #: (840 px wide; the Canon EOS 5D Mark IV of the DPDD benchmark): backgrounds far behind the
-#: subject blur by 3-20 px radius, near occluders by up to 30 px.
+#: subject blur by 3-20 px radius, near occluders by up to 30 px; "dslr-840-mild": 2-12 px, 20 px.
 DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
     profile.name: profile
     for profile in (
         DefocusProfile("dslr-840", 840, (3.0, 20.0), 30.0,
                        "DSLR, fast lens, 840-px-wide frame (half-resolution DPDD)"),
+        DefocusProfile("dslr-840-mild", 840, (2.0, 12.0), 20.0,
+                       "as dslr-840 without its heavy tail: the shipped data measured about "
+                       "0.75 px blurrier than real DPDD photographs at every percentile"),
     )
 }
