@@ -127,3 +127,21 @@ def test_direct_and_fft_convolution_agree():
                                                                             dtype=torch.float64)
     torch.testing.assert_close(convolve_same(planes, kernels, method="direct"),
                                convolve_same(planes, kernels, method="fft"))
+
+
+def test_fast_layering_stays_close_to_exact_with_large_blur():
+    from dualpixel.optics.thin_lens import CAMERA_PRESETS, coc_radius
+    from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
+
+    rgb, depth = render_scene_sequence(3, SceneConfig(width=160, height=112, frames=1,
+                                                      leaves=12))[0]
+    image = torch.from_numpy(rgb).permute(2, 0, 1)
+    coc = coc_radius(torch.from_numpy(depth), CAMERA_PRESETS["set4"])
+    assert float(coc.abs().max()) > 10  # large blur
+    exact = render_dp_views(image, coc, mode="exact")
+    fast = render_dp_views(image, coc, mode="fast")
+    assert quantise_layers(coc, 500, mode="fast")[1].numel() < quantise_layers(coc, 500)[1].numel()
+    for a, b in zip(exact, fast):
+        a8, b8 = (torch.round(x.clamp(0, 1) * 255) for x in (a, b))
+        mse = float(((a8 - b8) ** 2).mean())
+        assert mse == 0 or 10 * np.log10(255**2 / mse) >= 45
