@@ -26,6 +26,7 @@ from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
 __all__ = [
     "DPFramePaths",
     "DPSequence",
+    "discover_any",
     "discover_dp_dataset",
     "discover_scene_folders",
     "image_files",
@@ -198,3 +199,18 @@ def discover_scene_folders(root: str | Path) -> tuple[list[DPSequence], dict[str
     if not sequences:
         raise InputFileError(root, "no scene folders with left/right views found")
     return sequences, others
+
+
+def discover_any(
+    root: str | Path, split: str | None = None, *, require_target: bool = False
+) -> list[DPSequence]:
+    """Sequences of a DPDD-layout folder (``split``, default "test" then "train", "val") or of a
+    folder of scene folders (``scene/view0.png ...``, as ``../shared/data/canon-dp-real``)."""
+    root = Path(root)
+    if not root.is_dir():
+        raise InputFileError(root, "folder not found")
+    dpdd_splits = [s for s in ("test", "train", "val") if role_folder(root, s, "left").is_dir()]
+    if dpdd_splits:  # the split only means something for the DPDD layout
+        return discover_dp_dataset(root, split or dpdd_splits[0], require_target=require_target)
+    sequences, _ = discover_scene_folders(root)
+    return sequences

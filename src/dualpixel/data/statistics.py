@@ -27,20 +27,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dualpixel.data.layout import (
-    DPSequence,
-    discover_dp_dataset,
-    discover_scene_folders,
-    read_frame,
-)
+from dualpixel.data.layout import discover_any, read_frame
 from dualpixel.errors import InputFileError, ParameterError
-from dualpixel.io.dpdd import role_folder
 
 __all__ = [
     "DatasetStatistics",
     "FrameStatistics",
     "dataset_statistics",
-    "discover_any",
     "frame_statistics",
 ]
 
@@ -195,19 +188,6 @@ def frame_statistics(
         noise=noise_level(combined),
         gradient_fraction=gradient_fraction(combined),
     )
-
-
-def discover_any(root: str | Path, split: str | None = None) -> list[DPSequence]:
-    """Sequences of a DPDD-layout folder (``split``, default "test" then "train") or of a folder of
-    scene folders (``scene/view0.png ...``, as ``../shared/data/canon-dp-real``)."""
-    root = Path(root)
-    if not root.is_dir():
-        raise InputFileError(root, "folder not found")
-    dpdd_splits = [s for s in ("test", "train", "val") if role_folder(root, s, "left").is_dir()]
-    if dpdd_splits:  # the split only means something for the DPDD layout
-        return discover_dp_dataset(root, split or dpdd_splits[0], require_target=False)
-    sequences, _ = discover_scene_folders(root)
-    return sequences
 
 
 def dataset_statistics(

@@ -377,7 +377,7 @@ def synthesize_dataset(
     device = str(resolve_device(device))  # refuse an unknown or absent device before any work
     if device.startswith("cuda") and workers > 1:
         raise ParameterError("workers must be 1 on CUDA (one process drives the GPU); "
-                             "got --workers {workers}".replace("{workers}", str(workers)))
+                             f"got --workers {workers}")
     root = Path(output_dir)
     sequences = discover_sequences(input_dir, fmt, split=config.split)
     jobs = plan_jobs(sequences, config, fmt)

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import ParameterError, check_range
-from dualpixel.synthesis.textures import random_texture
+from dualpixel.synthesis.textures import load_photograph, random_texture
 
 __all__ = ["SCENE_LAYOUTS", "SceneConfig", "render_scene_sequence", "write_scene_folder"]
 
@@ -63,15 +63,11 @@ class SceneConfig:
 
 @functools.lru_cache(maxsize=1)
 def _photographs() -> tuple[np.ndarray, ...]:
-    """The bundled scikit-image photographs as float32 RGB (grey ones kept grey; tinted later)."""
-    import skimage.data
-
+    """The "leaves" layout's photographs as float32 RGB (grey ones kept grey; tinted later)."""
     photos = []
     for name in _PHOTOS:
-        image = getattr(skimage.data, name)()
-        if image.ndim == 2:
-            image = np.repeat(image[:, :, None], 3, axis=2)
-        photos.append(np.ascontiguousarray(image[:, :, :3], dtype=np.float32) / 255.0)
+        image = load_photograph(name)
+        photos.append(np.ascontiguousarray(np.broadcast_to(image, (*image.shape[:2], 3))))
     return tuple(photos)
 
 

@@ -38,7 +38,6 @@ from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.io.atomic import atomic_path, remove_partials
-from dualpixel.io.dpdd import role_folder
 from dualpixel.models.checkpoint import load_weights, save_model
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
@@ -141,11 +140,9 @@ def _real_validation(root: str | None) -> list[DPSequence] | None:
     """Real photographs to log: a DPDD-layout folder (its test split) or scene folders."""
     if root is None:
         return None
-    from dualpixel.data.layout import discover_scene_folders
+    from dualpixel.data.layout import discover_any
 
-    if role_folder(root, "test", "left").is_dir():
-        return discover_dp_dataset(root, "test")
-    return discover_scene_folders(root)[0]
+    return discover_any(root, "test", require_target=True)
 
 
 def _resolve_weights(name: str) -> Path:

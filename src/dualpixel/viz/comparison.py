@@ -16,16 +16,22 @@ def sharpest_window(
 ) -> tuple[int, int]:
     """Top-left corner of the ``size`` window where ``image`` has the most detail that
     ``blurred`` (if given) lacks: where deblurring matters."""
-    from scipy import ndimage
 
     from dualpixel.filters import gradient_magnitude
 
     energy = gradient_magnitude(image)
     if blurred is not None:
         energy = energy - gradient_magnitude(blurred)
-    local = ndimage.uniform_filter(energy, size)
+    return _best_window(energy, size)
+
+
+def _best_window(score: np.ndarray, size: int) -> tuple[int, int]:
+    """Top-left corner of the ``size`` window of ``score`` ``(H, W)`` with the largest mean."""
+    from scipy import ndimage
+
+    local = ndimage.uniform_filter(score, size)
     half = size // 2
-    inner = local[half : image.shape[0] - half, half : image.shape[1] - half]
+    inner = local[half : score.shape[0] - half, half : score.shape[1] - half]
     if inner.size == 0:
         return 0, 0
     y, x = np.unravel_index(np.argmax(inner), inner.shape)
@@ -37,16 +43,8 @@ def largest_gain_window(
 ) -> tuple[int, int]:
     """Top-left corner of the ``size`` window where ``restored`` removes the most squared error
     of ``blurred`` against ``target``: where a method's effect is best seen."""
-    from scipy import ndimage
-
     gain = ((blurred - target) ** 2 - (restored - target) ** 2).mean(axis=-1)
-    local = ndimage.uniform_filter(gain, size)
-    half = size // 2
-    inner = local[half : gain.shape[0] - half, half : gain.shape[1] - half]
-    if inner.size == 0:
-        return 0, 0
-    y, x = np.unravel_index(np.argmax(inner), inner.shape)
-    return int(y), int(x)
+    return _best_window(gain, size)
 
 
 def render_comparison(
