@@ -123,6 +123,13 @@ def test_models_command_lists_counts():
     result = CliRunner().invoke(cli, ["models"])
     assert result.exit_code == 0
     assert "24,278,703" in result.output and "31,035,151" in result.output
+    # the shipped checkpoints with their metadata (issue #13)
+    from dualpixel.weights import model_info
+
+    for name, info in model_info().items():
+        assert f"{name}: {info['description']}" in result.output
+        assert info["sha256"][:16] in result.output
+    assert "metrics:" in result.output and "training_data:" in result.output
 
 
 def test_torchrun_two_processes(tiny_synthetic_dataset, tmp_path):
