@@ -7,7 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from dualpixel.cli.main import cli
-from dualpixel.errors import InputFileError
+from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.images import decode_synthia_depth, read_synthia_depth
 from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
@@ -51,6 +51,7 @@ def test_layout_manifest_and_combined_is_mean_of_views(scene_dir, tmp_path):
         for key in ("camera", "psf", "distortion", "noise_sigma", "seed", "version", "input"):
             assert key in r
     assert all(len(v) == 1 for v in by_seq.values())
+    assert {r["render_mode"] for r in records} == {"fast"}  # the default renderer, recorded
     for r in records:
         left, right = read16(out / r["outputs"]["left"]), read16(out / r["outputs"]["right"])
         combined = read16(out / r["outputs"]["combined"])
@@ -235,3 +236,22 @@ def test_grey_images_are_read_as_rgb(tmp_path):
     assert image.shape == (3, 4, 3)
     np.testing.assert_allclose(image[..., 0], grey / 255.0, atol=1e-7)
     assert np.array_equal(image[..., 0], image[..., 2])
+
+
+def test_manifest_records_the_exact_render_mode_and_its_frames_differ(scene_dir, tmp_path):
+    config = SynthConfig(noise=False, distortion=False, render_mode="exact", **FAST)
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "exact", config, progress=False, limit=1)
+    fast = SynthConfig(noise=False, distortion=False, **FAST)
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "fast", fast, progress=False, limit=1)
+    exact_rec, fast_rec = (json.loads((tmp_path / name / "manifest.jsonl").read_text())
+                           for name in ("exact", "fast"))
+    assert (exact_rec["render_mode"], fast_rec["render_mode"]) == ("exact", "fast")
+    a = read16(tmp_path / "exact" / exact_rec["outputs"]["left"]).astype(float)
+    b = read16(tmp_path / "fast" / fast_rec["outputs"]["left"]).astype(float)
+    psnr = 10 * np.log10(65535.0**2 / max(np.mean((a - b) ** 2), 1e-12))
+    assert 45 <= psnr < 200  # close to the reference, and really rendered by the other path
+
+
+def test_unknown_render_mode_is_refused():
+    with pytest.raises(ParameterError, match="render mode must be one of fast, exact"):
+        SynthConfig(render_mode="quick")

@@ -24,12 +24,14 @@ configuration is refused.
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 import torch
 from tqdm import tqdm
@@ -57,6 +59,7 @@ from dualpixel.synthesis.inputs import (
     discover_sequences,
     load_frame,
 )
+from dualpixel.synthesis.layers import check_render_mode
 
 __all__ = ["SynthConfig", "merge_shards", "read_manifest", "synthesize_dataset"]
 
@@ -69,6 +72,7 @@ class SynthConfig:
     psf_model: PSFModel = "ours"
     psf_bank: str = "paper"
     max_layers: int = 500
+    render_mode: str = "fast"  # "exact": the reference renderer (slow)
     bit_depth: int = 16
     noise: bool = True
     noise_model: NoiseModel = "multiplicative"
@@ -92,6 +96,7 @@ class SynthConfig:
                 f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {self.psf_bank!r}"
             )
         check_psf_model(self.psf_model)
+        check_render_mode(self.render_mode)
         if self.bit_depth not in (8, 16):
             raise ParameterError(f"bit_depth must be 8 or 16, got {self.bit_depth}")
         if not self.noise_sigmas:
@@ -170,7 +175,7 @@ def plan_jobs(
                 seed, camera, psf_model=config.psf_model, bank=PSF_BANKS[config.psf_bank],
                 distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
-                max_layers=config.max_layers,
+                max_layers=config.max_layers, render_mode=config.render_mode,
             )
             for index, frame in enumerate(sequence.frames):
                 noise_seed = int(np.random.SeedSequence((config.seed, number, index))
@@ -214,6 +219,7 @@ def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
 
 def _worker(args: tuple) -> dict:
     torch.set_num_threads(1)
+    cv2.setNumThreads(1)  # the fast renderer's filter2D: one thread per worker process
     return run_job(*args)
 
 
@@ -337,7 +343,10 @@ def _completed(jobs: list[FrameJob], root: Path, fmt: InputFormat, config: Synth
         for job in jobs:
             yield run_job(job, root, fmt, config, device)
         return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    # spawned, not forked: a fork copies OpenCV's and torch's thread pools in whatever state the
+    # parent left them, and the children can hang on their locks (seen with filter2D)
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         futures = [pool.submit(_worker, (job, root, fmt, config, device)) for job in jobs]
         for future in as_completed(futures):
             yield future.result()

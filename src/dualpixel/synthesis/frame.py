@@ -17,6 +17,7 @@ from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, add_noise, sa
 from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
 from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
 from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
+from dualpixel.synthesis.layers import check_render_mode
 from dualpixel.synthesis.renderer import render_dp_views
 
 __all__ = ["DPFrame", "SequenceRecipe", "draw_recipe", "synthesize_frame"]
@@ -33,6 +34,7 @@ class SequenceRecipe:
     psf_model: PSFModel = "ours"
     noise_model: NoiseModel = "multiplicative"
     max_layers: int = 500
+    render_mode: str = "fast"
 
     def describe(self) -> dict:
         """A JSON-ready description for manifests."""
@@ -51,6 +53,7 @@ class SequenceRecipe:
             "noise_model": self.noise_model,
             "noise_sigma": self.noise_sigma,
             "max_layers": self.max_layers,
+            "render_mode": self.render_mode,
         }
 
 
@@ -65,6 +68,7 @@ def draw_recipe(
     noise_model: NoiseModel = "multiplicative",
     noise_sigmas: tuple[float, ...] = PAPER_NOISE_SIGMAS,
     max_layers: int = 500,
+    render_mode: str = "fast",
 ) -> SequenceRecipe:
     """Draw a sequence's PSF shape and noise strength from ``seed`` for a camera.
 
@@ -72,6 +76,7 @@ def draw_recipe(
     other camera (e.g. one drawn from a defocus profile) a preset drawn from ``seed``.
     """
     check_psf_model(psf_model)
+    check_render_mode(render_mode)
     if isinstance(camera, str):
         if camera not in CAMERA_PRESETS:
             raise ParameterError(
@@ -93,6 +98,7 @@ def draw_recipe(
         psf_model=psf_model,
         noise_model=noise_model,
         max_layers=max_layers,
+        render_mode=render_mode,
     )
 
 
@@ -149,7 +155,8 @@ def synthesize_frame(
         )
     coc = coc_radius(depth_t, recipe.camera)
     left, right = render_dp_views(
-        image, coc, recipe.psf, model=recipe.psf_model, max_layers=recipe.max_layers
+        image, coc, recipe.psf, model=recipe.psf_model, max_layers=recipe.max_layers,
+        mode=recipe.render_mode,
     )
     target, defocus = image, coc
     if recipe.distortion is not None:

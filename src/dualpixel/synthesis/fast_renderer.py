@@ -1,0 +1,298 @@
+"""The default ("fast") layered renderer (issue #14): the reference's layers and compositing,
+with large blur rendered at reduced resolution and cheap convolutions.
+
+The reference (``render_dp_views(..., mode="exact")``) splits the CoC range into up to 500 equal
+layers and convolves each at full resolution. This renderer keeps the same layers (near focus
+exactly; where the blur is large, runs of them 1 % of the blur wide, see
+:func:`dualpixel.synthesis.layers.quantise_layers`) and the same back-to-front, normalised
+compositing (Eq. 7), and saves work three ways:
+
+1. **Large blur at reduced resolution.** A layer blurred by ``|r| >= d * R_LOW`` px holds no
+   detail beyond its blur's bandwidth at 1/d resolution (d a power of two; d = 2 already from
+   ``2 * R_LOW_HALF``): its premultiplied planes ``[I m, m]`` are area-averaged by d, convolved
+   with the PSF of radius ``r / d`` (the PSF model is scale covariant), composited with the
+   other layers of the same d at that resolution, and the group's colour and coverage are
+   upsampled (bicubic) and composited over the full-resolution result. Premultiplied "over" is
+   associative, so grouping changes nothing but the resampling.
+2. **Cheap convolutions.** On the CPU, OpenCV's ``filter2D`` on height x width x 4 planes (colour
+   and mask together) for kernels up to :data:`CV_MAX_KERNEL`; torch's FFT beyond, in bands of
+   rows as wide as the layer's pixels there; torch alone on other devices.
+3. **Batched PSFs.** One :func:`dualpixel.optics.dp_psf` call per kernel size.
+
+Measured against exact on a 1920x1080 dead-leaves frame (``benchmarks/bench_synthesis.py``):
+>= 48 dB for set0..set4 on left, right and combined.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from dualpixel.optics.psf import PSFModel, PSFParams, dp_psf, kernel_size
+from dualpixel.synthesis.convolution import FFT_MIN_KERNEL, convolve_same
+from dualpixel.synthesis.layers import bounding_boxes, quantise_layers
+
+__all__ = ["CV_MAX_KERNEL", "MAX_DOWNSAMPLE", "R_LOW", "R_LOW_HALF", "STRIP_ROWS",
+           "downsample_factor", "render_fast"]
+
+#: A layer is rendered at 1/d resolution (d a power of two) when its |r| is at least
+#: ``d * R_LOW`` px (``2 * R_LOW_HALF`` for d = 2), so its blur is still that large there.
+#: Measured (set0..set4, 1920x1080, bicubic): 3 / 2 gave >= 48.5 dB against exact; 2 / 2 fell to
+#: 44.4 dB on set4; bilinear upsampling cost 1-3 dB.
+R_LOW = 3.0
+R_LOW_HALF = 2.0
+MAX_DOWNSAMPLE = 16
+
+
+def downsample_factor(radius: float) -> int:
+    """Largest power of two d <= :data:`MAX_DOWNSAMPLE` with ``|radius| >= d * R_LOW``; d = 2
+    already from ``|radius| >= 2 * R_LOW_HALF``."""
+    d = 1
+    while d * 2 <= MAX_DOWNSAMPLE and abs(radius) >= d * 2 * (R_LOW_HALF if d == 1 else R_LOW):
+        d *= 2
+    return d
+
+
+def _layer_kernels(radii: list[float], d: int, params, model, like: torch.Tensor):
+    """``(2 views, S, S)`` kernels per CoC radius (px) at 1/d resolution, each view summing to 1;
+    one batched :func:`dp_psf` call per kernel size (each radius keeps its own size)."""
+    kappa = (params or PSFParams()).kappa
+    sizes = [kernel_size(r / d, model, kappa) for r in radii]
+    kernels: list[torch.Tensor] = [like.new_empty(0)] * len(radii)
+    _fill_kernels(kernels, radii, sizes, d, params, model, like)
+    return kernels
+
+
+def _fill_kernels(kernels, radii, sizes, d, params, model, like) -> None:
+    for size in sorted(set(sizes)):
+        members = [i for i, s in enumerate(sizes) if s == size]
+        batch = torch.tensor([radii[i] / d for i in members], dtype=like.dtype, device=like.device)
+        left, right = dp_psf(batch, params, model=model, size=size)
+        both = 2.0 * torch.stack((left, right), dim=1)
+        for k, i in enumerate(members):
+            kernels[i] = both[k]
+
+
+#: Largest kernel OpenCV's ``filter2D`` convolves directly (from 12 x 12 it switches to its DFT
+#: path: 60-68 ms on 4 x 300x1920 planes at S = 13-31 against 18 ms directly at S = 11). Larger
+#: kernels are split into blocks of at most this size, each convolved directly, and summed.
+#: Direct convolution gives the same bytes with any number of threads, unlike torch's FFT
+#: (measured: its inverse transform changes in the last bit between 1 and 2 threads), so a
+#: dataset does not depend on how many workers rendered it.
+CV_MAX_KERNEL = 11
+
+
+def _filter2d(source, kernel, target, height: int, width: int) -> None:
+    """``target`` = ``source`` ``(h + S - 1, w + S - 1, P)`` (zero-padded by S // 2) correlated
+    with ``kernel`` ``(S, S)``, in blocks of at most :data:`CV_MAX_KERNEL` taps a side."""
+    size = kernel.shape[0]
+    target[...] = 0.0
+    for i0 in range(0, size, CV_MAX_KERNEL):
+        for j0 in range(0, size, CV_MAX_KERNEL):
+            block = np.ascontiguousarray(kernel[i0:i0 + CV_MAX_KERNEL, j0:j0 + CV_MAX_KERNEL])
+            part = cv2.filter2D(source, -1, block, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
+            part = part[..., None] if part.ndim == 2 else part
+            target += part[i0:i0 + height, j0:j0 + width]
+
+
+def _convolve(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor:
+    """Convolve ``(h, w, P)`` planes (P <= 4) with ``(K, S, S)`` kernels: ``(K, h, w, P)``.
+
+    True convolution with zero padding, output the size of the input, kernel centre S // 2.
+    """
+    size = kernels.shape[-1]
+    if planes.device.type != "cpu" or planes.dtype != torch.float32:
+        method = "direct" if size < FFT_MIN_KERNEL else "fft"
+        return convolve_same(planes.permute(2, 0, 1), kernels, method=method).permute(0, 2, 3, 1)
+    source = planes.contiguous().numpy()
+    out = torch.empty((kernels.shape[0], *planes.shape), dtype=planes.dtype)
+    flipped = torch.flip(kernels, dims=(-2, -1)).contiguous().numpy()  # filter2D correlates
+    if size <= CV_MAX_KERNEL:
+        for kernel, target in zip(flipped, out.numpy()):
+            cv2.filter2D(source, -1, kernel, dst=target, borderType=cv2.BORDER_CONSTANT)
+        return out
+    half = size // 2
+    padded = cv2.copyMakeBorder(source, half, half, half, half, cv2.BORDER_CONSTANT, value=0)
+    padded = padded[..., None] if padded.ndim == 2 else padded
+    for kernel, target in zip(flipped, out.numpy()):
+        _filter2d(padded, kernel, target, *planes.shape[:2])
+    return out
+
+
+def _upsample(layer: torch.Tensor, d: int) -> torch.Tensor:
+    """Bicubic upsampling of ``(views, h, w, P)`` by ``d`` (pixel centres aligned, as area
+    averaging left them): OpenCV's ``resize`` on the CPU (10x faster than torch's here),
+    torch's ``interpolate`` elsewhere; both use the a = -0.75 cubic and replicate the border."""
+    if layer.device.type == "cpu" and layer.dtype == torch.float32 and layer.shape[-1] <= 4:
+        views = [cv2.resize(view.contiguous().numpy(), None, fx=d, fy=d,
+                            interpolation=cv2.INTER_CUBIC) for view in layer]
+        return torch.from_numpy(np.stack(views)).reshape(layer.shape[0], *views[0].shape[:2], -1)
+    return F.interpolate(layer.permute(0, 3, 1, 2), scale_factor=d, mode="bicubic",
+                         align_corners=False).permute(0, 2, 3, 1)
+
+
+def _over(colour: torch.Tensor, layer: torch.Tensor, channels: int) -> None:
+    """Composite a premultiplied ``layer`` ``(views, h, w, C + 1)`` over ``colour`` in place."""
+    keep = 1.0 - layer[..., channels:]
+    colour.mul_(keep).add_(layer)
+
+
+def _grown(box, half: int, height: int, width: int) -> tuple[int, int, int, int]:
+    """Half-open rows and columns of an inclusive box grown by ``half``, clipped to the frame."""
+    row0, row1, col0, col1 = box
+    return (max(row0 - half, 0), min(row1 + half + 1, height),
+            max(col0 - half, 0), min(col1 + half + 1, width))
+
+
+def render_fast(
+    image: torch.Tensor,
+    coc: torch.Tensor,
+    params: PSFParams | None = None,
+    *,
+    model: PSFModel = "ours",
+    max_layers: int = 500,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Left and right views ``(C, H, W)`` of ``image`` ``(C, H, W)`` blurred by the signed CoC
+    map ``coc`` ``(H, W)`` in px; see the module docstring and
+    :func:`dualpixel.synthesis.render_dp_views`."""
+    channels, height, width = image.shape
+    image_hwc = image.permute(1, 2, 0)
+    labels, layer_coc = quantise_layers(coc, max_layers, mode="fast")
+    boxes = bounding_boxes(labels, layer_coc.numel()).tolist()
+    strips = _strip_extents(labels, layer_coc.numel())
+    radii = layer_coc.tolist()
+    order = sorted(range(len(radii)), key=lambda j: -radii[j])  # far to near
+    # (views, H, W, C + 1): premultiplied colour and coverage
+    result = torch.zeros(2, height, width, channels + 1, dtype=image.dtype, device=image.device)
+    start = 0
+    while start < len(order):
+        d = downsample_factor(radii[order[start]])
+        stop = start + 1
+        while stop < len(order) and downsample_factor(radii[order[stop]]) == d:
+            stop += 1
+        group = order[start:stop]
+        start = stop
+        if d == 1:
+            table = _layer_kernels([radii[j] for j in group], 1, params, model, image)
+            for j, kernels in zip(group, table):
+                if kernels.shape[-1] > CV_MAX_KERNEL:  # FFT: pay only for the bands it covers
+                    _composite_strips(result, image_hwc, labels, j, strips[0][j],
+                                      strips[1][j], kernels)
+                    continue
+                r0, r1, c0, c1 = _grown(boxes[j], kernels.shape[-1] // 2, height, width)
+                mask = (labels[r0:r1, c0:c1] == j).to(image.dtype)[..., None]
+                planes = torch.cat((image_hwc[r0:r1, c0:c1] * mask, mask), dim=-1)
+                _over(result[:, r0:r1, c0:c1], _convolve(planes, kernels), channels)
+        else:
+            _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params, model)
+    cover = result[..., channels:].clamp_min(torch.finfo(image.dtype).eps)
+    views = (result[..., :channels] / cover).permute(0, 3, 1, 2)
+    return views[0], views[1]
+
+
+#: Full-resolution layers are convolved in bands of this many output rows, each only as wide
+#: as the layer's pixels that reach it: a layer spread thinly over the frame (a slanted ground
+#: plane, the edges of many objects) costs its pixels' area, not its bounding box's.
+STRIP_ROWS = 64
+
+
+def _strip_extents(labels: torch.Tensor, count: int) -> tuple[list, list]:
+    """First and last column of every layer in every band of :data:`STRIP_ROWS` rows: two
+    ``count``-long lists of per-band lists; first > last where the band holds none of it."""
+    height, width = labels.shape
+    bands = -(-height // STRIP_ROWS)
+    band = (torch.arange(height, device=labels.device) // STRIP_ROWS)[:, None]
+    key = (labels * bands + band).flatten()
+    cols = torch.arange(width, device=labels.device).expand(height, width).flatten()
+    first = torch.full((count * bands,), width, dtype=torch.long, device=labels.device)
+    last = torch.full((count * bands,), -1, dtype=torch.long, device=labels.device)
+    first = first.scatter_reduce(0, key, cols, reduce="amin").view(count, bands).tolist()
+    last = last.scatter_reduce(0, key, cols, reduce="amax").view(count, bands).tolist()
+    return first, last
+
+
+def _strip_runs(first: list[int], last: list[int], half: int) -> list[tuple[int, int, int, int]]:
+    """Runs of consecutive bands to convolve together, ``(band0, band1, col0, col1)`` with
+    inclusive columns of the layer's pixels that reach the run's output rows: a band joins the
+    run before it when convolving them together costs no more area than apart."""
+    reach = -(-half // STRIP_ROWS)
+    runs: list[list[int]] = []
+
+    def area(bands: int, col0: int, col1: int) -> int:
+        return (bands * STRIP_ROWS + 2 * half) * (col1 - col0 + 1 + 2 * half)
+
+    for k in range(len(first)):
+        near = range(max(k - reach, 0), min(k + reach + 1, len(first)))
+        col0, col1 = min(first[i] for i in near), max(last[i] for i in near)
+        if col0 > col1:
+            continue
+        if runs and runs[-1][1] == k - 1:
+            b0, b1, r0, r1 = runs[-1]
+            joined = area(k - b0 + 1, min(r0, col0), max(r1, col1))
+            if joined <= area(b1 - b0 + 1, r0, r1) + area(1, col0, col1):
+                runs[-1] = [b0, k, min(r0, col0), max(r1, col1)]
+                continue
+        runs.append([k, k, col0, col1])
+    return [tuple(run) for run in runs]
+
+
+def _composite_strips(result, image_hwc, labels, j, first, last, kernels) -> None:
+    """Layer ``j`` at full resolution, in runs of bands (:func:`_strip_runs`): each run of output
+    rows gets exactly the layer's blurred planes (from the input rows around it, as wide as the
+    layer's pixels there); runs do not overlap, so compositing is the same as for the whole
+    layer."""
+    height, width, channels = image_hwc.shape
+    half = kernels.shape[-1] // 2
+    for band0, band1, col0, col1 in _strip_runs(first, last, half):
+        out0, out1 = band0 * STRIP_ROWS, min((band1 + 1) * STRIP_ROWS, height)
+        in0, in1 = max(out0 - half, 0), min(out1 + half, height)
+        c0, c1 = max(col0 - half, 0), min(col1 + half + 1, width)
+        mask = (labels[in0:in1, c0:c1] == j).to(image_hwc.dtype)[..., None]
+        planes = torch.cat((image_hwc[in0:in1, c0:c1] * mask, mask), dim=-1)
+        blurred = _convolve(planes, kernels)[:, out0 - in0 : out1 - in0]
+        _over(result[:, out0:out1, c0:c1], blurred, channels)
+
+
+def _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params, model) -> None:
+    """Layers of one downsampling factor ``d`` (far to near): area-averaged to 1/d, blurred and
+    composited there, then upsampled (bicubic) and composited over ``result``."""
+    height, width, channels = image_hwc.shape
+    largest = max(abs(radii[j]) for j in group)
+    half = kernel_size(largest, model, (params or PSFParams()).kappa) // 2
+    member = [boxes[j] for j in group]
+    r0 = max(min(b[0] for b in member) - half, 0) // d * d
+    c0 = max(min(b[2] for b in member) - half, 0) // d * d
+    r1 = min(max(b[1] for b in member) + half + 1, height)
+    c1 = min(max(b[3] for b in member) + half + 1, width)
+    lh, lw = -(-(r1 - r0) // d), -(-(c1 - c0) // d)
+    # the group's pixels sorted by layer, then per layer the d x d block sums of [I m, m] over
+    # its own box only (bincount sums in a fixed order, whatever the number of threads)
+    local = torch.full((len(radii),), -1, dtype=torch.long, device=labels.device)
+    local[torch.tensor(group, device=labels.device)] = torch.arange(len(group),
+                                                                     device=labels.device)
+    crop = local[labels[r0:r1, c0:c1]].flatten()
+    where = torch.nonzero(crop >= 0)[:, 0]
+    members, order = torch.sort(crop[where], stable=True)
+    where = where[order]
+    offsets = [0, *torch.cumsum(torch.bincount(members, minlength=len(group)), 0).tolist()]
+    low_rows, low_cols = (where // (c1 - c0)) // d, (where % (c1 - c0)) // d
+    values = image_hwc[r0:r1, c0:c1].reshape(-1, channels)[where]
+    layer = torch.zeros(2, lh, lw, channels + 1, dtype=image_hwc.dtype, device=image_hwc.device)
+    table = _layer_kernels([radii[j] for j in group], d, params, model, image_hwc)
+    for k, (j, kernels) in enumerate(zip(group, table)):
+        row0, row1, col0, col1 = boxes[j]
+        box = ((row0 - r0) // d, (row1 - r0) // d, (col0 - c0) // d, (col1 - c0) // d)
+        b0, b1, b2, b3 = _grown(box, kernels.shape[-1] // 2, lh, lw)
+        part = slice(offsets[k], offsets[k + 1])
+        cell = (low_rows[part] - b0) * (b3 - b2) + (low_cols[part] - b2)
+        cells = (b1 - b0) * (b3 - b2)
+        sums = [torch.bincount(cell, weights=values[part, c], minlength=cells)
+                for c in range(channels)]
+        sums.append(torch.bincount(cell, minlength=cells).to(sums[0].dtype))
+        pooled = (torch.stack(sums, dim=-1) / (d * d)).to(image_hwc.dtype)
+        pooled = pooled.view(b1 - b0, b3 - b2, channels + 1)
+        _over(layer[:, b0:b1, b2:b3], _convolve(pooled, kernels), channels)
+    up = _upsample(layer, d)
+    _over(result[:, r0:r1, c0:c1], up[:, : r1 - r0, : c1 - c0], channels)

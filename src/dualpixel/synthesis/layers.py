@@ -1,0 +1,88 @@
+"""Splitting a signed CoC map into depth layers for the layered renderers (paper Sec. 3).
+
+``exact`` splits the CoC range into ``max_layers`` equal steps (the paper's 500 layers: the
+reference); ``fast`` spaces layers evenly on a visibility axis, where a 0.05 px step matters at
+focus and a 2 % step at large blur.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from dualpixel.errors import ParameterError
+
+__all__ = ["RENDER_MODES", "VISIBLE_STEP", "bounding_boxes", "check_render_mode", "quantise_layers"]
+
+
+#: Rendering modes: "fast" (the default, :mod:`dualpixel.synthesis.fast_renderer`) and "exact"
+#: (the paper's ``max_layers`` equal CoC steps, every layer at full resolution: the reference).
+RENDER_MODES = ("fast", "exact")
+
+#: "fast" merges exact layers into runs ``VISIBLE_STEP * (|r| + VISIBLE_R0)`` px wide: 1 % of the
+#: blur for large |r|, never finer than an exact bin near focus. Measured against exact on a
+#: 1920x1080 dead-leaves frame: 2 % runs gave 43.7-44.7 dB for set2/set3, 1 % gave >= 49 dB.
+VISIBLE_STEP = 0.01
+VISIBLE_R0 = 2.5
+
+
+def check_render_mode(mode: str) -> str:
+    """The one check of a rendering mode's name (:data:`RENDER_MODES`)."""
+    if mode not in RENDER_MODES:
+        raise ParameterError(f"render mode must be one of {', '.join(RENDER_MODES)}, got {mode!r}")
+    return mode
+
+
+def _visible_coordinate(coc: torch.Tensor) -> torch.Tensor:
+    """A warped CoC axis on which equal steps are equally visible (``du = dr / (|r| + r0)``)."""
+    return torch.sign(coc) * torch.log1p(coc.abs() / VISIBLE_R0)
+
+
+def quantise_layers(coc: torch.Tensor, max_layers: int, *,
+                    mode: str = "exact") -> tuple[torch.Tensor, torch.Tensor]:
+    """Split a signed CoC map ``(H, W)`` into at most ``max_layers`` layers.
+
+    ``mode="exact"``: ``max_layers`` bins of equal CoC width over the map's range (the paper's
+    layering, the reference). ``"fast"``: the same bins, merged into runs that are
+    :data:`VISIBLE_STEP` wide on the visible axis; near focus, where that step is finer than a
+    bin, every bin stays its own layer, so the fast layers are unions of exact ones and share
+    their boundaries exactly where a boundary is visible.
+
+    Returns:
+        labels ``(H, W)`` long in [0, L) and ``layer_coc`` ``(L,)``, each layer's mean CoC (so a
+        region at exactly one CoC, such as an in-focus plane, keeps that CoC), sorted ascending.
+    """
+    if max_layers < 1:
+        raise ParameterError(f"max_layers must be >= 1, got {max_layers}")
+    check_render_mode(mode)
+    lo, hi = float(coc.min()), float(coc.max())
+    if hi - lo <= 0.0:
+        bins = torch.zeros_like(coc, dtype=torch.long)
+    else:
+        scaled = (coc - lo) * (max_layers / (hi - lo))
+        bins = scaled.long().clamp_(0, max_layers - 1)
+        if mode == "fast":
+            centres = lo + (torch.arange(max_layers, dtype=torch.float64) + 0.5) * (
+                (hi - lo) / max_layers)
+            merged = torch.floor(_visible_coordinate(centres) / VISIBLE_STEP).long()
+            bins = (merged - merged[0]).to(coc.device)[bins]
+    counts = torch.bincount(bins.flatten())
+    used = counts > 0
+    remap = torch.cumsum(used, 0) - 1
+    labels = remap[bins]
+    totals = torch.zeros(counts.numel(), dtype=torch.float64, device=coc.device)
+    totals.scatter_add_(0, bins.flatten(), coc.flatten().double())
+    return labels, (totals[used] / counts[used].double()).to(coc.dtype)
+
+
+def bounding_boxes(labels: torch.Tensor, count: int) -> torch.Tensor:
+    """Inclusive (row0, row1, col0, col1) of every label, ``(L, 4)``, in one pass."""
+    height, width = labels.shape
+    rows = torch.arange(height, device=labels.device)[:, None].expand(height, width).flatten()
+    cols = torch.arange(width, device=labels.device)[None, :].expand(height, width).flatten()
+    flat = labels.flatten()
+    boxes = []
+    for coord, reduce, start in ((rows, "amin", height), (rows, "amax", -1),
+                                 (cols, "amin", width), (cols, "amax", -1)):
+        init = torch.full((count,), start, dtype=torch.long, device=labels.device)
+        boxes.append(init.scatter_reduce(0, flat, coord, reduce=reduce))
+    return torch.stack(boxes, dim=1)
