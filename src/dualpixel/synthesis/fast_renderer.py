@@ -15,8 +15,8 @@ compositing (Eq. 7), and saves work three ways:
    upsampled (bicubic) and composited over the full-resolution result. Premultiplied "over" is
    associative, so grouping changes nothing but the resampling.
 2. **Cheap convolutions.** On the CPU, OpenCV's ``filter2D`` on height x width x 4 planes (colour
-   and mask together) for kernels up to :data:`CV_MAX_KERNEL`; torch's FFT beyond, in bands of
-   rows as wide as the layer's pixels there; torch alone on other devices.
+   and mask together); kernels above :data:`CV_MAX_KERNEL` in bands of kernel rows, applied to
+   bands of image rows as wide as the layer's pixels there; torch alone on other devices.
 3. **Batched PSFs.** One :func:`dualpixel.optics.dp_psf` call per kernel size.
 
 Measured against exact on a 1920x1080 dead-leaves frame (``benchmarks/bench_synthesis.py``):
@@ -75,26 +75,29 @@ def _fill_kernels(kernels, radii, sizes, d, params, model, like) -> None:
             kernels[i] = both[k]
 
 
-#: Largest kernel OpenCV's ``filter2D`` convolves directly (from 12 x 12 it switches to its DFT
-#: path: 60-68 ms on 4 x 300x1920 planes at S = 13-31 against 18 ms directly at S = 11). Larger
-#: kernels are split into blocks of at most this size, each convolved directly, and summed.
+#: Largest square kernel OpenCV's ``filter2D`` convolves directly (from 13 x 13 it switches to
+#: its DFT path: 60-68 ms on 4 x 300x1920 planes at S = 13-31 against 18 ms directly at S = 11).
+#: Larger kernels are split into bands of rows, each convolved directly, and summed.
 #: Direct convolution gives the same bytes with any number of threads, unlike torch's FFT
 #: (measured: its inverse transform changes in the last bit between 1 and 2 threads), so a
 #: dataset does not depend on how many workers rendered it.
 CV_MAX_KERNEL = 11
+#: OpenCV filters float32 directly while the kernel has fewer than 130 taps (its DFT threshold).
+CV_MAX_TAPS = 129
 
 
 def _filter2d(source, kernel, target, height: int, width: int) -> None:
     """``target`` = ``source`` ``(h + S - 1, w + S - 1, P)`` (zero-padded by S // 2) correlated
-    with ``kernel`` ``(S, S)``, in blocks of at most :data:`CV_MAX_KERNEL` taps a side."""
+    with ``kernel`` ``(S, S)``, in bands of whole kernel rows with at most :data:`CV_MAX_TAPS`
+    taps each (so every band is filtered directly)."""
     size = kernel.shape[0]
+    rows = max(1, CV_MAX_TAPS // size)
     target[...] = 0.0
-    for i0 in range(0, size, CV_MAX_KERNEL):
-        for j0 in range(0, size, CV_MAX_KERNEL):
-            block = np.ascontiguousarray(kernel[i0:i0 + CV_MAX_KERNEL, j0:j0 + CV_MAX_KERNEL])
-            part = cv2.filter2D(source, -1, block, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
-            part = part[..., None] if part.ndim == 2 else part
-            target += part[i0:i0 + height, j0:j0 + width]
+    for i0 in range(0, size, rows):
+        band = np.ascontiguousarray(kernel[i0:i0 + rows])
+        part = cv2.filter2D(source, -1, band, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
+        part = part[..., None] if part.ndim == 2 else part
+        target += part[i0:i0 + height, :width]
 
 
 def _convolve(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor:
@@ -126,9 +129,13 @@ def _upsample(layer: torch.Tensor, d: int) -> torch.Tensor:
     averaging left them): OpenCV's ``resize`` on the CPU (10x faster than torch's here),
     torch's ``interpolate`` elsewhere; both use the a = -0.75 cubic and replicate the border."""
     if layer.device.type == "cpu" and layer.dtype == torch.float32 and layer.shape[-1] <= 4:
-        views = [cv2.resize(view.contiguous().numpy(), None, fx=d, fy=d,
-                            interpolation=cv2.INTER_CUBIC) for view in layer]
-        return torch.from_numpy(np.stack(views)).reshape(layer.shape[0], *views[0].shape[:2], -1)
+        views, height, width, planes = layer.shape
+        out = torch.empty(views, height * d, width * d, planes, dtype=layer.dtype)
+        for view, target in zip(layer, out.numpy()):
+            resized = cv2.resize(view.contiguous().numpy(), (width * d, height * d),
+                                 interpolation=cv2.INTER_CUBIC)
+            target[...] = resized.reshape(target.shape)
+        return out
     return F.interpolate(layer.permute(0, 3, 1, 2), scale_factor=d, mode="bicubic",
                          align_corners=False).permute(0, 2, 3, 1)
 
@@ -177,7 +184,7 @@ def render_fast(
         if d == 1:
             table = _layer_kernels([radii[j] for j in group], 1, params, model, image)
             for j, kernels in zip(group, table):
-                if kernels.shape[-1] > CV_MAX_KERNEL:  # FFT: pay only for the bands it covers
+                if kernels.shape[-1] > CV_MAX_KERNEL:  # costly: pay only for the bands it covers
                     _composite_strips(result, image_hwc, labels, j, strips[0][j],
                                       strips[1][j], kernels)
                     continue
