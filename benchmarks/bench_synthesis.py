@@ -79,6 +79,13 @@ def timed(fn, device: str):
     return result, time.perf_counter() - start, time.process_time() - cpu
 
 
+def median_timed(fn, device: str, repeat: int):
+    """(result, median wall seconds, median CPU seconds) of ``repeat`` runs."""
+    runs = [timed(fn, device) for _ in range(repeat)]
+    walls, cpus = sorted(r[1] for r in runs), sorted(r[2] for r in runs)
+    return runs[0][0], walls[repeat // 2], cpus[repeat // 2]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu")
@@ -86,6 +93,8 @@ def main() -> None:
     parser.add_argument("--width", type=int, default=1920)
     parser.add_argument("--height", type=int, default=1080)
     parser.add_argument("--no-baseline", action="store_true", help="skip the slow baseline")
+    parser.add_argument("--repeat", type=int, default=3,
+                        help="runs of the default and the baseline; medians are printed")
     args = parser.parse_args()
 
     rgb, depth = render_scene_sequence(0, SceneConfig(width=args.width, height=args.height,
@@ -114,11 +123,11 @@ def main() -> None:
             authors_algorithm(rgb[corner], depth[corner], camera, params)
 
         exact, t_exact, _ = timed(lambda: render("exact"), args.device)
-        fast, t_fast, c_fast = timed(lambda: render("fast"), args.device)
+        fast, t_fast, c_fast = median_timed(lambda: render("fast"), args.device, args.repeat)
         t_base = c_base = float("nan")
         if not args.no_baseline:
-            _, t_base, c_base = timed(
-                lambda cam=camera: authors_algorithm(rgb, depth, cam, params), "cpu")
+            _, t_base, c_base = median_timed(
+                lambda cam=camera: authors_algorithm(rgb, depth, cam, params), "cpu", args.repeat)
         scores = [psnr8(exact[0], fast[0]), psnr8(exact[1], fast[1]),
                   psnr8((exact[0] + exact[1]) / 2, (fast[0] + fast[1]) / 2)]
         print(f"| {name} | {' / '.join(map(str, layers))} | {t_base:.2f} | {t_exact:.2f} | "

@@ -160,7 +160,7 @@ def test_fast_bands_give_the_same_image_as_whole_layers(monkeypatch):
     torch.manual_seed(0)
     image = torch.rand(3, 70, 90)
     coc = torch.linspace(-4.0, 4.0, 90).expand(70, 90) + 0.5 * torch.rand(70, 90)
-    monkeypatch.setattr(fast_renderer, "CV_MAX_KERNEL", 1)  # every layer through the bands
+    monkeypatch.setattr(fast_renderer, "STRIP_MIN_KERNEL", 1)  # every layer through the bands
     monkeypatch.setattr(fast_renderer, "STRIP_ROWS", 1000)
     whole = fast_renderer.render_fast(image, coc)
     monkeypatch.setattr(fast_renderer, "STRIP_ROWS", 8)
