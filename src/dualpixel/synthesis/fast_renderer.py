@@ -149,9 +149,8 @@ def _upsample(layer: torch.Tensor, d: int) -> torch.Tensor:
         views, height, width, planes = layer.shape
         out = torch.empty(views, height * d, width * d, planes, dtype=layer.dtype)
         for view, target in zip(layer, out.numpy()):
-            resized = cv2.resize(view.contiguous().numpy(), (width * d, height * d),
-                                 interpolation=cv2.INTER_CUBIC)
-            target[...] = resized.reshape(target.shape)
+            cv2.resize(view.contiguous().numpy(), (width * d, height * d), dst=target,
+                       interpolation=cv2.INTER_CUBIC)
         return out
     return F.interpolate(layer.permute(0, 3, 1, 2), scale_factor=d, mode="bicubic",
                          align_corners=False).permute(0, 2, 3, 1)
@@ -159,8 +158,7 @@ def _upsample(layer: torch.Tensor, d: int) -> torch.Tensor:
 
 def _over(colour: torch.Tensor, layer: torch.Tensor, channels: int) -> None:
     """Composite a premultiplied ``layer`` ``(views, h, w, C + 1)`` over ``colour`` in place."""
-    keep = 1.0 - layer[..., channels:]
-    colour.mul_(keep).add_(layer)
+    colour.addcmul_(colour, layer[..., channels:], value=-1.0).add_(layer)  # (1 - a) c + l
 
 
 def _grown(box, half: int, height: int, width: int) -> tuple[int, int, int, int]:
