@@ -179,3 +179,23 @@ def test_fast_layers_are_unions_of_exact_layers():
     assert pairs.numel() == int(exact.max()) + 1
     near = coc.abs() < 2
     assert torch.unique(exact[near]).numel() == torch.unique(fast[near]).numel()
+
+
+def test_reduced_layers_composited_by_covered_regions_equal_the_whole_group(monkeypatch):
+    """Upsampling only the covered blocks of a reduced-resolution group changes no pixel."""
+    from dualpixel.optics.thin_lens import CAMERA_PRESETS, coc_radius
+    from dualpixel.synthesis import fast_renderer
+    from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
+
+    rgb, depth = render_scene_sequence(5, SceneConfig(width=256, height=160, frames=1,
+                                                      leaves=16))[0]
+    image = torch.from_numpy(rgb).permute(2, 0, 1)
+    coc = coc_radius(torch.from_numpy(depth), CAMERA_PRESETS["set4"])
+    regions = fast_renderer._covered_regions(torch.ones(2, 9, 7, 1))
+    assert regions == [(0, 9, 0, 7)]
+    split = fast_renderer.render_fast(image, coc)
+    monkeypatch.setattr(fast_renderer, "_covered_regions",
+                        lambda alpha, gap=8: [(0, alpha.shape[1], 0, alpha.shape[2])])
+    whole = fast_renderer.render_fast(image, coc)
+    for a, b in zip(split, whole):
+        torch.testing.assert_close(a, b, atol=1e-6, rtol=0)

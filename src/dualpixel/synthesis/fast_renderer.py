@@ -156,6 +156,22 @@ def _upsample(layer: torch.Tensor, d: int) -> torch.Tensor:
                          align_corners=False).permute(0, 2, 3, 1)
 
 
+def _covered_regions(alpha: torch.Tensor, gap: int = 8) -> list[tuple[int, int, int, int]]:
+    """Half-open (row0, row1, col0, col1) boxes of ``alpha`` ``(views, h, w, 1)`` > 0: runs of
+    covered rows (split at ``gap`` or more empty rows), each with its covered columns."""
+    covered = (alpha > 0).any(dim=0)[..., 0]  # (h, w)
+    rows = torch.nonzero(covered.any(dim=1))[:, 0].tolist()
+    regions: list[tuple[int, int, int, int]] = []
+    start = 0
+    for k in range(1, len(rows) + 1):
+        if k == len(rows) or rows[k] - rows[k - 1] > gap:
+            row0, row1 = rows[start], rows[k - 1] + 1
+            cols = torch.nonzero(covered[row0:row1].any(dim=0))[:, 0]
+            regions.append((row0, row1, int(cols[0]), int(cols[-1]) + 1))
+            start = k
+    return regions
+
+
 def _over(colour: torch.Tensor, layer: torch.Tensor, channels: int) -> None:
     """Composite a premultiplied ``layer`` ``(views, h, w, C + 1)`` over ``colour`` in place."""
     colour.addcmul_(colour, layer[..., channels:], value=-1.0).add_(layer)  # (1 - a) c + l
@@ -322,5 +338,15 @@ def _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params
         pooled = (torch.stack(sums, dim=-1) / (d * d)).to(image_hwc.dtype)
         pooled = pooled.view(b1 - b0, b3 - b2, channels + 1)
         _over(layer[:, b0:b1, b2:b3], _convolve(pooled, kernels), channels)
-    up = _upsample(layer, d)
-    _over(result[:, r0:r1, c0:c1], up[:, : r1 - r0, : c1 - c0], channels)
+    for lo0, lo1, lo2, lo3 in _covered_regions(layer[..., channels:]):
+        # bicubic output rows/cols whose 4-tap support touches the covered low-res cells, from
+        # a block two cells wider (so the block's border never enters): equal to upsampling all
+        y0, y1 = max(lo0 - 2, 0) * d, min(lo1 + 2, lh) * d
+        x0, x1 = max(lo2 - 2, 0) * d, min(lo3 + 2, lw) * d
+        k0, k2 = max(lo0 - 4, 0), max(lo2 - 4, 0)
+        block = _upsample(layer[:, k0:min(lo1 + 4, lh), k2:min(lo3 + 4, lw)], d)
+        block = block[:, y0 - k0 * d : y1 - k0 * d, x0 - k2 * d : x1 - k2 * d]
+        rows, cols = min(y1, r1 - r0) - y0, min(x1, c1 - c0) - x0
+        if rows > 0 and cols > 0:
+            _over(result[:, r0 + y0 : r0 + y0 + rows, c0 + x0 : c0 + x0 + cols],
+                  block[:, :rows, :cols], channels)
