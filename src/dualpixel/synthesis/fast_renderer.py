@@ -12,16 +12,18 @@ compositing (Eq. 7), and saves work three ways:
    ``2 * R_LOW_HALF``): its premultiplied planes ``[I m, m]`` are area-averaged by d, convolved
    with the PSF of radius ``r / d`` (the PSF model is scale covariant), composited with the
    other layers of the same d at that resolution, and the group's colour and coverage are
-   upsampled (bicubic) and composited over the full-resolution result. Premultiplied "over" is
-   associative, so grouping changes nothing but the resampling.
+   upsampled (bicubic) and composited over the full-resolution result, only over the blocks the
+   group covers. Premultiplied "over" is associative, so grouping changes nothing but the
+   resampling.
 2. **Cheap convolutions.** On the CPU, OpenCV's ``filter2D`` on height x width x 4 planes (colour
    and mask together); kernels above :data:`CV_MAX_KERNEL` in bands of kernel rows, applied to
    bands of image rows as wide as the layer's pixels there; torch alone on other devices.
 3. **Batched, trimmed PSFs.** One :func:`dualpixel.optics.dp_psf` call per kernel size; outer
    rings holding less than :data:`TRIM_MASS` are dropped.
 
-Measured against exact on a 1920x1080 dead-leaves frame (``benchmarks/bench_synthesis.py``):
->= 48 dB for set0..set4 on left, right and combined.
+Measured on a 1920x1080 dead-leaves frame (``benchmarks/bench_synthesis.py``, README table):
+>= 48.5 dB against exact for set0..set4 on left, right and combined, in 0.08-0.09 of the time of
+a baseline after the authors' algorithm.
 """
 
 from __future__ import annotations
