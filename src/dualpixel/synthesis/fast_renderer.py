@@ -34,8 +34,8 @@ import torch
 import torch.nn.functional as F
 
 from dualpixel.optics.psf import PSFModel, PSFParams, dp_psf, kernel_size
-from dualpixel.synthesis.convolution import FFT_MIN_KERNEL, convolve_same
-from dualpixel.synthesis.layers import bounding_boxes, quantise_layers
+from dualpixel.synthesis.convolution import convolve_same
+from dualpixel.synthesis.layers import bounding_boxes, grown_box, quantise_layers
 
 __all__ = ["CV_MAX_KERNEL", "MAX_DOWNSAMPLE", "R_LOW", "R_LOW_HALF", "STRIP_ROWS", "TRIM_MASS",
            "downsample_factor", "render_fast"]
@@ -64,11 +64,6 @@ def _layer_kernels(radii: list[float], d: int, params, model, like: torch.Tensor
     kappa = (params or PSFParams()).kappa
     sizes = [kernel_size(r / d, model, kappa) for r in radii]
     kernels: list[torch.Tensor] = [like.new_empty(0)] * len(radii)
-    _fill_kernels(kernels, radii, sizes, d, params, model, like)
-    return kernels
-
-
-def _fill_kernels(kernels, radii, sizes, d, params, model, like) -> None:
     for size in sorted(set(sizes)):
         members = [i for i, s in enumerate(sizes) if s == size]
         batch = torch.tensor([radii[i] / d for i in members], dtype=like.dtype, device=like.device)
@@ -76,6 +71,7 @@ def _fill_kernels(kernels, radii, sizes, d, params, model, like) -> None:
         both = 2.0 * torch.stack((left, right), dim=1)
         for k, i in enumerate(members):
             kernels[i] = _trimmed(both[k])
+    return kernels
 
 
 def _trimmed(kernels: torch.Tensor) -> torch.Tensor:
@@ -126,8 +122,7 @@ def _convolve(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor:
     """
     size = kernels.shape[-1]
     if planes.device.type != "cpu" or planes.dtype != torch.float32:
-        method = "direct" if size < FFT_MIN_KERNEL else "fft"
-        return convolve_same(planes.permute(2, 0, 1), kernels, method=method).permute(0, 2, 3, 1)
+        return convolve_same(planes.permute(2, 0, 1), kernels).permute(0, 2, 3, 1)
     source = planes.contiguous().numpy()
     out = torch.empty((kernels.shape[0], *planes.shape), dtype=planes.dtype)
     flipped = torch.flip(kernels, dims=(-2, -1)).contiguous().numpy()  # filter2D correlates
@@ -177,13 +172,6 @@ def _covered_regions(alpha: torch.Tensor, gap: int = 8) -> list[tuple[int, int, 
 def _over(colour: torch.Tensor, layer: torch.Tensor, channels: int) -> None:
     """Composite a premultiplied ``layer`` ``(views, h, w, C + 1)`` over ``colour`` in place."""
     colour.addcmul_(colour, layer[..., channels:], value=-1.0).add_(layer)  # (1 - a) c + l
-
-
-def _grown(box, half: int, height: int, width: int) -> tuple[int, int, int, int]:
-    """Half-open rows and columns of an inclusive box grown by ``half``, clipped to the frame."""
-    row0, row1, col0, col1 = box
-    return (max(row0 - half, 0), min(row1 + half + 1, height),
-            max(col0 - half, 0), min(col1 + half + 1, width))
 
 
 def render_fast(
@@ -330,7 +318,7 @@ def _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params
     for k, (j, kernels) in enumerate(zip(group, table)):
         row0, row1, col0, col1 = boxes[j]
         box = ((row0 - r0) // d, (row1 - r0) // d, (col0 - c0) // d, (col1 - c0) // d)
-        b0, b1, b2, b3 = _grown(box, kernels.shape[-1] // 2, lh, lw)
+        b0, b1, b2, b3 = grown_box(box, kernels.shape[-1] // 2, lh, lw)
         part = slice(offsets[k], offsets[k + 1])
         cell = (low_rows[part] - b0) * (b3 - b2) + (low_cols[part] - b2)
         cells = (b1 - b0) * (b3 - b2)

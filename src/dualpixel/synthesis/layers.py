@@ -1,8 +1,8 @@
 """Splitting a signed CoC map into depth layers for the layered renderers (paper Sec. 3).
 
 ``exact`` splits the CoC range into ``max_layers`` equal steps (the paper's 500 layers: the
-reference); ``fast`` spaces layers evenly on a visibility axis, where a 0.05 px step matters at
-focus and a 2 % step at large blur.
+reference); ``fast`` merges those steps into runs about 1 % of the blur wide where the blur is
+large and keeps them as they are near focus.
 """
 
 from __future__ import annotations
@@ -11,7 +11,14 @@ import torch
 
 from dualpixel.errors import ParameterError
 
-__all__ = ["RENDER_MODES", "VISIBLE_STEP", "bounding_boxes", "check_render_mode", "quantise_layers"]
+__all__ = [
+    "RENDER_MODES",
+    "VISIBLE_STEP",
+    "bounding_boxes",
+    "check_render_mode",
+    "grown_box",
+    "quantise_layers",
+]
 
 
 #: Rendering modes: "fast" (the default, :mod:`dualpixel.synthesis.fast_renderer`) and "exact"
@@ -86,3 +93,11 @@ def bounding_boxes(labels: torch.Tensor, count: int) -> torch.Tensor:
         init = torch.full((count,), start, dtype=torch.long, device=labels.device)
         boxes.append(init.scatter_reduce(0, flat, coord, reduce=reduce))
     return torch.stack(boxes, dim=1)
+
+
+def grown_box(box, half: int, height: int, width: int) -> tuple[int, int, int, int]:
+    """Half-open (row0, row1, col0, col1) of an inclusive box grown by ``half`` px (a kernel's
+    reach), clipped to a ``height`` x ``width`` frame."""
+    row0, row1, col0, col1 = box
+    return (max(row0 - half, 0), min(row1 + half + 1, height),
+            max(col0 - half, 0), min(col1 + half + 1, width))

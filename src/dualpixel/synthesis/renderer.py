@@ -23,6 +23,9 @@ normalisation removes the darkening at the frame border that zero padding would 
 Efficiency. Each layer is processed only inside its bounding box grown by its kernel radius; the
 kernels are built for the layer's own radius; convolution is direct for small kernels and FFT for
 large ones (:mod:`dualpixel.synthesis.convolution`). Memory is the output plus one layer's crop.
+
+That loop is ``mode="exact"``, the reference. The default, ``mode="fast"``, composites the same
+way with fewer and cheaper convolutions (:mod:`dualpixel.synthesis.fast_renderer`).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from dualpixel.synthesis.layers import (
     RENDER_MODES,
     bounding_boxes,
     check_render_mode,
+    grown_box,
     quantise_layers,
 )
 
@@ -89,9 +93,7 @@ def render_dp_views(
         left, right = dp_psf(radius, params, model=model, dtype=image.dtype, device=image.device)
         kernels = 2.0 * torch.stack((left, right))
         half = kernels.shape[-1] // 2
-        row0, row1, col0, col1 = boxes[index]
-        r0, r1 = max(row0 - half, 0), min(row1 + half + 1, height)
-        c0, c1 = max(col0 - half, 0), min(col1 + half + 1, width)
+        r0, r1, c0, c1 = grown_box(boxes[index], half, height, width)
         mask = (labels[r0:r1, c0:c1] == index).to(image.dtype)
         planes = torch.cat((image[:, r0:r1, c0:c1] * mask, mask[None]))
         blurred = convolve_same(planes, kernels, method=convolution)  # (2, C + 1, h, w)
