@@ -8,7 +8,8 @@ import pytest
 
 from dualpixel.errors import ParameterError
 from dualpixel.optics import DEFOCUS_PROFILES, PIXEL4_PSF_BANK, DefocusProfile, coc_radius
-from dualpixel.synthesis.dataset import SynthConfig, read_manifest, synthesize_dataset
+from dualpixel.synthesis.dataset import SynthConfig, plan_jobs, read_manifest, synthesize_dataset
+from dualpixel.synthesis.inputs import discover_sequences
 from dualpixel.synthesis.scenes import SceneConfig, render_scene, write_scene_folder
 from dualpixel.synthesis.textures import photographs, random_texture
 
@@ -69,6 +70,24 @@ def test_defocus_profile_scales_with_the_frame_and_focuses():
     assert low <= min(draws) and max(draws) <= high and np.std(draws) > 1
     with pytest.raises(ParameterError, match="infinity_coc"):
         DefocusProfile("bad", 840, (5.0, 1.0), 10.0)
+
+
+def test_every_sequence_gets_its_own_profile_camera(tmp_path):
+    # regression: the first sequence's camera (focus and blur scale) was reused for all others
+    scenes = tmp_path / "scenes"
+    write_scene_folder(scenes, 4, SceneConfig(width=64, height=48, frames=1, layout="photo"),
+                       seed=5, progress=False)
+    sequences = discover_sequences(scenes, "rgbd")
+    config = SynthConfig(cameras=("dslr-840", "dslr-840-mild"), psf_bank="pixel4")
+    jobs = plan_jobs(sequences, config)
+    assert len(jobs) == 8
+    for job in jobs:
+        scene = json.loads((job.frame.rgb.parent.parent / "scene.json").read_text())
+        camera = job.recipe.camera
+        assert camera.name == ("dslr-840" if job.sequence <= 4 else "dslr-840-mild")
+        assert camera.focus_distance == pytest.approx(scene["focus_distance"])
+    assert len({job.recipe.camera.focus_distance for job in jobs}) == 4
+    assert len({job.recipe.camera.pixel_pitch for job in jobs}) == 8  # blur scale per sequence
 
 
 def test_pixel4_bank_spans_the_fitted_shapes():

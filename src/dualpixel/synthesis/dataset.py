@@ -164,13 +164,16 @@ def plan_jobs(
 ) -> list[FrameJob]:
     """Every output frame, with the recipe of its sequence drawn from the seed."""
     jobs = []
-    for cam_index, camera in enumerate(config.cameras):
+    for cam_index, camera_name in enumerate(config.cameras):
         for seq_index, sequence in enumerate(sequences):
             number = cam_index * len(sequences) + seq_index + 1
             seed = (config.seed, seq_index, cam_index)
             distortion = config.distortion
-            if camera in DEFOCUS_PROFILES:
-                camera = _profile_camera(DEFOCUS_PROFILES[camera], sequence, fmt, config, seed)
+            # a defocus profile draws a camera per sequence (its focus and blur scale)
+            camera: str | ThinLensCamera = camera_name
+            if camera_name in DEFOCUS_PROFILES:
+                camera = _profile_camera(DEFOCUS_PROFILES[camera_name], sequence, fmt, config,
+                                         seed)
             recipe = draw_recipe(
                 seed, camera, psf_model=config.psf_model, bank=PSF_BANKS[config.psf_bank],
                 distortion=distortion, noise=config.noise,

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import ParameterError, check_range
-from dualpixel.synthesis.textures import load_photograph, random_texture
+from dualpixel.synthesis.textures import dead_leaves, load_photograph, random_texture
 
 __all__ = ["SCENE_LAYOUTS", "SceneConfig", "render_scene_sequence", "write_scene_folder"]
 
@@ -71,25 +71,10 @@ def _photographs() -> tuple[np.ndarray, ...]:
     return tuple(photos)
 
 
-def _dead_leaves_texture(rng: np.random.Generator, height: int, width: int) -> np.ndarray:
-    """A 2-D dead-leaves texture: opaque disks with power-law radii and random colours."""
-    canvas = np.empty((height, width, 3), np.float32)
-    canvas[:] = rng.uniform(0.05, 0.95, 3)
-    r_min, r_max = 2.0, max(height, width) / 3.0
-    for _ in range(height * width // 40 + 50):
-        # density ~ r^-3 (scale invariance), sampled by inverting its CDF
-        u = rng.uniform()
-        radius = (r_min**-2 - u * (r_min**-2 - r_max**-2)) ** -0.5
-        centre = (int(rng.integers(width)), int(rng.integers(height)))
-        colour = tuple(float(c) for c in rng.uniform(0.02, 0.98, 3))
-        cv2.circle(canvas, centre, round(radius), colour, -1, lineType=cv2.LINE_AA)
-    return canvas
-
-
 def _texture(rng: np.random.Generator, height: int, width: int) -> np.ndarray:
     """A texture patch: a randomly scaled, tinted crop of a photograph, or dead leaves."""
     if rng.uniform() < 0.35:
-        return _dead_leaves_texture(rng, height, width)
+        return dead_leaves(rng, height, width, r_min=2.0, related_colours=False)
     photo = _photographs()[int(rng.integers(len(_PHOTOS)))]
     scale = max(height / photo.shape[0], width / photo.shape[1]) * rng.uniform(1.0, 2.0)
     resized = cv2.resize(photo, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)

@@ -108,17 +108,29 @@ def _photo_crop(rng: np.random.Generator, height: int, width: int) -> np.ndarray
     return _colourise(rng, np.ascontiguousarray(warped))
 
 
-def dead_leaves(rng: np.random.Generator, height: int, width: int) -> np.ndarray:
-    """Opaque disks with density ~ r^-3 (scale invariance) and random colours."""
+def dead_leaves(rng: np.random.Generator, height: int, width: int, *,
+                r_min: float | None = None, related_colours: bool = True) -> np.ndarray:
+    """Opaque disks with density ~ r^-3 (scale invariance) on a random background, ``(H, W, 3)``.
+
+    ``r_min``: the smallest radius in pixels (drawn from [1, 3] when ``None``); the largest is a
+    third of the longer side. ``related_colours``: disk colours scattered around one base colour
+    (as in natural images); otherwise each drawn independently (the "leaves" scene layout).
+    """
     canvas = np.empty((height, width, 3), np.float32)
     canvas[:] = rng.uniform(0.05, 0.95, 3)
-    r_min, r_max = float(rng.uniform(1.0, 3.0)), max(height, width) / 3.0
-    base = rng.uniform(0.1, 0.9, 3)
+    if r_min is None:
+        r_min = float(rng.uniform(1.0, 3.0))
+    r_max = max(height, width) / 3.0
+    base = rng.uniform(0.1, 0.9, 3) if related_colours else None
     for _ in range(height * width // 40 + 50):
+        # radius drawn by inverting the CDF of the r^-3 density on [r_min, r_max]
         u = rng.uniform()
         radius = (r_min**-2 - u * (r_min**-2 - r_max**-2)) ** -0.5
         centre = (int(rng.integers(width)), int(rng.integers(height)))
-        colour = np.clip(base + rng.normal(0, 0.3, 3), 0.02, 0.98)
+        if base is not None:
+            colour = np.clip(base + rng.normal(0, 0.3, 3), 0.02, 0.98)
+        else:
+            colour = rng.uniform(0.02, 0.98, 3)
         cv2.circle(canvas, centre, round(radius), tuple(float(c) for c in colour), -1,
                    lineType=cv2.LINE_AA)
     return canvas
