@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Data of the shipped rdpd-light model (issue #11, MODEL_CARD.md). Every step resumes: rerun after
-# an interruption. Writes runs/data/ (ignored by git). About 12 minutes on 2 cores.
+# Data of the default model's first stage (rdpd-light-photo; issue #11, MODEL_CARD.md). That stage
+# was trained on data made before commit 58047ce, when every sequence reused the first one's camera;
+# this script now draws a camera per scene, so it makes the intended, different data. Every step
+# resumes: rerun after an interruption. Writes runs/data/ (ignored by git). About 12 minutes on 2 cores.
 set -euo pipefail
 DP=${DP:-.venv/bin/dualpixel}
 SYN="--cameras dslr-840 --psf-bank pixel4 --noise-model poisson-gaussian"

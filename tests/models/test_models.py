@@ -83,6 +83,7 @@ def test_unknown_model_and_bad_width():
 
 
 def test_checkpoint_round_trip_and_refusals(tmp_path):
+    torch.manual_seed(0)  # random weights and input: the float16 error below is then fixed
     model = build_model("rdpd", width=0.3).eval()
     path = tmp_path / "m.safetensors"
     save_model(path, model, extra={"note": "x"})

@@ -33,7 +33,7 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur (the default; improves real Canon DP photographs)",
+    "with DSLR-like blur, in two stages (the default; improves real Canon DP photographs)",
 )
 register_checkpoint(
     "rdpd-light-photo", "rdpd-light-photo.safetensors",
