@@ -1,6 +1,3 @@
 #!/usr/bin/env bash
-# Candidate next default model on the dslr-840-mild data; resumes runs/train/rdpd-mild if present.
-set -euo pipefail
-OUT=runs/train/rdpd-mild
-RESUME=""; [ -f $OUT/last_state.pt ] && RESUME="--resume"
-exec ${DP:-.venv/bin/dualpixel} train --config configs/rdpd-light-mild-cpu.yaml --output $OUT $RESUME --no-progress
+# Candidate default model on the dslr-840-mild data (MODEL_CARD.md, not shipped); resumable.
+exec "$(dirname "$0")/train_resumable.sh" configs/rdpd-light-mild-cpu.yaml runs/train/rdpd-mild
