@@ -104,3 +104,56 @@ def test_onnx_matches_pytorch(tiny_model, tmp_path):
     _, hidden3, cell3 = run_onnx(tmp_path / "step.onnx", x3.numpy(), zeros3, zeros3)
     out4, _, _ = run_onnx(tmp_path / "step.onnx", x3.numpy(), hidden3, cell3)
     assert np.abs(out4 - y4.numpy()).max() < 1e-4
+
+
+def test_flip_ensemble_is_equivariant_to_the_dp_flips(tiny_model):
+    # Averaging over the flips that keep DP geometry makes the output flip with the input:
+    # upside down, and left-right with the views swapped. A single pass does not.
+    rng = np.random.default_rng(3)
+    left, right = (rng.random((48, 64, 3), dtype=np.float32) for _ in range(2))
+    ensemble, single = Deblurrer(tiny_model, flips=True), Deblurrer(tiny_model)
+
+    def first_frame(deblurrer, *views):  # a recurrent model: each call a new sequence
+        deblurrer.reset()
+        return deblurrer(*views)
+
+    out = first_frame(ensemble, left, right)
+    np.testing.assert_allclose(first_frame(ensemble, left[::-1], right[::-1]), out[::-1],
+                               atol=1e-6)
+    np.testing.assert_allclose(first_frame(ensemble, right[:, ::-1], left[:, ::-1]),
+                               out[:, ::-1], atol=1e-6)
+    plain = first_frame(single, left, right)
+    flipped = first_frame(single, right[:, ::-1], left[:, ::-1])
+    assert np.abs(flipped - plain[:, ::-1]).max() > 1e-3
+    # It is the mean of the four passes, so it lies within their range, not equal to the plain one.
+    assert np.abs(out - plain).max() > 1e-4
+
+
+def test_flip_ensemble_of_a_single_view_model_flips_upside_down_only():
+    torch.manual_seed(0)
+    model = build_model("rspd", width=0.125).eval()
+    rng = np.random.default_rng(4)
+    left = rng.random((32, 48, 3), dtype=np.float32)
+    out = Deblurrer(model, flips=True)(left)
+    np.testing.assert_allclose(Deblurrer(model, flips=True)(left[::-1]), out[::-1], atol=1e-6)
+    manual = (Deblurrer(model)(left) + Deblurrer(model)(left[::-1].copy())[::-1]) / 2
+    np.testing.assert_allclose(out, manual, atol=1e-6)
+
+
+def test_flip_ensemble_members_carry_their_own_state(tiny_model):
+    rng = np.random.default_rng(5)
+    frames = [[rng.random((32, 48, 3), dtype=np.float32) for _ in range(2)] for _ in range(2)]
+    ensemble = Deblurrer(tiny_model, flips=True)
+    got = [ensemble(left, right) for left, right in frames]
+    members = [  # each member: the whole sequence flipped, through its own plain Deblurrer
+        (lambda l, r: (l, r), lambda o: o),
+        (lambda l, r: (l[::-1], r[::-1]), lambda o: o[::-1]),
+        (lambda l, r: (r[:, ::-1], l[:, ::-1]), lambda o: o[:, ::-1]),
+        (lambda l, r: (r[::-1, ::-1], l[::-1, ::-1]), lambda o: o[::-1, ::-1]),
+    ]
+    expected = np.zeros((2, 32, 48, 3), np.float32)
+    for flip, unflip in members:
+        plain = Deblurrer(tiny_model)
+        for index, (left, right) in enumerate(frames):
+            expected[index] += unflip(plain(*flip(left, right))) / 4
+    np.testing.assert_allclose(np.stack(got), expected, atol=1e-6)

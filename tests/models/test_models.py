@@ -65,6 +65,20 @@ def test_convlstm_peepholes_switch():
     assert count_parameters(without) == 4 * (9 * (4 + 6) * 6 + 6)
 
 
+def test_convlstm_without_state_equals_an_explicit_zero_state():
+    # The first frame skips the recurrent convolution; it must equal Eq. 8-12 with H = C = 0.
+    torch.manual_seed(0)
+    cell = ConvLSTMCell(4, 6, dropout=0.0).eval()
+    with torch.no_grad():
+        cell.peephole.normal_()  # non-zero peepholes: the skipped terms must truly vanish
+        cell.recurrent_conv.weight.normal_()
+        x = torch.randn(2, 4, 9, 11)
+        fast = cell(x, None)
+        full = cell(x, cell.initial_state(x))
+    for a, b in zip(fast, full):
+        torch.testing.assert_close(a, b)
+
+
 def test_dropout_only_in_training():
     model = build_model("rdpd", width=TINY)
     x = torch.rand(1, 1, 7, 16, 16)

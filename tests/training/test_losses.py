@@ -54,3 +54,29 @@ def test_total_loss_is_eq16():
     # The single 3x3 Sobel loss of the ablation is a special case.
     _, single = DeblurLoss(sizes=(3,))(out, tgt)
     assert float(single["edge_x"]) != float(parts["edge_x"])
+
+
+def test_log_reduction_weighs_every_image_the_same_in_db():
+    torch.manual_seed(0)
+    target = torch.rand(2, 3, 3, 24, 24)
+    noise = torch.randn_like(target)
+    # Sequence 0 off by 0.01, sequence 1 by 0.1: errors 100x apart.
+    output = (target + noise * torch.tensor([0.01, 0.1]).view(2, 1, 1, 1, 1)).requires_grad_()
+    mean_loss, parts = DeblurLoss()(output, target)
+    log_loss, log_parts = DeblurLoss(reduction="log")(output, target)
+    # The parts are batch means either way; the per-image edge terms average to the batch's.
+    for key in parts:
+        torch.testing.assert_close(parts[key], log_parts[key])
+    # The total is the mean over the 6 frames of each frame's Eq. 16 in dB (up to the 1e-8 that
+    # keeps the log finite: 4e-4 dB here).
+    per_frame = [DeblurLoss()(output[b, t], target[b, t])[0] for b in range(2) for t in range(3)]
+    expected = torch.stack([10 * torch.log10(v) for v in per_frame]).mean()
+    torch.testing.assert_close(log_loss, expected, rtol=0, atol=1e-3)
+    # Gradient share of the nearly right sequence: negligible under the mean, equal under log.
+    (grad_mean,) = torch.autograd.grad(mean_loss, output)
+    (grad_log,) = torch.autograd.grad(log_loss, output)
+    mean_ratio = grad_mean[0].norm() / grad_mean[1].norm()
+    log_ratio = grad_log[0].norm() / grad_log[1].norm()
+    assert mean_ratio < 0.2 and log_ratio > 5  # 0.1 vs 10: the weights turn over
+    with pytest.raises(ValueError, match="reduction"):
+        DeblurLoss(reduction="sum")

@@ -70,6 +70,22 @@ def test_resume_continues_exactly(tiny_synthetic_dataset, tmp_path):
     assert [json.loads(line)["epoch"] for line in lines] == [1, 2]
 
 
+def test_cosine_schedule_decays_over_the_run_and_resumes(tiny_synthetic_dataset, tmp_path):
+    config = tiny_config(tiny_synthetic_dataset, epochs=4, iterations_per_epoch=1,
+                         lr_schedule="cosine")
+    straight = train(config, tmp_path / "straight", progress=False)
+    # lr_e = lr * (1 + cos(pi e / 4)) / 2 for epochs e = 0..3.
+    expected = [1e-3, 1e-3 * (1 + 2**-0.5) / 2, 5e-4, 1e-3 * (1 - 2**-0.5) / 2]
+    assert [r["learning_rate"] for r in straight.history] == pytest.approx(expected)
+    train(tiny_config(tiny_synthetic_dataset, epochs=2, iterations_per_epoch=1,
+                      lr_schedule="cosine"), tmp_path / "resumed", progress=False)
+    resumed = train(config, tmp_path / "resumed", resume=True, progress=False)
+    # Lengthened on resume: the later epochs follow the 4-epoch curve.
+    assert [r["learning_rate"] for r in resumed.history[2:]] == pytest.approx(expected[2:])
+    with pytest.raises(ParameterError, match="lr_schedule"):
+        tiny_config(tiny_synthetic_dataset, lr_schedule="linear")
+
+
 def test_refusals(tiny_synthetic_dataset, tmp_path):
     train(tiny_config(tiny_synthetic_dataset, epochs=1), tmp_path / "run", progress=False)
     with pytest.raises(ParameterError, match="--resume"):

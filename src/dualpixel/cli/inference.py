@@ -37,9 +37,11 @@ def _load(checkpoint: str, device: str):
               help="Tile overlap in pixels  [default: min(192, tile/2)].")
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--half", is_flag=True, help="float16 on CUDA.")
+@click.option("--flips", is_flag=True,
+              help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: str, output: Path,
            checkpoint: str, tile: int | None, overlap: int | None, device: str,
-           half: bool) -> None:
+           half: bool, flips: bool) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder."""
     from tqdm import tqdm
 
@@ -49,7 +51,8 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: s
     model, resolved = _load(checkpoint, device)
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=model.spec.views == 2)
-    deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, half=half)
+    deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, half=half,
+                          flips=flips)
     total = sum(len(sequence) for sequence in jobs)
     for _ in tqdm(run_deblur_jobs(deblurrer, jobs), total=total, desc="deblurring", unit="frame"):
         pass
@@ -95,9 +98,11 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @click.option("--overlap", type=click.IntRange(0), default=None,
               help="Tile overlap in pixels  [default: min(192, tile/2)].")
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
+@click.option("--flips", is_flag=True,
+              help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
-                     device) -> None:
+                     device, flips) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 
@@ -110,8 +115,9 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         from dualpixel.inference import Deblurrer
 
         model, resolved = _load(checkpoint, device)
-        deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap)
-        method, meta = Path(checkpoint).stem, {"checkpoint": str(checkpoint)}
+        deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, flips=flips)
+        method = Path(checkpoint).stem + ("+flips" if flips else "")
+        meta = {"checkpoint": str(checkpoint), "flips": flips}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
     click.echo(f"reports in {output}")

@@ -7,6 +7,11 @@ Carrying gives the same result as running the frames as one sequence through
 ``DeblurNet.forward``. With ``tile`` set, frames are processed in
 overlapping tiles (see :mod:`dualpixel.inference.tiling`) so memory stays bounded by the tile size.
 On CUDA, ``half=True`` runs in float16 autocast and the model uses channels-last memory.
+
+``flips=True`` (ours, a self-ensemble) averages the outputs for the frame as it is, flipped
+upside down, and flipped left-right with the views swapped (and both): the flips that keep DP
+geometry, which training augments with (a left-right flip turns the left view's PSF into the
+right's). 4x the time (2x for a single-view model, which has only the vertical flip).
 """
 
 from __future__ import annotations
@@ -66,6 +71,7 @@ class Deblurrer:
         tile: tile size (multiple of 16) for bounded memory, or ``None`` for whole frames.
         overlap: tile overlap in pixels (default: :func:`default_overlap` of the tile).
         half: float16 autocast on CUDA (ignored on the CPU).
+        flips: average over the DP-preserving flips (self-ensemble; module docstring).
     """
 
     model: DeblurNet
@@ -73,6 +79,7 @@ class Deblurrer:
     tile: int | None = None
     overlap: int | None = None
     half: bool = False
+    flips: bool = False
 
     def __post_init__(self) -> None:
         if self.tile is not None:
@@ -83,35 +90,56 @@ class Deblurrer:
         self.model = self.model.to(self.device).eval()
         if self.device.type == "cuda":
             self.model = self.model.to(memory_format=torch.channels_last)
-        self._state = None
+        # (flip upside down, flip left-right with the views swapped) per ensemble member.
+        self._flips = [(False, False)]
+        if self.flips:
+            self._flips.append((True, False))
+            if self.model.spec.views == 2:
+                self._flips += [(False, True), (True, True)]
+        self._states: list = [None] * len(self._flips)  # each member carries its own state
 
     def reset(self) -> None:
         """Forget the recurrent state (start of a new sequence)."""
-        self._state = None
+        self._states = [None] * len(self._flips)
 
     @torch.inference_mode()
     def __call__(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
         """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3)."""
-        x = frame_tensor(self.model, left, right).to(self.device)
-        if not self.model.temporal:
-            self._state = None  # trained on single frames: every frame starts from zero state
+        total = None
+        for index, (vertical, horizontal) in enumerate(self._flips):
+            views = (left, right)
+            if horizontal:  # mirrored, the left view's PSF is the right view's
+                views = (right[:, ::-1], left[:, ::-1])
+            if vertical:
+                views = tuple(None if v is None else v[::-1] for v in views)
+            out = self._run(index, frame_tensor(self.model, *views))
+            out = out.flip(-2) if vertical else out
+            out = out.flip(-1) if horizontal else out
+            total = out if total is None else total + out
+        return (total[0] / len(self._flips)).permute(1, 2, 0).cpu().numpy()
+
+    def _run(self, member: int, x: torch.Tensor) -> torch.Tensor:
+        """One network pass of ensemble member ``member``, carrying its state; float32 output."""
+        x = x.to(self.device)
+        state = self._states[member] if self.model.temporal else None  # single-frame models
         autocast = self.half and self.device.type == "cuda"
         with torch.autocast("cuda", dtype=torch.float16, enabled=autocast):
             if self.tile is None:
-                out, self._state = self.model.step(x, self._state)
+                out, state = self.model.step(x, state)
             else:
-                out, self._state = deblur_tiled(
-                    self.model, x, tile=self.tile, overlap=self.overlap, states=self._state
+                out, state = deblur_tiled(
+                    self.model, x, tile=self.tile, overlap=self.overlap, states=state
                 )
-        return out[0].permute(1, 2, 0).float().cpu().numpy()
+        self._states[member] = state
+        return out.float()
 
 
 def deblur_sequence(
     model: DeblurNet, frames: list[dict[str, np.ndarray]], *, device: str | torch.device = "cpu",
-    tile: int | None = None,
+    tile: int | None = None, flips: bool = False,
 ) -> list[np.ndarray]:
     """Deblur a list of frames (dicts with ``left`` and ``right``) carrying the recurrent state."""
     if not frames:
         raise ParameterError("no frames to deblur")
-    deblurrer = Deblurrer(model, device=device, tile=tile)
+    deblurrer = Deblurrer(model, device=device, tile=tile, flips=flips)
     return [deblurrer(frame["left"], frame.get("right")) for frame in frames]

@@ -72,13 +72,20 @@ class ConvLSTMCell(nn.Module):
 
     def forward(self, x: torch.Tensor, state: LSTMState | None = None) -> LSTMState:
         """Advance one frame: ``x`` is ``(B, C_in, H, W)``; returns the new ``(H_t, C_t)``."""
-        hidden, cell = self.initial_state(x) if state is None else state
-        gates = self.input_conv(self.dropout(x)) + self.recurrent_conv(hidden)
-        gate_i, gate_f, gate_c, gate_o = gates.chunk(4, dim=1)
-        if self.peepholes:
-            gate_i = gate_i + self.peephole[0] * cell
-            gate_f = gate_f + self.peephole[1] * cell
-        cell = torch.sigmoid(gate_f) * cell + torch.sigmoid(gate_i) * torch.tanh(gate_c)
+        gates = self.input_conv(self.dropout(x))
+        if state is None:
+            # Zero state (first frame, single images): every term with H_{t-1} or C_{t-1} in
+            # Eq. 8-10 vanishes, so skip the recurrent convolution (half the cell's arithmetic).
+            gate_i, _, gate_c, gate_o = gates.chunk(4, dim=1)
+            cell = torch.sigmoid(gate_i) * torch.tanh(gate_c)
+        else:
+            hidden, cell = state
+            gates = gates + self.recurrent_conv(hidden)
+            gate_i, gate_f, gate_c, gate_o = gates.chunk(4, dim=1)
+            if self.peepholes:
+                gate_i = gate_i + self.peephole[0] * cell
+                gate_f = gate_f + self.peephole[1] * cell
+            cell = torch.sigmoid(gate_f) * cell + torch.sigmoid(gate_i) * torch.tanh(gate_c)
         if self.peepholes:
             gate_o = gate_o + self.peephole[2] * cell
         hidden = torch.sigmoid(gate_o) * torch.tanh(cell)

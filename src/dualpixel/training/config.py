@@ -18,8 +18,11 @@ import yaml
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.atomic import atomic_path
 from dualpixel.models.registry import model_spec
+from dualpixel.training.losses import LOSS_REDUCTIONS
 
-__all__ = ["TrainConfig", "load_config", "save_config"]
+__all__ = ["LR_SCHEDULES", "TrainConfig", "load_config", "save_config"]
+
+LR_SCHEDULES = ("step", "cosine")
 
 
 @dataclass
@@ -57,9 +60,14 @@ class TrainConfig:
     iterations_per_epoch: int | None = None  # default: one pass over the larger dataset
     learning_rate: float = 5e-5
     lr_halve_every: int = 40
+    # "step": the paper's halving every lr_halve_every epochs; "cosine" (ours): one cosine
+    # decay from learning_rate towards 0 over the epochs (better for short fine-tuning runs).
+    lr_schedule: str = "step"
     edge_sizes: list[int] = field(default_factory=lambda: [3, 7, 11])
     lambda_x: float = 0.03
     lambda_y: float = 0.02
+    # "mean" (the paper) or "log" (ours: each patch's loss in dB, averaged; see DeblurLoss).
+    loss_reduction: str = "mean"
     # Running.
     seed: int = 0
     workers: int = 2
@@ -79,6 +87,12 @@ class TrainConfig:
         for name in positive:
             if getattr(self, name) < 1:
                 raise ParameterError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ParameterError(f"lr_schedule must be one of {', '.join(LR_SCHEDULES)}, "
+                                 f"got {self.lr_schedule!r}")
+        if self.loss_reduction not in LOSS_REDUCTIONS:
+            raise ParameterError(f"loss_reduction must be one of {', '.join(LOSS_REDUCTIONS)}, "
+                                 f"got {self.loss_reduction!r}")
         if self.learning_rate <= 0:
             raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
         if any(s % 2 == 0 or s < 3 for s in self.edge_sizes):

@@ -2,7 +2,8 @@
 
 Iteration ``i`` of an epoch draws from data kind ``i % K`` (K = 1 or 2: real single images with
 mini-batch 8, synthetic sequences with 2 sequences of 4 frames; ``synthetic_as_frames`` gives the
-sRDPD+ setting). Adam with the learning rate halved every ``lr_halve_every`` epochs.
+sRDPD+ setting). Adam with the learning rate halved every ``lr_halve_every`` epochs
+(``lr_schedule: cosine``, ours: one cosine decay over the run instead).
 
 A run folder holds ``config.yaml``, ``last.safetensors`` + ``last_state.pt`` (optimiser, schedule,
 RNG states; written atomically after every epoch), ``best.safetensors`` (highest validation PSNR),
@@ -268,10 +269,9 @@ class Trainer:
             model = model.to(memory_format=torch.channels_last)
         self.net = self.model = model
         self.optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
-        self.scheduler = torch.optim.lr_scheduler.StepLR(self.optimizer, config.lr_halve_every,
-                                                         gamma=0.5)
-        self.criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x,
-                                    config.lambda_y).to(device)
+        self.scheduler = _lr_scheduler(self.optimizer, config)
+        self.criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x, config.lambda_y,
+                                    config.loss_reduction).to(device)
         self.iterations = _iterations_per_epoch(config, self.kinds)
 
     def restore(self) -> None:
@@ -285,6 +285,10 @@ class Trainer:
         self.net.load_state_dict({k: v.to(self.device) for k, v in state["model"].items()})
         self.optimizer.load_state_dict(state["optimizer"])
         self.scheduler.load_state_dict(state["scheduler"])
+        if self.config.lr_schedule == "cosine":  # on the curve of this (maybe longer) run
+            factor = _cosine_factor(self.scheduler.last_epoch, self.config.epochs)
+            for group in self.optimizer.param_groups:
+                group["lr"] = group["initial_lr"] * factor
         self.start_epoch, self.step = state["epoch"] + 1, state["step"]
         self.best, self.history = state["best_psnr"], state["history"]
         _set_rng_state(state["rng"])
@@ -375,6 +379,20 @@ class Trainer:
         if self.writer is not None:
             self.writer.flush()
         tqdm.write(json.dumps(record)) if self.progress else None
+
+
+def _cosine_factor(epoch: int, epochs: int) -> float:
+    """The cosine schedule's multiplier of the learning rate in ``epoch`` (0-based)."""
+    return 0.5 * (1.0 + math.cos(math.pi * epoch / epochs))
+
+
+def _lr_scheduler(optimizer: torch.optim.Optimizer, config: TrainConfig):
+    """Per-epoch schedule: halving every ``lr_halve_every`` epochs (Sec. 5) or one cosine decay."""
+    if config.lr_schedule == "cosine":  # closed form in the epoch: a resumed run follows it
+        epochs = config.epochs
+        return torch.optim.lr_scheduler.LambdaLR(
+            optimizer, lambda epoch: _cosine_factor(epoch, epochs))
+    return torch.optim.lr_scheduler.StepLR(optimizer, config.lr_halve_every, gamma=0.5)
 
 
 def _save_state(output: Path, net: DeblurNet, optimizer, scheduler, epoch: int, step: int,

@@ -1,0 +1,71 @@
+"""Seconds per training iteration of the light RDPD (the shipped model's recipe), in one run.
+
+One iteration = forward, Eq. 16 loss, backward and an Adam step on 8 random 128x128 DP frames
+(``synthetic_as_frames``: single frames, no ConvLSTM state). Cases:
+
+- ``skip``: the first frame's zero state skips the recurrent convolution (what training runs);
+- ``zero-state``: the same frames with an explicit all-zero state, so the recurrent convolution
+  runs (the cost before the skip; the outputs are equal);
+- ``log-loss``: ``skip`` with ``loss_reduction: log`` (per-patch loss in dB).
+
+Prints each case and the ratios to ``zero-state``; compare figures only within one run.
+
+    .venv/bin/python benchmarks/bench_training.py [--width 0.5] [--patch 128] [--threads 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import torch
+
+from dualpixel.models import build_model
+from dualpixel.training import DeblurLoss
+
+
+def seconds_per_iteration(case: str, width: float, patch: int, iterations: int) -> float:
+    torch.manual_seed(0)
+    model = build_model("rdpd", width=width, lstm_dropout=0.0, residual=True)
+    optimizer = torch.optim.Adam(model.parameters(), lr=1e-4)
+    criterion = DeblurLoss(reduction="log" if case == "log-loss" else "mean")
+    frames = torch.rand(8, 1, model.shape.in_channels, patch, patch)
+    target = torch.rand(8, 1, 3, patch, patch)
+    state = None
+    if case == "zero-state":
+        assert model.lstm is not None
+        zeros = torch.zeros(8, model.shape.bottleneck, patch // 16, patch // 16)
+        state = (zeros, zeros.clone())
+    times = []
+    for index in range(iterations + 2):  # two warm-up iterations
+        started = time.perf_counter()
+        prediction, _ = model(frames, state)
+        loss, _ = criterion(prediction, target)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        if index >= 2:
+            times.append(time.perf_counter() - started)
+    return sorted(times)[len(times) // 2]  # median
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--width", type=float, default=0.5)
+    parser.add_argument("--patch", type=int, default=128)
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--iterations", type=int, default=20)
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    print(f"rdpd width {args.width}, 8 x {args.patch}x{args.patch} frames, "
+          f"{args.threads} threads, median of {args.iterations} iterations")
+    results = {}
+    for case in ("zero-state", "skip", "log-loss"):
+        results[case] = seconds_per_iteration(case, args.width, args.patch, args.iterations)
+    for case, seconds in results.items():
+        print(f"{case:>10}: {seconds:.3f} s/iteration "
+              f"({seconds / results['zero-state']:.2f} x zero-state)")
+
+
+if __name__ == "__main__":
+    main()
