@@ -146,10 +146,10 @@ def test_flip_ensemble_members_carry_their_own_state(tiny_model):
     ensemble = Deblurrer(tiny_model, flips=True)
     got = [ensemble(left, right) for left, right in frames]
     members = [  # each member: the whole sequence flipped, through its own plain Deblurrer
-        (lambda l, r: (l, r), lambda o: o),
-        (lambda l, r: (l[::-1], r[::-1]), lambda o: o[::-1]),
-        (lambda l, r: (r[:, ::-1], l[:, ::-1]), lambda o: o[:, ::-1]),
-        (lambda l, r: (r[::-1, ::-1], l[::-1, ::-1]), lambda o: o[::-1, ::-1]),
+        (lambda a, b: (a, b), lambda o: o),
+        (lambda a, b: (a[::-1], b[::-1]), lambda o: o[::-1]),
+        (lambda a, b: (b[:, ::-1], a[:, ::-1]), lambda o: o[:, ::-1]),
+        (lambda a, b: (b[::-1, ::-1], a[::-1, ::-1]), lambda o: o[::-1, ::-1]),
     ]
     expected = np.zeros((2, 32, 48, 3), np.float32)
     for flip, unflip in members:
