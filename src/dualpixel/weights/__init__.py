@@ -33,7 +33,12 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in two stages (the default; improves real Canon DP photographs)",
+    "with DSLR-like blur, in three stages (the default; improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "rdpd-light-stage2", "rdpd-light-stage2.safetensors",
+    "the default's second stage (the default before stage 3; the starting point of that run): "
+    "stage 1 fine-tuned on 800 one-frame photo scenes with the paper's loss",
 )
 register_checkpoint(
     "rdpd-light-photo", "rdpd-light-photo.safetensors",
