@@ -9,6 +9,12 @@ import click
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
+# Options that deblur and eval share.
+_OVERLAP_OPTION = click.option("--overlap", type=click.IntRange(0), default=None,
+                               help="Tile overlap in pixels  [default: min(192, tile/2)].")
+_FLIPS_OPTION = click.option(
+    "--flips", is_flag=True,
+    help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
 
 
 def _load(checkpoint: str, device: str):
@@ -33,12 +39,10 @@ def _load(checkpoint: str, device: str):
 @click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
 @click.option("--tile", type=int, default=None,
               help="Tile size (multiple of 16) for bounded memory; default: whole frames.")
-@click.option("--overlap", type=click.IntRange(0), default=None,
-              help="Tile overlap in pixels  [default: min(192, tile/2)].")
+@_OVERLAP_OPTION
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--half", is_flag=True, help="float16 on CUDA.")
-@click.option("--flips", is_flag=True,
-              help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
+@_FLIPS_OPTION
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: str, output: Path,
            checkpoint: str, tile: int | None, overlap: int | None, device: str,
            half: bool, flips: bool) -> None:
@@ -95,11 +99,9 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
               help="Side-by-side figures for the first N images.")
 @click.option("--save-outputs", is_flag=True, help="Also write the model's outputs (PNG).")
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
-@click.option("--overlap", type=click.IntRange(0), default=None,
-              help="Tile overlap in pixels  [default: min(192, tile/2)].")
+@_OVERLAP_OPTION
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
-@click.option("--flips", is_flag=True,
-              help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
+@_FLIPS_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
                      device, flips) -> None:

@@ -136,10 +136,10 @@ class Deblurrer:
 
 def deblur_sequence(
     model: DeblurNet, frames: list[dict[str, np.ndarray]], *, device: str | torch.device = "cpu",
-    tile: int | None = None, flips: bool = False,
+    tile: int | None = None,
 ) -> list[np.ndarray]:
     """Deblur a list of frames (dicts with ``left`` and ``right``) carrying the recurrent state."""
     if not frames:
         raise ParameterError("no frames to deblur")
-    deblurrer = Deblurrer(model, device=device, tile=tile, flips=flips)
+    deblurrer = Deblurrer(model, device=device, tile=tile)
     return [deblurrer(frame["left"], frame.get("right")) for frame in frames]
