@@ -8,9 +8,15 @@ One iteration = forward, Eq. 16 loss, backward and an Adam step on 8 random 128x
   runs (the cost before the skip; the outputs are equal);
 - ``log-loss``: ``skip`` with ``loss_reduction: log`` (per-patch loss in dB).
 
+On CUDA (``--device cuda``, what ``dualpixel train`` does there) two more cases of ``skip``:
+
+- ``bf16``: bfloat16 autocast (config ``amp``);
+- ``bf16-cl``: bfloat16 autocast and channels-last weights and inputs (config ``channels_last``).
+
 Prints each case and the ratios to ``zero-state``; compare figures only within one run.
 
     .venv/bin/python benchmarks/bench_training.py [--width 0.5] [--patch 128] [--threads 2]
+    python benchmarks/bench_training.py --device cuda --width 1 --patch 512
 """
 
 from __future__ import annotations
@@ -24,26 +30,35 @@ from dualpixel.models import build_model
 from dualpixel.training import DeblurLoss
 
 
-def seconds_per_iteration(case: str, width: float, patch: int, iterations: int) -> float:
+def seconds_per_iteration(
+    case: str, width: float, patch: int, iterations: int, device: torch.device
+) -> float:
     torch.manual_seed(0)
-    model = build_model("rdpd", width=width, lstm_dropout=0.0, residual=True)
+    model = build_model("rdpd", width=width, lstm_dropout=0.0, residual=True).to(device)
+    channels_last = case == "bf16-cl"
+    if channels_last:
+        model = model.to(memory_format=torch.channels_last)
     optimizer = torch.optim.Adam(model.parameters(), lr=1e-4)
-    criterion = DeblurLoss(reduction="log" if case == "log-loss" else "mean")
-    frames = torch.rand(8, 1, model.shape.in_channels, patch, patch)
-    target = torch.rand(8, 1, 3, patch, patch)
+    criterion = DeblurLoss(reduction="log" if case == "log-loss" else "mean").to(device)
+    frames = torch.rand(8, 1, model.shape.in_channels, patch, patch, device=device)
+    target = torch.rand(8, 1, 3, patch, patch, device=device)
     state = None
     if case == "zero-state":
         assert model.lstm is not None
-        zeros = torch.zeros(8, model.shape.bottleneck, patch // 16, patch // 16)
+        zeros = torch.zeros(8, model.shape.bottleneck, patch // 16, patch // 16, device=device)
         state = (zeros, zeros.clone())
+    cuda = device.type == "cuda"
     times = []
     for index in range(iterations + 2):  # two warm-up iterations
         started = time.perf_counter()
-        prediction, _ = model(frames, state)
-        loss, _ = criterion(prediction, target)
+        with torch.autocast("cuda", dtype=torch.bfloat16, enabled=case.startswith("bf16")):
+            prediction, _ = model(frames, state)
+        loss, _ = criterion(prediction.float(), target)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
+        if cuda:
+            torch.cuda.synchronize()
         if index >= 2:
             times.append(time.perf_counter() - started)
     return sorted(times)[len(times) // 2]  # median
@@ -55,13 +70,19 @@ def main() -> None:
     parser.add_argument("--patch", type=int, default=128)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--iterations", type=int, default=20)
+    parser.add_argument("--device", default="cpu", help="cpu or cuda (adds bf16, bf16-cl)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    print(f"rdpd width {args.width}, 8 x {args.patch}x{args.patch} frames, "
+    device = torch.device(args.device)
+    print(f"rdpd width {args.width}, 8 x {args.patch}x{args.patch} frames, {args.device}, "
           f"{args.threads} threads, median of {args.iterations} iterations")
+    cases = ["zero-state", "skip", "log-loss"]
+    if device.type == "cuda":
+        cases += ["bf16", "bf16-cl"]
     results = {}
-    for case in ("zero-state", "skip", "log-loss"):
-        results[case] = seconds_per_iteration(case, args.width, args.patch, args.iterations)
+    for case in cases:
+        results[case] = seconds_per_iteration(case, args.width, args.patch, args.iterations,
+                                              device)
     for case, seconds in results.items():
         print(f"{case:>10}: {seconds:.3f} s/iteration "
               f"({seconds / results['zero-state']:.2f} x zero-state)")

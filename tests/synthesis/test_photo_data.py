@@ -48,6 +48,16 @@ def test_photo_scene_folder_records_the_focus_distance(tmp_path):
     assert recorded["focus_distance"] > 0 and recorded["layout"] == "photo"
 
 
+def test_scene_folder_does_not_depend_on_the_number_of_workers(tmp_path):
+    config = SceneConfig(width=48, height=32, frames=2, leaves=4, layout="photo")
+    write_scene_folder(tmp_path / "one", 3, config, seed=7, progress=False)
+    write_scene_folder(tmp_path / "two", 3, config, seed=7, progress=False, workers=2)
+    files = sorted(p.relative_to(tmp_path / "one") for p in (tmp_path / "one").rglob("*.*"))
+    assert len(files) == 1 + 3 * 5  # description + per sequence: scene.json, 2 PNG, 2 NPY
+    for name in files:
+        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()
+
+
 def test_bad_layout_is_refused():
     with pytest.raises(ParameterError, match="layout"):
         SceneConfig(layout="forest")

@@ -101,6 +101,9 @@ def test_refusals(tiny_synthetic_dataset, tmp_path):
         load_config(None, {"epochs": "many", "synthetic_data": "x"})
     with pytest.raises(ParameterError, match="real_data, synthetic_data"):
         load_config(None, {})
+    # --set val_data=null switches an optional path off (it is no file named "null")
+    assert load_config(None, {"synthetic_data": "x", "val_data": "null"}).val_data is None
+    assert load_config(None, {"synthetic_data": "x", "val_data": "null.d"}).val_data == "null.d"
 
 
 def test_alternates_real_and_synthetic(tiny_synthetic_dataset, tmp_path):
@@ -148,8 +151,10 @@ def test_models_command_lists_counts():
     assert "metrics:" in result.output and "training_data:" in result.output
 
 
-def test_torchrun_two_processes(tiny_synthetic_dataset, tmp_path):
-    """Multi-process training through torchrun (gloo on the CPU), as on a multi-GPU machine."""
+@pytest.mark.parametrize("as_frames", [False, True])
+def test_torchrun_two_processes(tiny_synthetic_dataset, tmp_path, as_frames):
+    """Multi-process training through torchrun (gloo on the CPU), as on a multi-GPU machine;
+    single frames (sRDPD+) leave the recurrent convolution unused, which DDP must accept."""
     import os
     import subprocess
     import sys
@@ -162,6 +167,8 @@ def test_torchrun_two_processes(tiny_synthetic_dataset, tmp_path):
         "--set", "width=0.125", "--set", "patch_size=32", "--set", "sequence_frames=2",
         "--set", "epochs=1", "--set", "iterations_per_epoch=2", "--set", "workers=0",
         "--set", "tensorboard=false", "--set", "threads=1",
+        "--set", f"synthetic_as_frames={str(as_frames).lower()}",
+        "--set", "device=cpu",  # two processes on gloo also where one GPU is present
     ]
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     done = subprocess.run(command, capture_output=True, text=True, timeout=300, env=env)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import functools
 import json
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -283,33 +285,52 @@ def _check_or_write_description(root: Path, settings: dict) -> None:
 
 def write_scene_folder(
     output: str | Path, sequences: int, config: SceneConfig, *, seed: int = 0,
-    progress: bool = True,
+    progress: bool = True, workers: int = 1,
 ) -> list[Path]:
     """Write procedural sequences as an RGB-D folder: ``seq_NNN/rgb/*.png`` (8-bit),
     ``seq_NNN/depth/*.npy`` (float32 metres) and, for the "photo" layout, ``seq_NNN/scene.json``
-    with the focus distance (read by defocus profiles). Sequence k uses seed ``(seed, k)``; files
-    are written atomically and existing complete sequences are kept."""
+    with the focus distance (read by defocus profiles). Sequence k uses seed ``(seed, k)``, so the
+    folder is the same whatever ``workers`` (parallel processes); files are written atomically
+    and existing complete sequences are kept."""
     from tqdm import tqdm
 
+    check_range("workers", workers, low=1)
+    root = Path(output)
+    _check_or_write_description(root, {"config": asdict(config), "seed": seed})
+    folders = [root / f"seq_{k:03d}" for k in range(sequences)]
+    names = [f"frame_{t:04d}" for t in range(config.frames)]
+    missing = [k for k, folder in enumerate(folders) if not all(
+        (folder / "depth" / f"{n}.npy").is_file() and (folder / "rgb" / f"{n}.png").is_file()
+        for n in names)]
+    bar = tqdm(total=sequences, initial=sequences - len(missing), desc="rendering scenes",
+               unit="seq", disable=not progress)
+    with bar:
+        if workers == 1:
+            for k in missing:
+                _write_sequence(folders[k], k, config, seed)
+                bar.update()
+        else:
+            # spawned, not forked (as in synthesis.dataset): forked OpenCV thread pools can hang
+            context = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+                futures = [pool.submit(_write_sequence, folders[k], k, config, seed)
+                           for k in missing]
+                for future in as_completed(futures):
+                    future.result()
+                    bar.update()
+    return folders
+
+
+def _write_sequence(folder: Path, k: int, config: SceneConfig, seed: int) -> None:
+    """Render sequence ``k`` of the folder (seed ``(seed, k)``) and write its files."""
     from dualpixel.io.atomic import atomic_path
     from dualpixel.io.images import save_npy, write_png
 
-    root = Path(output)
-    _check_or_write_description(root, {"config": asdict(config), "seed": seed})
-    folders = []
-    for k in tqdm(range(sequences), desc="rendering scenes", unit="seq", disable=not progress):
-        folder = root / f"seq_{k:03d}"
-        folders.append(folder)
-        names = [f"frame_{t:04d}" for t in range(config.frames)]
-        if all((folder / "depth" / f"{n}.npy").is_file() and (folder / "rgb" / f"{n}.png")
-               .is_file() for n in names):
-            continue
-        sequence_seed = int(np.random.SeedSequence((seed, k)).generate_state(1)[0])
-        frames, focus = render_scene(sequence_seed, config)
-        if focus is not None:
-            with atomic_path(folder / "scene.json") as tmp:
-                tmp.write_text(json.dumps({"focus_distance": focus, "layout": config.layout}))
-        for name, (rgb, depth) in zip(names, frames):
-            write_png(folder / "rgb" / f"{name}.png", rgb, bit_depth=8)
-            save_npy(folder / "depth" / f"{name}.npy", depth)
-    return folders
+    sequence_seed = int(np.random.SeedSequence((seed, k)).generate_state(1)[0])
+    frames, focus = render_scene(sequence_seed, config)
+    if focus is not None:
+        with atomic_path(folder / "scene.json") as tmp:
+            tmp.write_text(json.dumps({"focus_distance": focus, "layout": config.layout}))
+    for t, (rgb, depth) in enumerate(frames):
+        write_png(folder / "rgb" / f"frame_{t:04d}.png", rgb, bit_depth=8)
+        save_npy(folder / "depth" / f"frame_{t:04d}.npy", depth)

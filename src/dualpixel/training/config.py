@@ -106,6 +106,8 @@ def _coerce(name: str, annotation: Any, value: Any) -> Any:
     """Check (and for strings from the command line, parse) one value against its annotation."""
     hint = typing.get_type_hints(TrainConfig)[name]
     options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+    if isinstance(value, str) and type(None) in options and value.lower() in ("null", "none"):
+        return None  # --set val_data=null: an optional path switched off, not a file "null"
     if isinstance(value, str) and str not in options:
         value = yaml.safe_load(value)
         if isinstance(value, str) and float in options:  # YAML 1.1 reads "5e-4" as a string

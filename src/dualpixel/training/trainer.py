@@ -180,14 +180,21 @@ def _check_resumable(output: Path, config: TrainConfig) -> None:
 
 
 def _setup_distributed(config: TrainConfig) -> tuple[int, int, torch.device]:
-    world = int(os.environ.get("WORLD_SIZE", "1"))
+    """Rank, world size and device; a process group (NCCL on CUDA, else Gloo) whenever torchrun
+    launched us (it sets ``WORLD_SIZE``), one process included, so that path runs on one GPU."""
     device = resolve_device(config.device)
-    if world == 1:
+    if "WORLD_SIZE" not in os.environ:
         return 0, 1, device
+    local_rank = int(os.environ.get("LOCAL_RANK", "0"))
+    if device.type == "cuda" and local_rank >= torch.cuda.device_count():
+        raise ParameterError(
+            f"torchrun started process {local_rank} on this node but it has "
+            f"{torch.cuda.device_count()} GPU(s): give --nproc-per-node at most that, or "
+            "--set device=cpu")
     if not dist.is_initialized():
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
     if device.type == "cuda":
-        device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
+        device = torch.device("cuda", local_rank)
         torch.cuda.set_device(device)
     return dist.get_rank(), dist.get_world_size(), device
 
@@ -218,16 +225,19 @@ class Trainer:
         self.check_folder()
         self.build()
         self.restore() if self.resume else self.start()
-        if self.world > 1:
+        if dist.is_initialized():
+            # A recurrent model skips its recurrent convolution on a sequence's first frame (zero
+            # state), so single-frame batches (real pairs, sRDPD+) leave those weights unused.
             self.model = DistributedDataParallel(
-                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
+                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None,
+                find_unused_parameters=self.net.spec.recurrent)
         self.writer = _summary_writer(self.output, self.config) if self.main else None
         for epoch in range(self.start_epoch, self.config.epochs):
             record = self.train_epoch(epoch)
             if self.main:
                 self.validate_epoch(epoch, record)
                 self.checkpoint(epoch, record)
-            if self.world > 1:
+            if dist.is_initialized():
                 dist.barrier()
         if self.writer is not None:
             self.writer.close()
