@@ -95,17 +95,23 @@ class DeblurLoss(nn.Module):
         self.lambda_x, self.lambda_y = lambda_x, lambda_y
         self.reduction = reduction
 
+    def combine(
+        self, mse: torch.Tensor, edge_x: torch.Tensor, edge_y: torch.Tensor
+    ) -> torch.Tensor:
+        """Eq. 16 from its terms (batch means, or per image for ``reduction="log"``)."""
+        return mse + self.lambda_x * edge_x + self.lambda_y * edge_y
+
     def forward(
         self, output: torch.Tensor, target: torch.Tensor
     ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
         if self.reduction == "mean":
             mse = F.mse_loss(output, target)
             edge_x, edge_y = self.edge(output, target)
-            total = mse + self.lambda_x * edge_x + self.lambda_y * edge_y
+            total = self.combine(mse, edge_x, edge_y)
         else:
             mse = (output - target).square().flatten(-3).mean(-1).flatten()  # (N,)
             edge_x, edge_y = self.edge(output, target, per_image=True)
-            per_image = mse + self.lambda_x * edge_x + self.lambda_y * edge_y
+            per_image = self.combine(mse, edge_x, edge_y)
             total = 10.0 * torch.log10(per_image + LOG_EPS).mean()
             mse, edge_x, edge_y = mse.mean(), edge_x.mean(), edge_y.mean()
         return total, {"mse": mse.detach(), "edge_x": edge_x.detach(), "edge_y": edge_y.detach()}
