@@ -11,7 +11,8 @@ One iteration = forward, Eq. 16 loss, backward and an Adam step on 8 random 128x
 On CUDA (``--device cuda``, what ``dualpixel train`` does there) two more cases of ``skip``:
 
 - ``bf16``: bfloat16 autocast (config ``amp``);
-- ``bf16-cl``: bfloat16 autocast and channels-last weights and inputs (config ``channels_last``).
+- ``bf16-cl``: bfloat16 autocast and channels-last weights (config ``channels_last``, as the
+  trainer does).
 
 Prints each case and the ratios to ``zero-state``; compare figures only within one run.
 
@@ -35,8 +36,7 @@ def seconds_per_iteration(
 ) -> float:
     torch.manual_seed(0)
     model = build_model("rdpd", width=width, lstm_dropout=0.0, residual=True).to(device)
-    channels_last = case == "bf16-cl"
-    if channels_last:
+    if case == "bf16-cl":
         model = model.to(memory_format=torch.channels_last)
     optimizer = torch.optim.Adam(model.parameters(), lr=1e-4)
     criterion = DeblurLoss(reduction="log" if case == "log-loss" else "mean").to(device)

@@ -24,14 +24,10 @@ configuration is refused.
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
-from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
 import torch
 from tqdm import tqdm
@@ -51,6 +47,7 @@ from dualpixel.optics.thin_lens import (
     DefocusProfile,
     ThinLensCamera,
 )
+from dualpixel.parallel import completed
 from dualpixel.synthesis.frame import SequenceRecipe, draw_recipe, synthesize_frame
 from dualpixel.synthesis.inputs import (
     InputFormat,
@@ -220,12 +217,6 @@ def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
     }
 
 
-def _worker(args: tuple) -> dict:
-    torch.set_num_threads(1)
-    cv2.setNumThreads(1)  # the fast renderer's filter2D: one thread per worker process
-    return run_job(*args)
-
-
 def _check_shard(shard: tuple[int, int]) -> tuple[int, int]:
     index, count = (int(v) for v in shard)
     if count < 1 or not 0 <= index < count:
@@ -340,21 +331,6 @@ def _write_json(path: Path, data: dict) -> None:
         tmp.write_text(json.dumps(data, indent=2) + "\n")
 
 
-def _completed(jobs: list[FrameJob], root: Path, fmt: InputFormat, config: SynthConfig,
-               workers: int, device: str) -> Iterator[dict]:
-    if workers <= 1:
-        for job in jobs:
-            yield run_job(job, root, fmt, config, device)
-        return
-    # spawned, not forked: a fork copies OpenCV's and torch's thread pools in whatever state the
-    # parent left them, and the children can hang on their locks (seen with filter2D)
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        futures = [pool.submit(_worker, (job, root, fmt, config, device)) for job in jobs]
-        for future in as_completed(futures):
-            yield future.result()
-
-
 def synthesize_dataset(
     input_dir: str | Path,
     fmt: InputFormat,
@@ -411,7 +387,8 @@ def synthesize_dataset(
     bar = tqdm(total=len(jobs), initial=already, desc="synthesising frames", unit="frame",
                disable=not progress)
     with open(manifest_path, "a", encoding="utf-8") as manifest:
-        for record in _completed(pending, root, fmt, config, workers, device):
+        jobs_args = [(job, root, fmt, config, device) for job in pending]
+        for record in completed(run_job, jobs_args, workers):
             manifest.write(json.dumps(record, sort_keys=True) + "\n")
             manifest.flush()
             os.fsync(manifest.fileno())

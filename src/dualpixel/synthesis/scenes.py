@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import functools
 import json
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -21,6 +19,7 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import ParameterError, check_range
+from dualpixel.parallel import completed
 from dualpixel.synthesis.textures import dead_leaves, load_photograph, random_texture
 
 __all__ = ["SCENE_LAYOUTS", "SceneConfig", "render_scene_sequence", "write_scene_folder"]
@@ -299,30 +298,20 @@ def write_scene_folder(
     _check_or_write_description(root, {"config": asdict(config), "seed": seed})
     folders = [root / f"seq_{k:03d}" for k in range(sequences)]
     names = [f"frame_{t:04d}" for t in range(config.frames)]
-    missing = [k for k, folder in enumerate(folders) if not all(
+    missing = [(folder, k, names, config, seed) for k, folder in enumerate(folders) if not all(
         (folder / "depth" / f"{n}.npy").is_file() and (folder / "rgb" / f"{n}.png").is_file()
         for n in names)]
-    bar = tqdm(total=sequences, initial=sequences - len(missing), desc="rendering scenes",
-               unit="seq", disable=not progress)
-    with bar:
-        if workers == 1:
-            for k in missing:
-                _write_sequence(folders[k], k, config, seed)
-                bar.update()
-        else:
-            # spawned, not forked (as in synthesis.dataset): forked OpenCV thread pools can hang
-            context = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-                futures = [pool.submit(_write_sequence, folders[k], k, config, seed)
-                           for k in missing]
-                for future in as_completed(futures):
-                    future.result()
-                    bar.update()
+    with tqdm(total=sequences, initial=sequences - len(missing), desc="rendering scenes",
+              unit="seq", disable=not progress) as bar:
+        for _ in completed(_write_sequence, missing, workers):
+            bar.update()
     return folders
 
 
-def _write_sequence(folder: Path, k: int, config: SceneConfig, seed: int) -> None:
-    """Render sequence ``k`` of the folder (seed ``(seed, k)``) and write its files."""
+def _write_sequence(folder: Path, k: int, names: list[str], config: SceneConfig,
+                    seed: int) -> None:
+    """Render sequence ``k`` of the folder (seed ``(seed, k)``) and write its frames as
+    ``names``."""
     from dualpixel.io.atomic import atomic_path
     from dualpixel.io.images import save_npy, write_png
 
@@ -331,6 +320,6 @@ def _write_sequence(folder: Path, k: int, config: SceneConfig, seed: int) -> Non
     if focus is not None:
         with atomic_path(folder / "scene.json") as tmp:
             tmp.write_text(json.dumps({"focus_distance": focus, "layout": config.layout}))
-    for t, (rgb, depth) in enumerate(frames):
-        write_png(folder / "rgb" / f"frame_{t:04d}.png", rgb, bit_depth=8)
-        save_npy(folder / "depth" / f"frame_{t:04d}.npy", depth)
+    for name, (rgb, depth) in zip(names, frames):
+        write_png(folder / "rgb" / f"{name}.png", rgb, bit_depth=8)
+        save_npy(folder / "depth" / f"{name}.npy", depth)
