@@ -101,8 +101,9 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     """Synthesise a DP frame from an all-in-focus image and its depth (metres, ``(H, W)``).
 
     ``camera``: a preset ``set0``..``set4`` or a defocus profile such as ``dslr-840`` (focused at
-    the depth map's 30th percentile). Returns ``left``, ``right``, ``combined``, ``target`` in the
-    layout of ``rgb`` and ``defocus`` (signed CoC radius, px) as ``(H, W)``.
+    the depth map's 30th percentile, :func:`~dualpixel.optics.thin_lens.focus_from_depth`).
+    Returns ``left``, ``right``, ``combined``, ``target`` in the layout of ``rgb`` and
+    ``defocus`` (signed CoC radius, px) as ``(H, W)``.
 
     >>> frame = synthesize(np.full((24, 32, 3), 0.5), np.full((24, 32), 3.0), camera="set0")
     >>> sorted(frame), frame["left"].shape
@@ -111,7 +112,7 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     from dualpixel.device import resolve_device
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.optics.psf_bank import PSF_BANKS
-    from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES
+    from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES, focus_from_depth
     from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
 
     images, layout = _to_hwc(rgb, "rgb")
@@ -126,7 +127,7 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
     if camera in DEFOCUS_PROFILES:
-        focus = float(np.percentile(depth_map, 30))
+        focus = focus_from_depth(depth_map)
         lens = DEFOCUS_PROFILES[camera].camera(np.random.default_rng(seed), focus,
                                                depth_map.shape[1])
     elif camera in CAMERA_PRESETS:

@@ -73,13 +73,13 @@ def _synthetic_frames(rgbd: list[tuple[np.ndarray, np.ndarray]], camera: str, se
                       bar: tqdm, focus_distance: float | None = None):
     """The frames and the :class:`~dualpixel.synthesis.frame.SequenceRecipe` they used."""
     from dualpixel.optics.psf_bank import PIXEL4_PSF_BANK
-    from dualpixel.optics.thin_lens import DEFOCUS_PROFILES
+    from dualpixel.optics.thin_lens import DEFOCUS_PROFILES, focus_from_depth
     from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
 
     lens = camera
     if camera in DEFOCUS_PROFILES:
         rng = np.random.default_rng(seed)
-        focus = focus_distance or float(np.percentile(rgbd[0][1], 20))
+        focus = focus_distance or focus_from_depth(rgbd[0][1])
         lens = DEFOCUS_PROFILES[camera].camera(rng, focus, rgbd[0][1].shape[1])
     recipe = draw_recipe(seed, lens, noise_sigmas=(0.01,), bank=PIXEL4_PSF_BANK,
                          noise_model="poisson-gaussian")

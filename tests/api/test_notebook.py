@@ -22,6 +22,9 @@ def test_synthesise_deblur_and_score_with_numpy():
     frame = dualpixel.synthesize(rgb, depth, camera="dslr-840", seed=3)
     assert frame["left"].shape == rgb.shape and isinstance(frame["left"], np.ndarray)
     assert frame["defocus"].shape == depth.shape
+    # a defocus profile focuses at the depth map's 30th percentile: the near half (2 m) is sharp
+    near = depth == 2.0
+    assert np.abs(frame["defocus"][near]).max() < 0.05 < np.abs(frame["defocus"][~near]).min()
     model = dualpixel.load_model("rdpd-light")  # by name, from the package
     sharp = dualpixel.deblur(frame["left"], frame["right"], model=model, device="cpu")
     assert sharp.shape == rgb.shape and sharp.dtype == np.float32

@@ -3,7 +3,12 @@ import pytest
 import torch
 
 from dualpixel.errors import ParameterError
-from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
+from dualpixel.optics.thin_lens import (
+    CAMERA_PRESETS,
+    ThinLensCamera,
+    coc_radius,
+    focus_from_depth,
+)
 
 
 def test_eq1_by_hand():
@@ -53,3 +58,11 @@ def test_bad_depth(value, message):
     depth[1, 2] = value
     with pytest.raises(ParameterError, match=message):
         coc_radius(depth, CAMERA_PRESETS["set0"])
+
+
+def test_profiles_focus_at_one_depth_percentile():
+    depth = np.linspace(1.0, 11.0, 101)
+    assert focus_from_depth(depth) == pytest.approx(4.0)  # the 30th percentile by default
+    assert focus_from_depth(depth, 50) == pytest.approx(6.0)
+    with pytest.raises(ParameterError, match="percentile must be in"):
+        focus_from_depth(depth, 120)

@@ -27,6 +27,7 @@ __all__ = [
     "DefocusProfile",
     "ThinLensCamera",
     "coc_radius",
+    "focus_from_depth",
     "validate_depth",
 ]
 
@@ -192,6 +193,22 @@ class DefocusProfile:
             max_coc_radius=self.max_coc_radius * scale,
             name=self.name,
         )
+
+
+#: Where a defocus profile focuses when the scene does not say (depth percentile): the middle of
+#: the 10..50 that dataset synthesis draws per sequence (ours; the paper's sets fix the focus).
+FOCUS_PERCENTILE = 30.0
+
+
+def focus_from_depth(depth: np.ndarray, percentile: float = FOCUS_PERCENTILE) -> float:
+    """Focus distance (m) for a defocus profile: the ``percentile`` of a depth map (m, any
+    shape), so that the nearer part of the scene is sharp and what lies behind it blurs.
+
+    >>> focus_from_depth(np.array([1.0, 2.0, 3.0, 4.0, 5.0]), 50)
+    3.0
+    """
+    check_range("percentile", percentile, 0.0, 100.0)
+    return float(np.percentile(depth, percentile))
 
 
 #: Defocus profiles. "dslr-840": a full-frame DSLR with a fast lens at a half-resolution DPDD frame

@@ -46,6 +46,7 @@ from dualpixel.optics.thin_lens import (
     DEFOCUS_PROFILES,
     DefocusProfile,
     ThinLensCamera,
+    focus_from_depth,
 )
 from dualpixel.parallel import completed
 from dualpixel.synthesis.frame import SequenceRecipe, draw_recipe, synthesize_frame
@@ -152,7 +153,7 @@ def _profile_camera(
                 scene_file, "expected JSON with a number 'focus_distance'"
             ) from None
     if focus is None:
-        focus = float(np.percentile(depth, rng.uniform(10, 50)))
+        focus = focus_from_depth(depth, rng.uniform(10, 50))
     return profile.camera(rng, focus, depth.shape[1])
 
 
