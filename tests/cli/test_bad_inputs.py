@@ -236,3 +236,15 @@ def test_quiet_silences_progress_bars(tmp_path):
                             str(tmp_path / "b")], capture_output=True, text=True, check=True)
     assert "rendering scenes" in loud.stderr
     assert "rendering scenes" not in quiet.stderr and "wrote 1 sequences" in quiet.stdout
+
+
+def test_eval_names_a_defocus_map_of_the_wrong_size(files, tmp_path, tiny_synthetic_dataset):
+    import shutil
+
+    copy = tmp_path / "ds"
+    shutil.copytree(tiny_synthetic_dataset, copy)
+    bad = sorted((copy / "train_c" / "defocus").rglob("*.npy"))[0]
+    np.save(bad, np.zeros((5, 5), np.float32))
+    assert_clear(invoke("eval", "--dataset", copy, "--split", "train", "--checkpoint",
+                        files / "tiny.safetensors", "--output", tmp_path / "r", "--no-niqe"),
+                 1, bad.name, "defocus map is (5, 5)")

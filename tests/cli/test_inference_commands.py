@@ -118,6 +118,14 @@ def test_eval_runs_the_model_on_sequences(checkpoint, tiny_synthetic_dataset, tm
     # the residual model starts as the identity: its output scores like the input
     assert summary["tiny"]["combined"]["psnr"] == pytest.approx(
         summary["input"]["combined"]["psnr"], abs=0.5)
+    # synthetic data has defocus maps: PSNR by blur size, in the summaries and as a figure
+    by_blur = json.loads((tmp_path / "r" / "summary.json").read_text())["by_blur"]
+    assert sum(row["pixel_fraction"] for row in by_blur) == pytest.approx(1.0)
+    assert {"input", "tiny"} == set(by_blur[0]["psnr"])
+    for method in ("input", "tiny"):
+        assert sum(row["error_share"][method] for row in by_blur) == pytest.approx(1.0)
+    assert "By true |CoC| radius" in result.output
+    assert (tmp_path / "r" / "by_blur.png").stat().st_size > 10_000
 
 
 def test_eval_prediction_folders_and_niqe_commands(shared_dir, tmp_path):

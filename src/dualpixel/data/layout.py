@@ -36,12 +36,14 @@ __all__ = [
 
 @dataclass(frozen=True)
 class DPFramePaths:
-    """The files of one DP frame; ``target`` and ``combined`` may be absent (inference)."""
+    """The files of one DP frame; ``target`` and ``combined`` may be absent (inference),
+    ``defocus`` (signed CoC radius map, ``.npy``) is there for synthetic data only."""
 
     left: Path
     right: Path
     combined: Path | None = None
     target: Path | None = None
+    defocus: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -92,7 +94,8 @@ def _check_sizes(frames: list[DPFramePaths]) -> tuple[int, int]:
 
 
 def _frames(
-    left_dir: Path, right_dir: Path, combined_dir: Path, target_dir: Path | None
+    left_dir: Path, right_dir: Path, combined_dir: Path, target_dir: Path | None,
+    defocus_dir: Path | None = None,
 ) -> list[DPFramePaths]:
     lefts = image_files(left_dir)
     if not lefts:
@@ -100,13 +103,16 @@ def _frames(
     rights = image_files(right_dir)
     combined = image_files(combined_dir) if combined_dir.is_dir() else {}
     targets = image_files(target_dir) if target_dir is not None and target_dir.is_dir() else {}
+    defocus = (list_files(defocus_dir, (".npy",))
+               if defocus_dir is not None and defocus_dir.is_dir() else {})
     frames = []
     for stem, left in lefts.items():
         if stem not in rights:
             raise InputFileError(right_dir, f"right view of {left.name} is missing")
         if target_dir is not None and stem not in targets:
             raise InputFileError(target_dir, f"target of {left.name} is missing")
-        frames.append(DPFramePaths(left, rights[stem], combined.get(stem), targets.get(stem)))
+        frames.append(DPFramePaths(left, rights[stem], combined.get(stem), targets.get(stem),
+                                   defocus.get(stem)))
     return frames
 
 
@@ -139,8 +145,9 @@ def discover_dp_dataset(
     root = Path(root)
     if not allow_incomplete:
         _check_finished(root / "dataset.json")
-    left_root, right_root, combined_root, target_root = (
-        role_folder(root, split, role) for role in ("left", "right", "combined", "target"))
+    left_root, right_root, combined_root, target_root, defocus_root = (
+        role_folder(root, split, role)
+        for role in ("left", "right", "combined", "target", "defocus"))
     for folder in (left_root, right_root) + ((target_root,) if require_target else ()):
         if not folder.is_dir():
             raise InputFileError(folder, "folder missing (expected the DPDD layout)")
@@ -153,11 +160,11 @@ def discover_dp_dataset(
         for folder in sequence_dirs:
             frames = _frames(
                 folder, right_root / folder.name, combined_root / folder.name,
-                target / folder.name if target else None,
+                target / folder.name if target else None, defocus_root / folder.name,
             )
             sequences.append(DPSequence(folder.name, tuple(frames), *_check_sizes(frames)))
         return sequences
-    frames = _frames(left_root, right_root, combined_root, target)
+    frames = _frames(left_root, right_root, combined_root, target, defocus_root)
     return [DPSequence(f.left.stem, (f,), *_check_sizes([f])) for f in frames]
 
 

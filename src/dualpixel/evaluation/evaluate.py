@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from dualpixel.data.layout import DPSequence
 from dualpixel.errors import InputFileError
+from dualpixel.evaluation.blur_breakdown import BlurBreakdown, read_defocus
 from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.evaluation.niqe import NIQEModel, niqe
 from dualpixel.io.atomic import atomic_path
@@ -41,7 +42,8 @@ __all__ = [
 
 @dataclass
 class EvalExample:
-    """One image to score: its name, sequence, views, target and other methods' outputs."""
+    """One image to score: its name, sequence, views, target, other methods' outputs and, for
+    synthetic data, its defocus map (see :mod:`dualpixel.evaluation.blur_breakdown`)."""
 
     name: str
     sequence: str
@@ -50,6 +52,7 @@ class EvalExample:
     target: Path
     combined: Path | None = None
     others: dict[str, Path] = field(default_factory=dict)
+    defocus: Path | None = None
 
 
 @dataclass
@@ -85,7 +88,7 @@ def examples_from_sequences(
                     raise InputFileError(folder, f"no output of {method!r} for {name}")
                 extra[method] = found[0]
             examples.append(EvalExample(name, sequence.name, frame.left, frame.right,
-                                        frame.target, frame.combined, extra))
+                                        frame.target, frame.combined, extra, frame.defocus))
     return examples
 
 
@@ -126,9 +129,11 @@ def evaluate(
     categories: dict[str, str] | None = None,
     save_outputs: Callable[[EvalExample, np.ndarray], None] | None = None,
     progress: bool = True,
+    breakdown: BlurBreakdown | None = None,
 ) -> list[ImageResult]:
     """Score the input, the model (``deblur(left, right)``; ``reset()`` between sequences) and
-    every other method of each example."""
+    every other method of each example; pool errors by blur size into ``breakdown`` where the
+    examples have defocus maps."""
     results, current = [], None
     for example in tqdm(examples, desc="evaluating", unit="image", disable=not progress):
         known = categories or {}
@@ -140,6 +145,7 @@ def evaluate(
         combined = read_rgb(example.combined) if example.combined else (left + right) / 2
         results.append(_score("input", example.name, category, combined, target, niqe_model,
                               None, example.combined or example.left))
+        images = {"input": combined}
         if deblur is not None:
             if example.sequence != current and reset is not None:
                 reset()
@@ -149,11 +155,15 @@ def evaluate(
             seconds = time.perf_counter() - started
             results.append(_score(method, example.name, category, output, target, niqe_model,
                                   seconds, example.left))
+            images[method] = output
             if save_outputs is not None:
                 save_outputs(example, output)
         for other, path in sorted(example.others.items()):
-            results.append(_score(other, example.name, category, read_rgb(path), target,
+            images[other] = read_rgb(path)
+            results.append(_score(other, example.name, category, images[other], target,
                                   niqe_model, None, path))
+        if breakdown is not None and example.defocus is not None:
+            breakdown.add(read_defocus(example.defocus, target.shape[:2]), images, target)
     return results
 
 
@@ -197,10 +207,10 @@ def markdown_table(summary: dict[str, dict[str, dict[str, float]]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict | None = None
-                  ) -> dict:
+def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict | None = None,
+                  breakdown: BlurBreakdown | None = None) -> dict:
     """Write ``per_image.csv``, ``summary.json`` and ``summary.md`` atomically; return the
-    summary."""
+    summary. A filled ``breakdown`` adds PSNR by blur size to both summaries."""
     output = Path(output)
     output.mkdir(parents=True, exist_ok=True)
     buffer = io.StringIO()
@@ -209,10 +219,15 @@ def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict 
     for result in results:
         writer.writerow(asdict(result))
     summary = summarise(results)
+    extra, table = dict(meta or {}), markdown_table(summary)
+    if breakdown is not None and breakdown.images:
+        extra["by_blur"] = breakdown.table()
+        table += "\nBy true |CoC| radius (errors pooled over all images):\n\n" + \
+            breakdown.markdown()
     files = {
         "per_image.csv": buffer.getvalue(),
-        "summary.json": json.dumps({"summary": summary, **(meta or {})}, indent=2),
-        "summary.md": markdown_table(summary),
+        "summary.json": json.dumps({"summary": summary, **extra}, indent=2),
+        "summary.md": table,
     }
     for name, text in files.items():
         with atomic_path(output / name) as tmp:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from dualpixel.data.layout import discover_dp_dataset, discover_scene_folders
 from dualpixel.errors import ParameterError
+from dualpixel.evaluation.blur_breakdown import BlurBreakdown
 from dualpixel.evaluation.evaluate import (
     evaluate,
     evaluate_folders,
@@ -44,7 +45,8 @@ class EvaluationRequest:
 def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "model",
                    meta: dict | None = None) -> Path:
     """Evaluate and write ``summary.json``/``.md``, ``per_image.csv`` and figures into
-    ``request.output`` (checked writable before any work); returns the summary's path.
+    ``request.output`` (checked writable before any work), with PSNR by blur size
+    (``by_blur.png``) where the dataset has defocus maps; returns the summary's path.
     ``deblurrer``: a :class:`~dualpixel.inference.Deblurrer`, or None to score only the input
     and the other methods."""
     output = Path(request.output)
@@ -56,6 +58,7 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
     meta = dict(meta or {})
     meta["niqe_model"] = None if niqe is None else \
         f"{request.niqe_model or 'builtin'} ({niqe.source})"
+    breakdown: BlurBreakdown | None = None
     if request.pred is not None or request.target is not None:
         if request.pred is None or request.target is None or request.dataset is not None:
             raise ParameterError("give --pred and --target together, without --dataset")
@@ -69,6 +72,8 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
         else:
             sequences, others = discover_scene_folders(dataset)
         examples = examples_from_sequences(sequences, others, request.compare or {})
+        if any(example.defocus is not None for example in examples):
+            breakdown = BlurBreakdown()
         drawn: dict[str, object] = {}
 
         def keep(example, image):
@@ -80,9 +85,13 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
         results = evaluate(examples, deblur=deblurrer,
                            reset=deblurrer.reset if deblurrer else None, method=method,
                            niqe_model=niqe, categories=cats,
-                           save_outputs=keep if deblurrer else None)
+                           save_outputs=keep if deblurrer else None, breakdown=breakdown)
         draw_comparisons(examples[: request.figures], drawn, results, method, output)
-    write_reports(results, output, meta=meta)
+    write_reports(results, output, meta=meta, breakdown=breakdown)
+    if breakdown is not None and breakdown.images:
+        from dualpixel.viz.blur_breakdown_figure import render_blur_breakdown
+
+        render_blur_breakdown(breakdown, output / "by_blur.png")
     return output / "summary.md"
 
 
