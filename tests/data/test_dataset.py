@@ -98,6 +98,23 @@ def test_real_pairs_and_flat_patch_rejection(tmp_path):
         assert max(lefts) > 32
 
 
+def test_the_frame_cache_changes_no_patch(tmp_path):
+    # the cache keeps 8-bit frames as uint8: the flat-patch test must read them in [0, 1] too
+    write_dpdd_pairs(tmp_path, "train", ["x"], size=(40, 48))
+    import cv2
+
+    flat = np.full((40, 48, 3), 128, np.uint8)
+    flat[:, 40:] = np.random.default_rng(0).integers(0, 255, (40, 8, 3))
+    cv2.imwrite(str(tmp_path / "train_c/target/x.png"), flat)
+    sequences = discover_dp_dataset(tmp_path, "train")
+    config = PatchConfig(patch_size=8, min_sharpness=0.5, max_tries=50)
+    plain, cached = DPPatchDataset(sequences, config), DPPatchDataset(sequences, config, cache=True)
+    for seed in range(6):
+        first, again = plain[(0, seed)], cached[(0, seed)]
+        for key in first:
+            torch.testing.assert_close(first[key], again[key], rtol=0, atol=0)
+
+
 def test_bad_datasets_are_named(tmp_path):
     with pytest.raises(InputFileError, match=r"train_l/source: folder missing"):
         discover_dp_dataset(tmp_path, "train")
