@@ -166,6 +166,10 @@ def test_train_refusals(files, tmp_path, tiny_synthetic_dataset):
                        SynthConfig(cameras=("set0",), max_layers=8), progress=False, limit=0)
     assert_clear(invoke("train", "--set", f"synthetic_data={unfinished}", "--set", "epochs=1",
                         "--output", tmp_path / "t2"), 1, "dataset.json", "unfinished")
+    settings = [f"synthetic_data={tiny_synthetic_dataset}", "synthetic_as_frames=true",
+                "patch_size=32", f"frame_store={files / 'l.png'}"]
+    assert_clear(invoke("train", *(a for s in settings for a in ("--set", s)), "--output",
+                        tmp_path / "t3"), 1, "l.png", "must be a folder")
 
 
 # --- memory ---------------------------------------------------------------------------------

@@ -12,11 +12,13 @@ left and right views swap; a vertical flip keeps them.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from dualpixel.data.frame_store import FrameStore, compact_frame, expand
 from dualpixel.data.layout import DPFramePaths, DPSequence, read_frame
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
@@ -49,10 +51,13 @@ class DPPatchDataset(Dataset):
     Args:
         sequences: from :func:`dualpixel.data.layout.discover_dp_dataset` (with targets).
         config: patch settings.
-        cache: keep decoded frames in memory (small datasets, CPU training).
+        cache: keep decoded frames in memory, per process (small datasets, CPU training).
+        store: a folder of decoded frames shared by every process through memory maps
+            (:class:`~dualpixel.data.frame_store.FrameStore`; loader workers, GPU training).
     """
 
-    def __init__(self, sequences: list[DPSequence], config: PatchConfig, *, cache: bool = False):
+    def __init__(self, sequences: list[DPSequence], config: PatchConfig, *, cache: bool = False,
+                 store: str | Path | None = None):
         if not sequences:
             raise ParameterError("no sequences to draw patches from")
         self.config = config
@@ -67,18 +72,21 @@ class DPPatchDataset(Dataset):
                     f"({small[0].width}x{small[0].height})"
                 )
         self._cache: dict[DPFramePaths, dict[str, np.ndarray]] | None = {} if cache else None
+        self._store = FrameStore(store) if store is not None else None
 
     def __len__(self) -> int:
         return len(self.sequences)
 
     def _load(self, frame: DPFramePaths) -> dict[str, np.ndarray]:
-        """The frame's images; cached ones are kept as 8-bit integers where that is lossless
-        (4x less memory than float32), and patches are converted back on cropping."""
+        """The frame's images; stored and cached ones are kept as 8-bit integers where that is
+        lossless (4x less memory than float32), and patches are converted back on cropping."""
+        if self._store is not None:
+            return self._store.load(frame)
         if self._cache is not None and frame in self._cache:
             return self._cache[frame]
         images = read_frame(frame)
         if self._cache is not None:
-            self._cache[frame] = {key: _compact(image) for key, image in images.items()}
+            self._cache[frame] = compact_frame(images)
         return images
 
     def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
@@ -100,7 +108,7 @@ class DPPatchDataset(Dataset):
         h, w = (size, size) if size is not None else (height, width)
         item = {
             key: torch.from_numpy(
-                np.stack([_as_float(f[key][top : top + h, left : left + w]) for f in frames])
+                np.stack([expand(f[key][top : top + h, left : left + w]) for f in frames])
             ).permute(0, 3, 1, 2).contiguous()
             for key in frames[0]
         }
@@ -112,16 +120,6 @@ class DPPatchDataset(Dataset):
             if rng.random() < 0.5:
                 item = {k: v.flip(-2) for k, v in item.items()}
         return item
-
-
-def _compact(image: np.ndarray) -> np.ndarray:
-    """``image`` (float32 in [0, 1]) as uint8 if it holds 8-bit values exactly, else unchanged."""
-    as_bytes = np.round(image * 255.0).astype(np.uint8)
-    return as_bytes if np.array_equal(as_bytes.astype(np.float32) / 255.0, image) else image
-
-
-def _as_float(image: np.ndarray) -> np.ndarray:
-    return image.astype(np.float32) / 255.0 if image.dtype == np.uint8 else image
 
 
 def index_seed(index: int) -> int:

@@ -54,7 +54,10 @@ class TrainConfig:
     sequence_frames: int = 4
     min_sharpness: float = 0.0
     flips: bool = True
-    cache: bool = False  # keep decoded images in memory
+    cache: bool = False  # keep decoded images in memory (per process)
+    # A folder of decoded frames, memory-mapped and shared by all loader processes
+    # (dualpixel.data.frame_store; ours): PNGs are decoded once, across epochs and runs.
+    frame_store: str | None = None
     # Optimisation.
     epochs: int = 140
     iterations_per_epoch: int | None = None  # default: one pass over the larger dataset

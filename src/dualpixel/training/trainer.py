@@ -72,10 +72,11 @@ def _data_kinds(config: TrainConfig) -> list[DataKind]:
     kinds = []
     common = dict(patch_size=config.patch_size, flips=config.flips,
                   min_sharpness=config.min_sharpness)
+    stored = dict(cache=config.cache, store=config.frame_store)
     if config.real_data is not None:
         sequences = discover_dp_dataset(config.real_data, config.real_split)
         kinds.append(DataKind(
-            "real", DPPatchDataset(sequences, PatchConfig(frames=1, **common), cache=config.cache),
+            "real", DPPatchDataset(sequences, PatchConfig(frames=1, **common), **stored),
             config.real_batch,
         ))
     if config.synthetic_data is not None:
@@ -85,7 +86,7 @@ def _data_kinds(config: TrainConfig) -> list[DataKind]:
         batch = config.sequence_batch * (config.sequence_frames if as_frames else 1)
         kinds.append(DataKind(
             "synthetic",
-            DPPatchDataset(sequences, PatchConfig(frames=frames, **common), cache=config.cache),
+            DPPatchDataset(sequences, PatchConfig(frames=frames, **common), **stored),
             batch,
         ))
     return kinds
