@@ -72,3 +72,16 @@ def test_a_broken_entry_is_named(tmp_path):
     entry.write_bytes(b"not a numpy file")
     with pytest.raises(InputFileError, match="delete it"):
         DPPatchDataset(sequences, PatchConfig(patch_size=8), store=tmp_path / "s")[(0, 0)]
+
+
+def test_no_file_stays_open_per_frame(tmp_path):
+    import os
+
+    write_dpdd_pairs(tmp_path / "ds", "train", [f"f{k}" for k in range(40)], size=(16, 16))
+    sequences = discover_dp_dataset(tmp_path / "ds", "train")
+    dataset = DPPatchDataset(sequences, PatchConfig(patch_size=8), store=tmp_path / "s")
+    before = len(os.listdir("/proc/self/fd")) if os.path.isdir("/proc/self/fd") else None
+    for index in range(len(sequences)):
+        dataset[(index, index)]
+    if before is not None:  # thousands of frames must not need thousands of descriptors
+        assert len(os.listdir("/proc/self/fd")) < before + 5
