@@ -1,7 +1,8 @@
 """Decoded training frames on disk, memory-mapped: decode each PNG once, share it across processes.
 
-Loader processes each decoding PNGs cost ~40 ms per 840x560 frame on one core. An in-memory cache
-(``DPPatchDataset(cache=True)``) is per process and lost when loader processes end. A store instead
+Decoding a frame's three PNGs (views and target, 840x560) takes ~30 ms on one core, several times
+the rest of a training item. An in-memory cache (``DPPatchDataset(cache=True)``) is per process
+and lost when loader processes end (every epoch in training). A store instead
 writes each frame's views and target once as one ``.npy`` file (``(roles, H, W, 3)``, uint8 where
 that is lossless, else float32) and every process maps it read-only: the operating system's page
 cache holds one copy for all, and cropping a patch touches only its rows.
