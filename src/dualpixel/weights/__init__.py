@@ -33,7 +33,12 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in three stages (the default; improves real Canon DP photographs)",
+    "with DSLR-like blur, in four stages (the default; improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "rdpd-light-stage3", "rdpd-light-stage3.safetensors",
+    "the default's third stage (the default before stage 4; the starting point of that run): "
+    "stage 2 fine-tuned with the per-patch log loss on 128-px crops",
 )
 register_checkpoint(
     "rdpd-light-stage2", "rdpd-light-stage2.safetensors",
