@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from dualpixel.errors import InputFileError
+from dualpixel.io.images import load_npy
 
 __all__ = ["BLUR_BIN_EDGES", "BlurBreakdown", "read_defocus"]
 
@@ -26,11 +27,7 @@ BLUR_BIN_EDGES: tuple[float, ...] = (0.0, 1.0, 2.0, 4.0, 8.0, 16.0, math.inf)
 
 def read_defocus(path: str | Path, shape: tuple[int, int]) -> np.ndarray:
     """A defocus map (signed CoC radius, px) as float32 ``(H, W)``; ``shape`` is the image's."""
-    path = Path(path)
-    try:
-        defocus = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as error:
-        raise InputFileError(path, f"cannot be read as a .npy defocus map ({error})") from None
+    defocus = load_npy(path)
     if defocus.shape != tuple(shape):
         raise InputFileError(path, f"defocus map is {defocus.shape}, the image is {tuple(shape)}")
     return defocus.astype(np.float32, copy=False)

@@ -18,6 +18,7 @@ __all__ = [
     "WRITE_FORMATS",
     "check_image_path",
     "decode_synthia_depth",
+    "load_npy",
     "quantise",
     "read_depth",
     "read_rgb",
@@ -100,12 +101,7 @@ def read_depth(path: str | Path, *, png_scale: float = 0.001) -> np.ndarray:
     stored) or a 16-bit PNG times ``png_scale`` (default: millimetres to metres)."""
     path = Path(path)
     if path.suffix.lower() == ".npy":
-        if not path.is_file():
-            raise InputFileError(path, "file not found")
-        try:
-            depth = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as error:
-            raise InputFileError(path, f"cannot be read as a NumPy array ({error})") from None
+        depth = load_npy(path)
     else:
         depth = _imread(path)
         if path.suffix.lower() == ".png":
@@ -174,6 +170,17 @@ def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16) -> No
     with atomic_path(path) as tmp:
         if not cv2.imwrite(str(tmp), data):
             raise InputFileError(path, "could not be written")
+
+
+def load_npy(path: str | Path) -> np.ndarray:
+    """A ``.npy`` array (no pickles); a missing or unreadable file is an error naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "file not found")
+    try:
+        return np.load(path, allow_pickle=False)
+    except (ValueError, OSError) as error:
+        raise InputFileError(path, f"cannot be read as a NumPy array ({error})") from None
 
 
 def save_npy(path: str | Path, array: np.ndarray) -> None:

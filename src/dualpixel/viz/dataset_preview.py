@@ -12,7 +12,7 @@ import numpy as np
 
 from dualpixel.errors import InputFileError
 from dualpixel.io.dpdd import read_manifest
-from dualpixel.io.images import read_rgb
+from dualpixel.io.images import load_npy, read_rgb
 from dualpixel.viz.figures import save_figure
 
 __all__ = ["render_dataset_preview"]
@@ -40,7 +40,7 @@ def render_dataset_preview(dataset: str | Path, output: str | Path, *, rows: int
             ax = axes[row, col]
             path = root / record["outputs"][name]
             if name == "defocus":
-                coc = np.load(path)
+                coc = load_npy(path)
                 limit = max(float(np.abs(coc).max()), 1e-3)
                 shown = ax.imshow(coc, cmap="coolwarm", vmin=-limit, vmax=limit)
                 fig.colorbar(shown, ax=ax, shrink=0.8, label="CoC (px)")
