@@ -46,13 +46,15 @@ def test_tiny_model_overfits_a_tiny_batch(tiny_synthetic_dataset):
     assert min(losses[-10:]) < losses[0] / 4
 
 
-def test_resume_continues_exactly(tiny_synthetic_dataset, tmp_path):
+@pytest.mark.parametrize("ema_decay", [0.0, 0.9])
+def test_resume_continues_exactly(tiny_synthetic_dataset, tmp_path, ema_decay):
     config = tiny_config(tiny_synthetic_dataset, lr_halve_every=1, val_data=str(
-        tiny_synthetic_dataset), val_split="train", val_limit=1)
+        tiny_synthetic_dataset), val_split="train", val_limit=1, ema_decay=ema_decay)
     straight = train(config, tmp_path / "straight", progress=False)
     first = train(tiny_config(tiny_synthetic_dataset, lr_halve_every=1, epochs=1,
                               val_data=str(tiny_synthetic_dataset), val_split="train",
-                              val_limit=1), tmp_path / "resumed", progress=False)
+                              val_limit=1, ema_decay=ema_decay), tmp_path / "resumed",
+                  progress=False)
     assert first.step == 3
     resumed = train(config, tmp_path / "resumed", resume=True, progress=False)
     assert resumed.step == straight.step == 6
@@ -86,6 +88,30 @@ def test_cosine_schedule_decays_over_the_run_and_resumes(tiny_synthetic_dataset,
         tiny_config(tiny_synthetic_dataset, lr_schedule="linear")
 
 
+def test_weight_average_is_what_a_run_saves(tiny_synthetic_dataset, tmp_path):
+    """With ema_decay, last.safetensors holds the moving average (kept in last_state.pt beside
+    the raw weights), and the average lags the weights as the warm-up formula says."""
+    from dualpixel.training.trainer import _ema_update
+
+    train(tiny_config(tiny_synthetic_dataset, epochs=1, ema_decay=0.99), tmp_path / "run",
+          progress=False)
+    state = torch.load(tmp_path / "run" / "last_state.pt", weights_only=False)
+    saved = load_model(tmp_path / "run" / "last.safetensors").state_dict()
+    raw, average = state["model"], state["ema"]
+    assert int(average["n_averaged"]) == 3  # one update per iteration
+    moved = [k for k in saved if not torch.equal(saved[k], raw[k])]
+    assert moved  # three Adam steps at 1e-3: the average differs from the weights
+    for key in saved:
+        torch.testing.assert_close(saved[key], average[f"module.{key}"], rtol=0, atol=0)
+    # The update: the first average is the weights; then d = min(decay, (1 + n) / (10 + n)).
+    avg, new = [torch.zeros(3), torch.tensor([4])], [torch.ones(3), torch.tensor([7])]
+    _ema_update(0.99)(avg, new, torch.tensor(1))
+    torch.testing.assert_close(avg[0], torch.full((3,), 1 - 2 / 11))
+    assert avg[1].item() == 7  # integer buffers are copied
+    _ema_update(0.99)(avg, [torch.zeros(3), new[1]], torch.tensor(10_000))
+    torch.testing.assert_close(avg[0], torch.full((3,), (1 - 2 / 11) * 0.99))
+
+
 def test_refusals(tiny_synthetic_dataset, tmp_path):
     train(tiny_config(tiny_synthetic_dataset, epochs=1), tmp_path / "run", progress=False)
     with pytest.raises(ParameterError, match="--resume"):
@@ -99,6 +125,11 @@ def test_refusals(tiny_synthetic_dataset, tmp_path):
         load_config(None, {"learnin_rate": 1})
     with pytest.raises(ParameterError, match="epochs"):
         load_config(None, {"epochs": "many", "synthetic_data": "x"})
+    with pytest.raises(ParameterError, match=r"ema_decay must be in \[0, 1\), got 1.0"):
+        load_config(None, {"synthetic_data": "x", "ema_decay": 1.0})
+    with pytest.raises(ParameterError, match="differs from the saved run in ema_decay"):
+        train(tiny_config(tiny_synthetic_dataset, ema_decay=0.9), tmp_path / "run",
+              resume=True, progress=False)
     with pytest.raises(ParameterError, match="real_data, synthetic_data"):
         load_config(None, {})
     # --set val_data=null switches an optional path off (it is no file named "null")

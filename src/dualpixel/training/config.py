@@ -71,6 +71,9 @@ class TrainConfig:
     lambda_y: float = 0.02
     # "mean" (the paper) or "log" (ours: each patch's loss in dB, averaged; see DeblurLoss).
     loss_reduction: str = "mean"
+    # Ours (BasicSR's ``ema_decay``): also keep an exponential moving average of the weights,
+    # which validation, best.safetensors and last.safetensors then hold (0: off, the paper).
+    ema_decay: float = 0.0
     # Running.
     seed: int = 0
     workers: int = 2
@@ -96,6 +99,8 @@ class TrainConfig:
         if self.loss_reduction not in LOSS_REDUCTIONS:
             raise ParameterError(f"loss_reduction must be one of {', '.join(LOSS_REDUCTIONS)}, "
                                  f"got {self.loss_reduction!r}")
+        if not 0.0 <= self.ema_decay < 1.0:
+            raise ParameterError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         if self.learning_rate <= 0:
             raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
         if any(s % 2 == 0 or s < 3 for s in self.edge_sizes):

@@ -7,7 +7,9 @@ sRDPD+ setting). Adam with the learning rate halved every ``lr_halve_every`` epo
 
 A run folder holds ``config.yaml``, ``last.safetensors`` + ``last_state.pt`` (optimiser, schedule,
 RNG states; written atomically after every epoch), ``best.safetensors`` (highest validation PSNR),
-``history.jsonl`` (one line per epoch) and ``tensorboard/``. ``resume=True`` continues after the
+``history.jsonl`` (one line per epoch) and ``tensorboard/``. With ``ema_decay`` (ours), an
+exponential moving average of the weights is kept beside them; validation, ``best`` and ``last``
+then hold the average, and ``last_state.pt`` both. ``resume=True`` continues after the
 last finished epoch and gives the weights an uninterrupted run would have. Batches are drawn from
 seeds derived from ``(seed, epoch, kind)``, so runs are reproducible whatever the number of workers.
 
@@ -30,6 +32,7 @@ import numpy as np
 import torch
 import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
+from torch.optim.swa_utils import AveragedModel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
@@ -260,8 +263,13 @@ class Trainer:
             if self.main:
                 remove_partials(output)  # what a killed checkpoint write left behind
 
+    @property
+    def averaged(self) -> DeblurNet:
+        """The weights that are validated and saved: the moving average if kept, else the net."""
+        return self.net if self.ema is None else self.ema.module
+
     def build(self) -> None:
-        """Data, network, optimiser, schedule and loss."""
+        """Data, network, optimiser, schedule, loss and the weight average."""
         config, device = self.config, self.device
         torch.manual_seed(config.seed)
         random.seed(config.seed)
@@ -284,6 +292,10 @@ class Trainer:
         self.criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x, config.lambda_y,
                                     config.loss_reduction).to(device)
         self.iterations = _iterations_per_epoch(config, self.kinds)
+        self.ema = None
+        if config.ema_decay > 0:  # starts as a copy of the weights at the first update
+            self.ema = AveragedModel(model, multi_avg_fn=_ema_update(config.ema_decay),
+                                     use_buffers=True)
 
     def restore(self) -> None:
         """Continue from ``last_state.pt``, the one atomic unit of a checkpoint (weights,
@@ -294,6 +306,11 @@ class Trainer:
             raise InputFileError(path, "written by an older version without the weights; start "
                                        "anew")
         self.net.load_state_dict({k: v.to(self.device) for k, v in state["model"].items()})
+        if self.ema is not None:
+            if state.get("ema") is None:
+                raise ParameterError(f"{path} was written without ema_decay; resume it with "
+                                     "ema_decay: 0 or start a new run")
+            self.ema.load_state_dict({k: v.to(self.device) for k, v in state["ema"].items()})
         self.optimizer.load_state_dict(state["optimizer"])
         self.scheduler.load_state_dict(state["scheduler"])
         if self.config.lr_schedule == "cosine":  # on the curve of this (maybe longer) run
@@ -304,8 +321,8 @@ class Trainer:
         self.best, self.history = state["best_psnr"], state["history"]
         _set_rng_state(state["rng"])
         if self.main:
-            _write_derived(self.output, self.net, state["epoch"], self.step, self.history,
-                           self.config)
+            _write_derived(self.output, self.averaged, state["epoch"], self.step,
+                           self.history, self.config)
 
     def start(self) -> None:
         """A new run: initial weights (``init_weights``) and the saved config."""
@@ -343,6 +360,8 @@ class Trainer:
             self.optimizer.zero_grad(set_to_none=True)
             loss.backward()
             self.optimizer.step()
+            if self.ema is not None:
+                self.ema.update_parameters(self.net)
             self.step += 1
             values = {"loss": float(loss.detach()), **{k: float(v) for k, v in parts.items()}}
             for key, value in values.items():
@@ -367,26 +386,28 @@ class Trainer:
         never used to choose a checkpoint)."""
         writer, step = self.writer, self.step
         if self.val_sequences:
-            record["val_psnr"], sample = validate(self.net, self.val_sequences, self.device)
+            record["val_psnr"], sample = validate(self.averaged, self.val_sequences,
+                                                  self.device)
             if writer is not None:
                 writer.add_scalar("val/psnr", record["val_psnr"], step)
                 if sample is not None and self.config.log_images:
                     for key, image in sample.items():
                         writer.add_image(f"val/{key}", image, step)
         if self.real_val_sequences:
-            record["real_val_psnr"], _ = validate(self.net, self.real_val_sequences, self.device)
+            record["real_val_psnr"], _ = validate(self.averaged, self.real_val_sequences,
+                                                  self.device)
             if writer is not None:
                 writer.add_scalar("val/real_psnr", record["real_val_psnr"], step)
         if self.val_sequences and (self.best is None or record["val_psnr"] > self.best):
             self.best = record["val_psnr"]
-            save_model(self.output / "best.safetensors", self.net,
+            save_model(self.output / "best.safetensors", self.averaged,
                        extra={"epoch": epoch + 1, "step": step, "val_psnr": self.best})
 
     def checkpoint(self, epoch: int, record: dict[str, Any]) -> None:
         """Append the record and write the checkpoint (state file first, then derived files)."""
         self.history.append(record)
-        _save_state(self.output, self.net, self.optimizer, self.scheduler, epoch, self.step,
-                    self.best, self.history, self.config)
+        _save_state(self.output, self.net, self.ema, self.optimizer, self.scheduler, epoch,
+                    self.step, self.best, self.history, self.config)
         if self.writer is not None:
             self.writer.flush()
         tqdm.write(json.dumps(record)) if self.progress else None
@@ -406,17 +427,41 @@ def _lr_scheduler(optimizer: torch.optim.Optimizer, config: TrainConfig):
     return torch.optim.lr_scheduler.StepLR(optimizer, config.lr_halve_every, gamma=0.5)
 
 
-def _save_state(output: Path, net: DeblurNet, optimizer, scheduler, epoch: int, step: int,
-                best: float | None, history: list[dict[str, Any]], config: TrainConfig) -> None:
-    """One atomic checkpoint file first (weights + optimiser/schedule/RNG state, ``last_state.pt``),
-    then the files derived from it (``last.safetensors``, ``history.jsonl``), each atomic too."""
-    state = {"model": {k: v.detach().cpu().clone() for k, v in net.state_dict().items()},
+def _ema_update(decay: float):
+    """``multi_avg_fn`` of :class:`AveragedModel`: ``avg <- d * avg + (1 - d) * weights`` with
+    ``d = min(decay, (1 + n) / (10 + n))`` after ``n`` updates (TensorFlow's warm-up), so a run
+    from random weights does not average them in for thousands of steps."""
+
+    def update(averaged: list[torch.Tensor], current: list[torch.Tensor],
+               num_averaged: torch.Tensor) -> None:
+        n = float(num_averaged)
+        weight = 1.0 - min(decay, (1.0 + n) / (10.0 + n))
+        for avg, value in zip(averaged, current, strict=True):
+            if avg.is_floating_point():
+                avg.lerp_(value, weight)
+            else:  # integer buffers follow the weights
+                avg.copy_(value)
+
+    return update
+
+
+def _cpu_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
+    return {k: v.detach().cpu().clone() for k, v in module.state_dict().items()}
+
+
+def _save_state(output: Path, net: DeblurNet, ema: AveragedModel | None, optimizer, scheduler,
+                epoch: int, step: int, best: float | None, history: list[dict[str, Any]],
+                config: TrainConfig) -> None:
+    """One atomic checkpoint file first (weights, their average, optimiser/schedule/RNG state:
+    ``last_state.pt``), then the files derived from it (``last.safetensors`` with the averaged
+    weights if kept, ``history.jsonl``), each atomic too."""
+    state = {"model": _cpu_state(net), "ema": None if ema is None else _cpu_state(ema),
              "optimizer": optimizer.state_dict(), "scheduler": scheduler.state_dict(),
              "epoch": epoch, "step": step, "best_psnr": best, "history": history,
              "rng": _rng_state()}
     with atomic_path(output / "last_state.pt") as tmp:
         torch.save(state, tmp)
-    _write_derived(output, net, epoch, step, history, config)
+    _write_derived(output, net if ema is None else ema.module, epoch, step, history, config)
 
 
 def _write_derived(output: Path, net: DeblurNet, epoch: int, step: int,
