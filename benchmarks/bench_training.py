@@ -6,7 +6,8 @@ One iteration = forward, Eq. 16 loss, backward and an Adam step on 8 random 128x
 - ``skip``: the first frame's zero state skips the recurrent convolution (what training runs);
 - ``zero-state``: the same frames with an explicit all-zero state, so the recurrent convolution
   runs (the cost before the skip; the outputs are equal);
-- ``log-loss``: ``skip`` with ``loss_reduction: log`` (per-patch loss in dB).
+- ``log-loss``: ``skip`` with ``loss_reduction: log`` (per-patch loss in dB);
+- ``ema``: ``skip`` plus the moving average of the weights after each step (``ema_decay``).
 
 On CUDA (``--device cuda``, what ``dualpixel train`` does there) two more cases of ``skip``:
 
@@ -28,7 +29,7 @@ import time
 import torch
 
 from dualpixel.models import build_model
-from dualpixel.training import DeblurLoss
+from dualpixel.training import DeblurLoss, weight_average
 
 
 def seconds_per_iteration(
@@ -39,6 +40,7 @@ def seconds_per_iteration(
     if case == "bf16-cl":
         model = model.to(memory_format=torch.channels_last)
     optimizer = torch.optim.Adam(model.parameters(), lr=1e-4)
+    average = weight_average(model, 0.999) if case == "ema" else None
     criterion = DeblurLoss(reduction="log" if case == "log-loss" else "mean").to(device)
     frames = torch.rand(8, 1, model.shape.in_channels, patch, patch, device=device)
     target = torch.rand(8, 1, 3, patch, patch, device=device)
@@ -57,6 +59,8 @@ def seconds_per_iteration(
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
+        if average is not None:
+            average.update_parameters(model)
         if cuda:
             torch.cuda.synchronize()
         if index >= 2:
@@ -76,7 +80,7 @@ def main() -> None:
     device = torch.device(args.device)
     print(f"rdpd width {args.width}, 8 x {args.patch}x{args.patch} frames, {args.device}, "
           f"{args.threads} threads, median of {args.iterations} iterations")
-    cases = ["zero-state", "skip", "log-loss"]
+    cases = ["zero-state", "skip", "log-loss", "ema"]
     if device.type == "cuda":
         cases += ["bf16", "bf16-cl"]
     results = {}

@@ -2,7 +2,7 @@
 
 from dualpixel.training.config import TrainConfig, load_config, save_config
 from dualpixel.training.losses import DeblurLoss, EdgeLoss, sobel_kernels
-from dualpixel.training.trainer import TrainResult, train
+from dualpixel.training.trainer import TrainResult, train, weight_average
 
 __all__ = [
     "DeblurLoss",
@@ -13,4 +13,5 @@ __all__ = [
     "save_config",
     "sobel_kernels",
     "train",
+    "weight_average",
 ]

@@ -48,7 +48,7 @@ from dualpixel.models.unet import DeblurNet
 from dualpixel.training.config import TrainConfig, load_config, save_config
 from dualpixel.training.losses import DeblurLoss
 
-__all__ = ["DataKind", "TrainResult", "Trainer", "resolve_device", "train"]
+__all__ = ["DataKind", "TrainResult", "Trainer", "resolve_device", "train", "weight_average"]
 
 
 @dataclass
@@ -294,8 +294,7 @@ class Trainer:
         self.iterations = _iterations_per_epoch(config, self.kinds)
         self.ema = None
         if config.ema_decay > 0:  # starts as a copy of the weights at the first update
-            self.ema = AveragedModel(model, multi_avg_fn=_ema_update(config.ema_decay),
-                                     use_buffers=True)
+            self.ema = weight_average(model, config.ema_decay)
 
     def restore(self) -> None:
         """Continue from ``last_state.pt``, the one atomic unit of a checkpoint (weights,
@@ -425,6 +424,13 @@ def _lr_scheduler(optimizer: torch.optim.Optimizer, config: TrainConfig):
         return torch.optim.lr_scheduler.LambdaLR(
             optimizer, lambda epoch: _cosine_factor(epoch, epochs))
     return torch.optim.lr_scheduler.StepLR(optimizer, config.lr_halve_every, gamma=0.5)
+
+
+def weight_average(model: torch.nn.Module, decay: float) -> AveragedModel:
+    """An exponential moving average of ``model``'s weights and buffers (``ema_decay``; see
+    :func:`_ema_update`): call ``update_parameters(model)`` after each optimiser step and use
+    ``.module``. The first update copies the weights."""
+    return AveragedModel(model, multi_avg_fn=_ema_update(decay), use_buffers=True)
 
 
 def _ema_update(decay: float):
