@@ -135,3 +135,36 @@ def test_residual_option_starts_at_the_blurred_input(tmp_path):
     assert load_model(tmp_path / "r.safetensors").shape.residual
     with pytest.raises(ParameterError, match="sigmoid"):
         build_model("dpdnet", residual=True)
+
+
+@pytest.mark.parametrize("name", ["rdpd", "dpdnet"])
+def test_reinit_bottleneck_keeps_the_output_and_revives_the_level(name):
+    """Fresh coarsest level, output as if that level's path were cut, and the cut gets gradients."""
+    torch.manual_seed(0)
+    model = build_model(name, width=TINY, lstm_dropout=0.0).eval()
+    x = torch.rand(2, 1, MODELS[name].in_channels, 32, 48)
+    half = model.shape.encoder[-1]
+    cut = build_model(name, width=TINY, lstm_dropout=0.0).eval()
+    cut.load_state_dict(model.state_dict())
+    with torch.no_grad():
+        cut.decoders[0][0].weight[:, half:] = 0
+        expected, _ = cut(x)
+        # Silence the trained level (as if its ReLUs had died): the revived one must be alive.
+        model.bottleneck[0].bias.fill_(-1e3) if name == "rdpd" else None
+    before = {k: v.clone() for k, v in model.state_dict().items()}
+    model.reinit_bottleneck()
+    after = model.state_dict()
+    changed = {k for k in after if not torch.equal(before[k], after[k])}
+    assert changed >= {k for k in after if k.startswith(("bottleneck.", "upconvs.0."))
+                       and k.endswith("weight")}  # (biases start at zero either way)
+    assert not any(k.startswith(("encoders.", "upconvs.1.", "decoders.1.", "head.")) for k in
+                   changed)
+    output, _ = model(x)
+    torch.testing.assert_close(output.detach(), expected, rtol=0, atol=1e-6)
+    captured = {}
+    model.upconvs[0].register_forward_hook(lambda m, i, o: captured.update(up=o))
+    output, _ = model(x)
+    assert (captured["up"] > 0).float().mean() > 0.2  # alive: ReLUs fire
+    output.mean().backward()
+    gradient = model.decoders[0][0].weight.grad[:, half:]
+    assert gradient.abs().sum() > 0

@@ -112,6 +112,25 @@ def test_weight_average_is_what_a_run_saves(tiny_synthetic_dataset, tmp_path):
     torch.testing.assert_close(avg[0], torch.full((3,), (1 - 2 / 11) * 0.99))
 
 
+def test_reinit_bottleneck_applies_to_the_initial_weights(tiny_synthetic_dataset, tmp_path):
+    from dualpixel.models import save_model
+
+    torch.manual_seed(3)
+    start = build_model("rdpd", width=0.125)
+    save_model(tmp_path / "start.safetensors", start)
+    train(tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=1,
+                      learning_rate=1e-12, init_weights=str(tmp_path / "start.safetensors"),
+                      reinit_bottleneck=True), tmp_path / "run", progress=False)
+    after = load_model(tmp_path / "run" / "last.safetensors").state_dict()
+    before = start.state_dict()
+    half = start.shape.encoder[-1]
+    assert after["decoders.0.0.weight"][:, half:].abs().max() < 1e-9  # cut (one 1e-12 step)
+    torch.testing.assert_close(after["decoders.0.0.weight"][:, :half],
+                               before["decoders.0.0.weight"][:, :half])
+    assert not torch.allclose(after["bottleneck.0.weight"], before["bottleneck.0.weight"])
+    torch.testing.assert_close(after["encoders.3.0.weight"], before["encoders.3.0.weight"])
+
+
 def test_refusals(tiny_synthetic_dataset, tmp_path):
     train(tiny_config(tiny_synthetic_dataset, epochs=1), tmp_path / "run", progress=False)
     with pytest.raises(ParameterError, match="--resume"):
@@ -130,6 +149,8 @@ def test_refusals(tiny_synthetic_dataset, tmp_path):
     with pytest.raises(ParameterError, match="differs from the saved run in ema_decay"):
         train(tiny_config(tiny_synthetic_dataset, ema_decay=0.9), tmp_path / "run",
               resume=True, progress=False)
+    with pytest.raises(ParameterError, match="reinit_bottleneck needs init_weights"):
+        load_config(None, {"synthetic_data": "x", "reinit_bottleneck": True})
     with pytest.raises(ParameterError, match="real_data, synthetic_data"):
         load_config(None, {})
     # --set val_data=null switches an optional path off (it is no file named "null")

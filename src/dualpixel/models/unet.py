@@ -138,6 +138,27 @@ class DeblurNet(nn.Module):
         if self.lstm is not None:
             nn.init.kaiming_normal_(self.lstm.input_conv.weight, nonlinearity="relu")
 
+    def reinit_bottleneck(self) -> None:
+        """Give the coarsest level fresh weights without changing what the network computes from
+        it onwards (ours, after ReDo, Sokar et al. 2023, "The Dormant Neuron Phenomenon").
+
+        The bottleneck (conv, ConvLSTM; DPDNet: its two convs) and the first up-convolution get
+        new He-normal weights from the global torch RNG, and the first decoder convolution's
+        weights on the up-convolution's half of its input are zeroed. The output then no longer
+        depends on the coarsest level at all (in our trained models that level had gone dormant:
+        its ReLUs almost never fire, and zeroing it changed the training MSE by < 1 %), and
+        training can bring the revived units back in: their activations are alive, so the zeroed
+        weights get gradients.
+        """
+        fresh = DeblurNet(self.shape)
+        with torch.no_grad():
+            self.bottleneck.load_state_dict(fresh.bottleneck.state_dict())
+            if self.lstm is not None and fresh.lstm is not None:
+                self.lstm.load_state_dict(fresh.lstm.state_dict())
+            self.upconvs[0].load_state_dict(fresh.upconvs[0].state_dict())
+            first = self.decoders[0][0]
+            first.weight[:, self.shape.encoder[-1]:].zero_()  # input: [skip, upconv(x)]
+
     @property
     def recurrent(self) -> bool:
         return self.lstm is not None

@@ -48,6 +48,9 @@ class TrainConfig:
     # ../shared/data/canon-dp-real); never used to choose a checkpoint.
     real_val_data: str | None = None
     init_weights: str | None = None  # start from these weights (same architecture), not at random
+    # Ours: after loading init_weights, fresh weights for the coarsest level, the output unchanged
+    # (DeblurNet.reinit_bottleneck; for a model whose bottleneck went dormant).
+    reinit_bottleneck: bool = False
     patch_size: int = 512
     real_batch: int = 8
     sequence_batch: int = 2
@@ -99,6 +102,9 @@ class TrainConfig:
         if self.loss_reduction not in LOSS_REDUCTIONS:
             raise ParameterError(f"loss_reduction must be one of {', '.join(LOSS_REDUCTIONS)}, "
                                  f"got {self.loss_reduction!r}")
+        if self.reinit_bottleneck and self.init_weights is None:
+            raise ParameterError("reinit_bottleneck needs init_weights (a new network is fresh "
+                                 "everywhere already)")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ParameterError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         if self.learning_rate <= 0:

@@ -327,6 +327,8 @@ class Trainer:
         """A new run: initial weights (``init_weights``) and the saved config."""
         if self.config.init_weights is not None:
             load_weights(self.net, _resolve_weights(self.config.init_weights))
+            if self.config.reinit_bottleneck:
+                self.net.reinit_bottleneck()
         if self.main:
             self.output.mkdir(parents=True, exist_ok=True)
             save_config(self.config, self.output / "config.yaml")
