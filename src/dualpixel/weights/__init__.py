@@ -33,7 +33,12 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in four stages (the default; improves real Canon DP photographs)",
+    "with DSLR-like blur, in five stages (the default; improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "rdpd-light-stage4", "rdpd-light-stage4.safetensors",
+    "the default's fourth stage (the default before stage 5; the starting point of that run): "
+    "stage 3 fine-tuned on 256-px crops",
 )
 register_checkpoint(
     "rdpd-light-stage3", "rdpd-light-stage3.safetensors",
