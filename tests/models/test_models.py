@@ -150,7 +150,8 @@ def test_reinit_bottleneck_keeps_the_output_and_revives_the_level(name):
         cut.decoders[0][0].weight[:, half:] = 0
         expected, _ = cut(x)
         # Silence the trained level (as if its ReLUs had died): the revived one must be alive.
-        model.bottleneck[0].bias.fill_(-1e3) if name == "rdpd" else None
+        if name == "rdpd":
+            model.bottleneck[0].bias.fill_(-1e3)
     before = {k: v.clone() for k, v in model.state_dict().items()}
     model.reinit_bottleneck()
     after = model.state_dict()

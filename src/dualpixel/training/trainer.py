@@ -304,12 +304,12 @@ class Trainer:
         if "model" not in state:
             raise InputFileError(path, "written by an older version without the weights; start "
                                        "anew")
-        self.net.load_state_dict({k: v.to(self.device) for k, v in state["model"].items()})
+        self.net.load_state_dict(state["model"])  # copied onto the parameters' device
         if self.ema is not None:
             if state.get("ema") is None:
                 raise ParameterError(f"{path} was written without ema_decay; resume it with "
                                      "ema_decay: 0 or start a new run")
-            self.ema.load_state_dict({k: v.to(self.device) for k, v in state["ema"].items()})
+            self.ema.load_state_dict(state["ema"])
         self.optimizer.load_state_dict(state["optimizer"])
         self.scheduler.load_state_dict(state["scheduler"])
         if self.config.lr_schedule == "cosine":  # on the curve of this (maybe longer) run
@@ -408,7 +408,8 @@ class Trainer:
         """Append the record and write the checkpoint (state file first, then derived files)."""
         self.history.append(record)
         _save_state(self.output, self.net, self.ema, self.optimizer, self.scheduler, epoch,
-                    self.step, self.best, self.history, self.config)
+                    self.step, self.best, self.history)
+        _write_derived(self.output, self.averaged, epoch, self.step, self.history, self.config)
         if self.writer is not None:
             self.writer.flush()
         tqdm.write(json.dumps(record)) if self.progress else None
@@ -458,18 +459,16 @@ def _cpu_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
 
 
 def _save_state(output: Path, net: DeblurNet, ema: AveragedModel | None, optimizer, scheduler,
-                epoch: int, step: int, best: float | None, history: list[dict[str, Any]],
-                config: TrainConfig) -> None:
-    """One atomic checkpoint file first (weights, their average, optimiser/schedule/RNG state:
-    ``last_state.pt``), then the files derived from it (``last.safetensors`` with the averaged
-    weights if kept, ``history.jsonl``), each atomic too."""
+                epoch: int, step: int, best: float | None,
+                history: list[dict[str, Any]]) -> None:
+    """The one atomic checkpoint file (weights, their average, optimiser/schedule/RNG state:
+    ``last_state.pt``), written before the files derived from it (:func:`_write_derived`)."""
     state = {"model": _cpu_state(net), "ema": None if ema is None else _cpu_state(ema),
              "optimizer": optimizer.state_dict(), "scheduler": scheduler.state_dict(),
              "epoch": epoch, "step": step, "best_psnr": best, "history": history,
              "rng": _rng_state()}
     with atomic_path(output / "last_state.pt") as tmp:
         torch.save(state, tmp)
-    _write_derived(output, net if ema is None else ema.module, epoch, step, history, config)
 
 
 def _write_derived(output: Path, net: DeblurNet, epoch: int, step: int,
