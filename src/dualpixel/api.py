@@ -63,10 +63,13 @@ def load_model(name_or_path: str | Path = "rdpd-light", *, device: str = "cpu"):
 
 
 def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: str = "auto",
-           tile: int | None = None, flips: bool = False) -> np.ndarray | torch.Tensor:
+           tile: int | None = None, flips: bool = False,
+           multiscale: bool = False) -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD). ``model``: a name, a checkpoint path or a loaded network. ``flips``:
     average over the flips that keep DP geometry (self-ensemble, 4x the time; ``Deblurrer``).
+    ``multiscale``: fuse with a pass at half resolution (1.25x the time;
+    :mod:`dualpixel.inference.multiscale`).
 
     >>> out = deblur(np.full((32, 48, 3), 0.5, np.float32), np.full((32, 48, 3), 0.5, np.float32))
     >>> out.shape, out.dtype
@@ -86,7 +89,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
     net = load_model(model, device=str(resolved)) if isinstance(model, (str, Path)) else model
     if right is None and net.spec.views == 2:
         raise ParameterError(f"this model ({net.spec.name}) needs both views; give right")
-    deblurrer = Deblurrer(net, device=resolved, tile=tile, flips=flips)
+    deblurrer = Deblurrer(net, device=resolved, tile=tile, flips=flips,
+                          multiscale=multiscale)
     outputs = []
     for index in range(len(lefts)):
         deblurrer.reset()  # a batch holds independent pairs

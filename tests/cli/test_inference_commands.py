@@ -45,7 +45,7 @@ def test_deblur_pair_keeps_16_bits_and_checks_sizes(checkpoint, tmp_path):
     assert missing.exit_code == 1 and "none.safetensors: checkpoint not found" in missing.output
 
 
-def test_deblur_flips_matches_the_api(tmp_path):
+def test_deblur_flips_and_multiscale_match_the_api(tmp_path):
     import torch
 
     from dualpixel.api import deblur
@@ -59,7 +59,7 @@ def test_deblur_flips_matches_the_api(tmp_path):
     for name in ("l", "r"):
         cv2.imwrite(str(tmp_path / f"{name}.png"), rng.integers(0, 65535, (32, 48, 3), np.uint16))
     outputs = {}
-    for flag in ("", "--flips"):
+    for flag in ("", "--flips", "--multiscale"):
         out = tmp_path / f"out{flag}.png"
         result = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
                      "--output", out, "--checkpoint", checkpoint, "--device", "cpu",
@@ -67,9 +67,10 @@ def test_deblur_flips_matches_the_api(tmp_path):
         assert result.exit_code == 0, result.output
         outputs[flag] = read_rgb(out)
     left, right = read_rgb(tmp_path / "l.png"), read_rgb(tmp_path / "r.png")
-    expected = deblur(left, right, model=checkpoint, device="cpu", flips=True)
-    assert np.abs(outputs["--flips"] - expected).max() <= 1 / 65535 + 1e-6  # 16-bit rounding
-    assert np.abs(outputs["--flips"] - outputs[""]).max() > 1e-3
+    for flag, option in (("--flips", "flips"), ("--multiscale", "multiscale")):
+        expected = deblur(left, right, model=checkpoint, device="cpu", **{option: True})
+        assert np.abs(outputs[flag] - expected).max() <= 1 / 65535 + 1e-6  # 16-bit rounding
+        assert np.abs(outputs[flag] - outputs[""]).max() > 1e-3
 
 
 def test_deblur_sequence_folder_and_dataset(checkpoint, tiny_synthetic_dataset, tmp_path):

@@ -1,8 +1,11 @@
+import cv2
 import numpy as np
 import pytest
 import torch
 
+from dualpixel.errors import ParameterError
 from dualpixel.inference import Deblurrer, TileGrid, deblur_sequence
+from dualpixel.inference.multiscale import fuse_scales, half_resolution
 from dualpixel.io.images import read_rgb
 from dualpixel.models import build_model
 
@@ -157,3 +160,45 @@ def test_flip_ensemble_members_carry_their_own_state(tiny_model):
         for index, (left, right) in enumerate(frames):
             expected[index] += unflip(plain(*flip(left, right))) / 4
     np.testing.assert_allclose(np.stack(got), expected, atol=1e-6)
+
+
+def test_fuse_scales_takes_fine_detail_from_one_and_coarse_structure_from_the_other():
+    height, width = 64, 96
+    ys, xs = np.mgrid[:height, :width].astype(np.float32)
+    checker = 0.5 + 0.1 * ((ys + xs) % 2 * 2 - 1)  # the finest detail there is, mean 0.5
+    ramp = (0.3 + 0.4 * xs / width)[..., None].repeat(3, -1)  # coarse structure only
+    fine = np.repeat(checker[..., None], 3, -1)
+    coarse = cv2.resize(ramp, (width // 2, height // 2), interpolation=cv2.INTER_AREA)
+    fused = fuse_scales(fine, coarse, sigma=3.0)
+    # The fused image's detail is the fine input's; its local mean is the coarse input's ramp.
+    detail = fused - cv2.GaussianBlur(fused, (0, 0), 3.0)
+    np.testing.assert_allclose(detail, fine - cv2.GaussianBlur(fine, (0, 0), 3.0), atol=0.02)
+    local_mean = cv2.blur(fused, (2, 2))[8:-8, 8:-8]  # the checker averages out over 2x2
+    np.testing.assert_allclose(local_mean, cv2.blur(ramp, (2, 2))[8:-8, 8:-8], atol=0.01)
+    # Where the coarse input is the fine one, downsampled, a smooth image comes back unchanged.
+    np.testing.assert_allclose(fuse_scales(ramp, coarse), ramp, atol=2e-3)
+    with pytest.raises(ParameterError, match="sigma must be > 0"):
+        fuse_scales(fine, coarse, sigma=0.0)
+
+
+def test_multiscale_fuses_a_half_resolution_pass_with_its_own_state(tiny_model):
+    rng = np.random.default_rng(6)
+    frames = [[rng.random((64, 96, 3), dtype=np.float32) for _ in range(2)] for _ in range(2)]
+    two_scale = Deblurrer(tiny_model, multiscale=True)
+    fine, coarse = Deblurrer(tiny_model), Deblurrer(tiny_model)  # one sequence per scale
+    for left, right in frames:  # the second frame uses the states carried from the first
+        expected = fuse_scales(fine(left, right),
+                               coarse(half_resolution(left), half_resolution(right)))
+        np.testing.assert_allclose(two_scale(left, right), expected, atol=1e-6)
+    assert np.abs(expected - fine(*frames[0])).max() > 1e-3  # the fusion changed something
+    # With the flips, the output still flips with the input (the scales commute with them).
+    both = Deblurrer(tiny_model, flips=True, multiscale=True)
+    out = both(*frames[0])
+    both.reset()
+    mirrored = both(frames[0][1][:, ::-1], frames[0][0][:, ::-1])
+    np.testing.assert_allclose(mirrored, out[:, ::-1], atol=1e-5)
+    two_scale.reset()
+    with pytest.raises(ParameterError, match="at least 32x32 px, got 40x20"):
+        two_scale(np.zeros((20, 40, 3), np.float32), np.zeros((20, 40, 3), np.float32))
+    with pytest.raises(ParameterError, match="sigma must be > 0"):
+        Deblurrer(tiny_model, multiscale=True, fusion_sigma=-1.0)

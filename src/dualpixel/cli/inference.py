@@ -15,6 +15,10 @@ _OVERLAP_OPTION = click.option("--overlap", type=click.IntRange(0), default=None
 _FLIPS_OPTION = click.option(
     "--flips", is_flag=True,
     help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
+_MULTISCALE_OPTION = click.option(
+    "--multiscale", is_flag=True,
+    help="Also deblur at half resolution and take the coarse structure from there (1.25x the "
+         "time).")
 
 
 def _load(checkpoint: str, device: str):
@@ -43,9 +47,10 @@ def _load(checkpoint: str, device: str):
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--half", is_flag=True, help="float16 on CUDA.")
 @_FLIPS_OPTION
+@_MULTISCALE_OPTION
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: str, output: Path,
            checkpoint: str, tile: int | None, overlap: int | None, device: str,
-           half: bool, flips: bool) -> None:
+           half: bool, flips: bool, multiscale: bool) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder."""
     from tqdm import tqdm
 
@@ -56,7 +61,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: s
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=model.spec.views == 2)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, half=half,
-                          flips=flips)
+                          flips=flips, multiscale=multiscale)
     total = sum(len(sequence) for sequence in jobs)
     for _ in tqdm(run_deblur_jobs(deblurrer, jobs), total=total, desc="deblurring", unit="frame"):
         pass
@@ -102,9 +107,10 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @_OVERLAP_OPTION
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
 @_FLIPS_OPTION
+@_MULTISCALE_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
-                     device, flips) -> None:
+                     device, flips, multiscale) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 
@@ -117,9 +123,11 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         from dualpixel.inference import Deblurrer
 
         model, resolved = _load(checkpoint, device)
-        deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, flips=flips)
-        method = Path(checkpoint).stem + ("+flips" if flips else "")
-        meta = {"checkpoint": str(checkpoint), "flips": flips}
+        deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, flips=flips,
+                              multiscale=multiscale)
+        method = Path(checkpoint).stem + ("+flips" if flips else "") + (
+            "+multiscale" if multiscale else "")
+        meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
     click.echo(f"reports in {output}")

@@ -12,6 +12,10 @@ On CUDA, ``half=True`` runs in float16 autocast and the model uses channels-last
 upside down, and flipped left-right with the views swapped (and both): the flips that keep DP
 geometry, which training augments with (a left-right flip turns the left view's PSF into the
 right's). 4x the time (2x for a single-view model, which has only the vertical flip).
+
+``multiscale=True`` (ours) also runs the network on the views at half resolution and takes the
+output's coarse structure from there (:mod:`dualpixel.inference.multiscale`): 1.25x the time.
+Each scale (and each flip) carries its own recurrent state.
 """
 
 from __future__ import annotations
@@ -24,6 +28,12 @@ import torch
 from dualpixel.data.layout import DPSequence, read_frame
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
+from dualpixel.inference.multiscale import (
+    FUSION_SIGMA,
+    check_fusion_sigma,
+    fuse_scales,
+    half_resolution,
+)
 from dualpixel.inference.tiling import TileGrid, deblur_tiled
 from dualpixel.models.unet import DeblurNet
 
@@ -72,6 +82,8 @@ class Deblurrer:
         overlap: tile overlap in pixels (default: :func:`default_overlap` of the tile).
         half: float16 autocast on CUDA (ignored on the CPU).
         flips: average over the DP-preserving flips (self-ensemble; module docstring).
+        multiscale: fuse with a pass at half resolution (module docstring).
+        fusion_sigma: where the two scales are split (Gaussian std, px at full resolution).
     """
 
     model: DeblurNet
@@ -80,6 +92,8 @@ class Deblurrer:
     overlap: int | None = None
     half: bool = False
     flips: bool = False
+    multiscale: bool = False
+    fusion_sigma: float = FUSION_SIGMA
 
     def __post_init__(self) -> None:
         if self.tile is not None:
@@ -96,15 +110,28 @@ class Deblurrer:
             self._flips.append((True, False))
             if self.model.spec.views == 2:
                 self._flips += [(False, True), (True, True)]
-        self._states: list = [None] * len(self._flips)  # each member carries its own state
+        if self.multiscale:
+            check_fusion_sigma(self.fusion_sigma)
+        self.reset()
 
     def reset(self) -> None:
         """Forget the recurrent state (start of a new sequence)."""
-        self._states = [None] * len(self._flips)
+        # One state per ensemble member and scale.
+        self._states: list = [None] * len(self._flips) * (2 if self.multiscale else 1)
 
     @torch.inference_mode()
     def __call__(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
         """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3)."""
+        if not self.multiscale:
+            return self._ensemble(left, right, first_state=0)
+        small = [None if v is None else half_resolution(v) for v in (left, right)]
+        out = self._ensemble(left, right, first_state=0)
+        coarse = self._ensemble(*small, first_state=len(self._flips))
+        return fuse_scales(out, coarse, self.fusion_sigma)
+
+    def _ensemble(self, left: np.ndarray, right: np.ndarray | None, first_state: int
+                  ) -> np.ndarray:
+        """The mean output over the flips; member ``i`` uses state ``first_state + i``."""
         total = None
         for index, (vertical, horizontal) in enumerate(self._flips):
             views = (left, right)
@@ -112,14 +139,14 @@ class Deblurrer:
                 views = (right[:, ::-1], left[:, ::-1])
             if vertical:
                 views = tuple(None if v is None else v[::-1] for v in views)
-            out = self._run(index, frame_tensor(self.model, *views))
+            out = self._run(first_state + index, frame_tensor(self.model, *views))
             out = out.flip(-2) if vertical else out
             out = out.flip(-1) if horizontal else out
             total = out if total is None else total + out
         return (total[0] / len(self._flips)).permute(1, 2, 0).cpu().numpy()
 
     def _run(self, member: int, x: torch.Tensor) -> torch.Tensor:
-        """One network pass of ensemble member ``member``, carrying its state; float32 output."""
+        """One network pass carrying state ``member`` (flip and scale); float32 output."""
         x = x.to(self.device)
         state = self._states[member] if self.model.temporal else None  # single-frame models
         autocast = self.half and self.device.type == "cuda"
