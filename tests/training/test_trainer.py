@@ -88,6 +88,47 @@ def test_cosine_schedule_decays_over_the_run_and_resumes(tiny_synthetic_dataset,
         tiny_config(tiny_synthetic_dataset, lr_schedule="linear")
 
 
+def test_coarsest_level_learns_at_its_own_rate(tiny_synthetic_dataset, tmp_path):
+    """coarsest_lr_scale: two Adam groups on one schedule; the coarsest level's weights move
+    `scale` times as far in the first Adam step (whose size is the rate, whatever the gradient);
+    a resume keeps both rates on the curve."""
+    from dualpixel.models import save_model
+    from dualpixel.training.trainer import Trainer
+
+    torch.manual_seed(5)
+    start = build_model("rdpd", width=0.125, lstm_dropout=0.0)
+    save_model(tmp_path / "start.safetensors", start)
+    config = tiny_config(tiny_synthetic_dataset, epochs=2, iterations_per_epoch=1,
+                         lr_schedule="cosine", coarsest_lr_scale=4.0, lstm_dropout=0.0,
+                         init_weights=str(tmp_path / "start.safetensors"))
+    trainer = Trainer(config, tmp_path / "run", progress=False)
+    trainer.run()
+    groups = trainer.optimizer.param_groups
+    assert [g["initial_lr"] for g in groups] == [1e-3, 4e-3]
+    coarse = {id(p) for m in trainer.net.coarsest_level() for p in m.parameters()}
+    assert {id(p) for p in groups[1]["params"]} == coarse
+    assert len(groups[0]["params"]) + len(coarse) == len(list(trainer.net.parameters()))
+
+    one = tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=1,
+                      lr_schedule="cosine", coarsest_lr_scale=4.0, lstm_dropout=0.0,
+                      init_weights=str(tmp_path / "start.safetensors"))
+    train(one, tmp_path / "one", progress=False)
+    moved = load_model(tmp_path / "one" / "last.safetensors").state_dict()
+    before = start.state_dict()
+    step = {k: (moved[k] - before[k]).abs().max().item() for k in before}
+    # Adam's first step moves every weight with a gradient by the rate (1e-3 or 4e-3).
+    assert step["bottleneck.0.weight"] == pytest.approx(4e-3, rel=1e-3)
+    assert step["upconvs.0.conv.weight"] == pytest.approx(4e-3, rel=1e-3)
+    assert step["encoders.0.0.weight"] == pytest.approx(1e-3, rel=1e-3)
+    assert step["decoders.0.0.weight"] == pytest.approx(1e-3, rel=1e-3)
+
+    resumed = train(config, tmp_path / "one", resume=True, progress=False)
+    straight = json.loads((tmp_path / "run" / "history.jsonl").read_text().splitlines()[1])
+    assert resumed.history[1]["loss"] == pytest.approx(straight["loss"], rel=1e-6)
+    with pytest.raises(ParameterError, match="coarsest_lr_scale must be > 0"):
+        load_config(None, {"synthetic_data": "x", "coarsest_lr_scale": 0})
+
+
 def test_weight_average_is_what_a_run_saves(tiny_synthetic_dataset, tmp_path):
     """With ema_decay, last.safetensors holds the moving average (kept in last_state.pt beside
     the raw weights), and the average lags the weights as the warm-up formula says."""

@@ -152,12 +152,18 @@ class DeblurNet(nn.Module):
         """
         fresh = DeblurNet(self.shape)
         with torch.no_grad():
-            self.bottleneck.load_state_dict(fresh.bottleneck.state_dict())
-            if self.lstm is not None and fresh.lstm is not None:
-                self.lstm.load_state_dict(fresh.lstm.state_dict())
-            self.upconvs[0].load_state_dict(fresh.upconvs[0].state_dict())
+            for mine, new in zip(self.coarsest_level(), fresh.coarsest_level(), strict=True):
+                mine.load_state_dict(new.state_dict())
             first = self.decoders[0][0]
             first.weight[:, self.shape.encoder[-1]:].zero_()  # input: [skip, upconv(x)]
+
+    def coarsest_level(self) -> list[nn.Module]:
+        """The modules working at 1/16 of the input size: the bottleneck (and ConvLSTM) and the
+        first up-convolution, which brings their output back to 1/8."""
+        modules: list[nn.Module] = [self.bottleneck]
+        if self.lstm is not None:
+            modules.append(self.lstm)
+        return [*modules, self.upconvs[0]]
 
     @property
     def recurrent(self) -> bool:

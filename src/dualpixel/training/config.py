@@ -51,6 +51,9 @@ class TrainConfig:
     # Ours: after loading init_weights, fresh weights for the coarsest level, the output unchanged
     # (DeblurNet.reinit_bottleneck; for a model whose bottleneck went dormant).
     reinit_bottleneck: bool = False
+    # Ours: the coarsest level's learning rate (DeblurNet.coarsest_level: bottleneck, ConvLSTM,
+    # first up-convolution) is this many times learning_rate, on the same schedule (1: the paper).
+    coarsest_lr_scale: float = 1.0
     patch_size: int = 512
     real_batch: int = 8
     sequence_batch: int = 2
@@ -107,6 +110,8 @@ class TrainConfig:
                                  "everywhere already)")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ParameterError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
+        if self.coarsest_lr_scale <= 0:
+            raise ParameterError(f"coarsest_lr_scale must be > 0, got {self.coarsest_lr_scale}")
         if self.learning_rate <= 0:
             raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
         if any(s % 2 == 0 or s < 3 for s in self.edge_sizes):

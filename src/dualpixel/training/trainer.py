@@ -287,7 +287,8 @@ class Trainer:
         if device.type == "cuda" and config.channels_last:
             model = model.to(memory_format=torch.channels_last)
         self.net = self.model = model
-        self.optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+        self.optimizer = torch.optim.Adam(_parameter_groups(model, config),
+                                          lr=config.learning_rate)
         self.scheduler = _lr_scheduler(self.optimizer, config)
         self.criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x, config.lambda_y,
                                     config.loss_reduction).to(device)
@@ -413,6 +414,19 @@ class Trainer:
         if self.writer is not None:
             self.writer.flush()
         tqdm.write(json.dumps(record)) if self.progress else None
+
+
+def _parameter_groups(model: DeblurNet, config: TrainConfig) -> list[dict[str, Any]]:
+    """Adam's parameter groups: one, or with ``coarsest_lr_scale`` the coarsest level apart at
+    its own rate (the schedule scales both alike)."""
+    if config.coarsest_lr_scale == 1.0:
+        return [{"params": list(model.parameters())}]
+    coarse = {id(p) for module in model.coarsest_level() for p in module.parameters()}
+    return [
+        {"params": [p for p in model.parameters() if id(p) not in coarse]},
+        {"params": [p for p in model.parameters() if id(p) in coarse],
+         "lr": config.learning_rate * config.coarsest_lr_scale},
+    ]
 
 
 def _cosine_factor(epoch: int, epochs: int) -> float:
