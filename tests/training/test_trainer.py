@@ -222,6 +222,9 @@ def test_train_command_end_to_end(tiny_synthetic_dataset, tmp_path):
                                       "epochs=2", "--output", str(out), "--no-progress"])
     assert result.exit_code == 0, result.output
     assert "trained 4 steps" in result.output
+    # Without bars, each epoch still leaves its record in the log.
+    records = [json.loads(line) for line in result.output.splitlines() if line.startswith("{")]
+    assert [r["epoch"] for r in records] == [1, 2] and "val_psnr" in records[-1]
     saved = yaml.safe_load((out / "config.yaml").read_text())
     assert saved["epochs"] == 2 and saved["width"] == 0.125
     assert load_model(out / "best.safetensors").spec.name == "rdpd"

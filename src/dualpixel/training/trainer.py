@@ -413,7 +413,7 @@ class Trainer:
         _write_derived(self.output, self.averaged, epoch, self.step, self.history, self.config)
         if self.writer is not None:
             self.writer.flush()
-        tqdm.write(json.dumps(record)) if self.progress else None
+        tqdm.write(json.dumps(record))  # one line per epoch, bars or not (logs of long runs)
 
 
 def _parameter_groups(model: DeblurNet, config: TrainConfig) -> list[dict[str, Any]]:
