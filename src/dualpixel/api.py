@@ -68,7 +68,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD). ``model``: a name, a checkpoint path or a loaded network. ``flips``:
     average over the flips that keep DP geometry (self-ensemble, 4x the time; ``Deblurrer``).
-    ``multiscale``: fuse with a pass at half resolution (1.25x the time;
+    ``multiscale``: fuse with a pass at half resolution (at most 1.25x the time;
     :mod:`dualpixel.inference.multiscale`).
 
     >>> out = deblur(np.full((32, 48, 3), 0.5, np.float32), np.full((32, 48, 3), 0.5, np.float32))

@@ -17,8 +17,8 @@ _FLIPS_OPTION = click.option(
     help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
 _MULTISCALE_OPTION = click.option(
     "--multiscale", is_flag=True,
-    help="Also deblur at half resolution and take the coarse structure from there (1.25x the "
-         "time).")
+    help="Also deblur at half resolution and take the coarse structure from there (at most "
+         "1.25x the time).")
 
 
 def _load(checkpoint: str, device: str):

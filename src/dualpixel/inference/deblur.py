@@ -14,8 +14,9 @@ geometry, which training augments with (a left-right flip turns the left view's 
 right's). 4x the time (2x for a single-view model, which has only the vertical flip).
 
 ``multiscale=True`` (ours) also runs the network on the views at half resolution and takes the
-output's coarse structure from there (:mod:`dualpixel.inference.multiscale`): 1.25x the time.
-Each scale (and each flip) carries its own recurrent state.
+output's coarse structure from there (:mod:`dualpixel.inference.multiscale`): a second pass on a
+quarter of the pixels (at most 1.25x the time). Each scale (and each flip) carries its own
+recurrent state.
 """
 
 from __future__ import annotations
