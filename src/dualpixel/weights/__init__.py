@@ -33,7 +33,12 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in five stages (the default; improves real Canon DP photographs)",
+    "with DSLR-like blur, in six stages (the default; improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "rdpd-light-stage5", "rdpd-light-stage5.safetensors",
+    "the default's fifth stage (the default before stage 6; the starting point of that run): "
+    "stage 4 with its coarsest level revived and a moving average of the weights",
 )
 register_checkpoint(
     "rdpd-light-stage4", "rdpd-light-stage4.safetensors",
