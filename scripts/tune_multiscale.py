@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 
-import cv2
 import numpy as np
 from tqdm import tqdm
 
@@ -19,7 +18,7 @@ from dualpixel.api import load_model
 from dualpixel.data.layout import discover_dp_dataset, read_frame
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.inference import Deblurrer
-from dualpixel.inference.multiscale import fuse_scales, half_resolution
+from dualpixel.inference.multiscale import fuse_scales, half_resolution, upsample
 
 
 def main() -> None:
@@ -33,21 +32,26 @@ def main() -> None:
     model = load_model(args.checkpoint)
     fine_pass, coarse_pass = Deblurrer(model), Deblurrer(model)
     scores: dict[str, list[float]] = {"full resolution only": [], "half resolution only": []}
-    frames = [paths for sequence in discover_dp_dataset(args.data, args.split)
-              for paths in sequence.frames]
-    for paths in tqdm(frames, desc="frames"):
-        frame = read_frame(paths)
-        fine = fine_pass(frame["left"], frame["right"])
-        coarse = coarse_pass(half_resolution(frame["left"]), half_resolution(frame["right"]))
-        target = frame["target"]
-        scores["full resolution only"].append(psnr(fine, target))
-        height, width = target.shape[:2]
-        upsampled = cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC)
-        scores["half resolution only"].append(psnr(np.clip(upsampled, 0, 1), target))
-        for sigma in sigmas:
-            scores.setdefault(f"fused, sigma {sigma:g} px", []).append(
-                psnr(fuse_scales(fine, coarse, sigma), target))
-    print(f"{len(frames)} frames of {args.data} ({args.split}), {args.checkpoint}")
+    sequences = discover_dp_dataset(args.data, args.split)
+    frames = sum(len(sequence.frames) for sequence in sequences)
+    bar = tqdm(total=frames, desc="frames")
+    for sequence in sequences:
+        fine_pass.reset()  # a recurrent model starts each sequence afresh
+        coarse_pass.reset()
+        for paths in sequence.frames:
+            frame = read_frame(paths)
+            fine = fine_pass(frame["left"], frame["right"])
+            coarse = coarse_pass(half_resolution(frame["left"]), half_resolution(frame["right"]))
+            target = frame["target"]
+            scores["full resolution only"].append(psnr(fine, target))
+            upsampled = upsample(coarse, *target.shape[:2])
+            scores["half resolution only"].append(psnr(np.clip(upsampled, 0, 1), target))
+            for sigma in sigmas:
+                scores.setdefault(f"fused, sigma {sigma:g} px", []).append(
+                    psnr(fuse_scales(fine, coarse, sigma), target))
+            bar.update()
+    bar.close()
+    print(f"{frames} frames of {args.data} ({args.split}), {args.checkpoint}")
     for name, values in scores.items():
         print(f"  {name:24s} {np.mean(values):.3f} dB")
 

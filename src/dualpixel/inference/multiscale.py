@@ -27,6 +27,7 @@ from dualpixel.errors import ParameterError
 
 __all__ = [
     "FUSION_SIGMA", "MIN_MULTISCALE_SIZE", "check_fusion_sigma", "fuse_scales", "half_resolution",
+    "upsample",
 ]
 
 #: Standard deviation (px at full resolution) of the Gaussian that splits the two scales.
@@ -56,6 +57,12 @@ def half_resolution(view: np.ndarray) -> np.ndarray:
                       interpolation=cv2.INTER_AREA)
 
 
+def upsample(coarse: np.ndarray, height: int, width: int) -> np.ndarray:
+    """A half-resolution result ``(h, w, 3)`` back at ``(height, width, 3)``, bicubic, float32."""
+    return cv2.resize(np.ascontiguousarray(coarse, dtype=np.float32), (width, height),
+                      interpolation=cv2.INTER_CUBIC)
+
+
 def fuse_scales(fine: np.ndarray, coarse: np.ndarray, sigma: float = FUSION_SIGMA) -> np.ndarray:
     """The frequencies above ``sigma`` from ``fine`` ``(H, W, 3)``, those below from ``coarse``
     ``(h, w, 3)`` upsampled to ``(H, W)`` (module docstring); clipped to [0, 1], float32.
@@ -65,8 +72,5 @@ def fuse_scales(fine: np.ndarray, coarse: np.ndarray, sigma: float = FUSION_SIGM
     0.75
     """
     check_fusion_sigma(sigma)
-    height, width = fine.shape[:2]
-    upsampled = cv2.resize(np.ascontiguousarray(coarse, dtype=np.float32), (width, height),
-                           interpolation=cv2.INTER_CUBIC)
-    low = cv2.GaussianBlur(upsampled - fine, (0, 0), sigma)
+    low = cv2.GaussianBlur(upsample(coarse, *fine.shape[:2]) - fine, (0, 0), sigma)
     return np.clip(fine + low, 0.0, 1.0).astype(np.float32)
