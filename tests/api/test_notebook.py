@@ -65,7 +65,7 @@ def test_clear_errors_and_the_listing():
     with pytest.raises(ValueError, match="checkpoint not found"):
         dualpixel.load_model("no-such-model")
     models = dualpixel.list_models()
-    assert {"rdpd-light", "srdpd-light"} <= set(models)
+    assert {"rdpd-light", "rdpd-light-photo"} <= set(models)
     info = models["rdpd-light"]
     assert info["parameters"] > 1_000_000 and len(info["sha256"]) == 64
     assert set(dualpixel.__all__) >= {"deblur", "synthesize", "load_model", "list_models", "psnr"}

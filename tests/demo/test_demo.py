@@ -104,3 +104,13 @@ def test_registry_names_the_shipped_model():
 
     with pytest.raises(InputFileError, match="registry name"):
         resolve_checkpoint("no-such-model")
+
+
+def test_a_retired_checkpoint_says_how_to_get_it_back():
+    from dualpixel.errors import InputFileError
+    from dualpixel.weights import RETIRED_CHECKPOINTS
+
+    assert not set(RETIRED_CHECKPOINTS) & set(CHECKPOINTS)
+    for name in RETIRED_CHECKPOINTS:
+        with pytest.raises(InputFileError, match="retired checkpoint: .*configs/.*yaml"):
+            resolve_checkpoint(name)

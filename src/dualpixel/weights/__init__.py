@@ -12,12 +12,20 @@ from pathlib import Path
 from dualpixel.errors import InputFileError
 
 __all__ = [
-    "CHECKPOINTS", "DEFAULT_CHECKPOINT", "model_card", "model_info", "register_checkpoint",
-    "resolve_checkpoint",
+    "CHECKPOINTS", "DEFAULT_CHECKPOINT", "RETIRED_CHECKPOINTS", "model_card", "model_info",
+    "register_checkpoint", "resolve_checkpoint",
 ]
 
 #: name -> (file in this package, description); add entries with :func:`register_checkpoint`.
 CHECKPOINTS: dict[str, tuple[str, str]] = {}
+
+#: Names that shipped once and no longer do (the wheel stays under 100 MB) -> how to get the
+#: weights back. Asking for one gives that answer instead of "not found".
+RETIRED_CHECKPOINTS: dict[str, str] = {
+    "srdpd-light": "the first-generation model (dead-leaves scenes, 24.69 dB on the Canon dev "
+                   "scenes, below their input) no longer ships; MODEL_CARD.md says how to make its "
+                   "data and train it again with configs/srdpd-light-cpu.yaml (one CPU-hour)",
+}
 
 
 def register_checkpoint(name: str, filename: str, description: str) -> None:
@@ -60,11 +68,6 @@ register_checkpoint(
     "the default's first stage: RDPD, width 0.5, residual output, 12 CPU epochs on 200 photo-like "
     "scenes (the default until it was fine-tuned on 800 more; the starting point of that run)",
 )
-register_checkpoint(
-    "srdpd-light", "srdpd-light.safetensors",
-    "previous generation: the same network, one CPU-hour on 320x240 dead-leaves scenes "
-    "(single frames); kept for comparison",
-)
 DEFAULT_CHECKPOINT = "rdpd-light"
 
 
@@ -76,6 +79,8 @@ def resolve_checkpoint(name_or_path: str | Path) -> Path:
         if not path.is_file():
             raise InputFileError(path, f"shipped checkpoint {text!r} is missing from the package")
         return path
+    if text in RETIRED_CHECKPOINTS:
+        raise InputFileError(text, f"retired checkpoint: {RETIRED_CHECKPOINTS[text]}")
     path = Path(name_or_path)
     if not path.is_file():
         known = ", ".join(CHECKPOINTS)
