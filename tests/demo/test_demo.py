@@ -112,5 +112,5 @@ def test_a_retired_checkpoint_says_how_to_get_it_back():
 
     assert not set(RETIRED_CHECKPOINTS) & set(CHECKPOINTS)
     for name in RETIRED_CHECKPOINTS:
-        with pytest.raises(InputFileError, match="retired checkpoint: .*configs/.*yaml"):
+        with pytest.raises(InputFileError, match=r"retired checkpoint: .*configs/.*\.yaml"):
             resolve_checkpoint(name)
