@@ -41,7 +41,12 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in six stages (the default; improves real Canon DP photographs)",
+    "with DSLR-like blur, in seven stages (the default; improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "rdpd-light-stage6", "rdpd-light-stage6.safetensors",
+    "the default's sixth stage (the default before stage 7; the starting point of that run): "
+    "stage 5 trained on with its coarsest level at 5x the rate",
 )
 register_checkpoint(
     "rdpd-light-stage5", "rdpd-light-stage5.safetensors",
