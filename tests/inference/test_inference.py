@@ -17,12 +17,23 @@ def tiny_model():
 
 
 @pytest.fixture(scope="module")
+def refined_model():
+    """A tiny network with a refiner whose correction is not zero (a fresh one adds nothing)."""
+    torch.manual_seed(1)
+    model = build_model("rdpd", width=0.125, residual=True, refiner=(8, 16, 16)).eval()
+    torch.nn.init.normal_(model.refiner.head.weight, std=0.05)
+    return model
+
+
+@pytest.fixture(scope="module")
 def canon_views(shared_dir):
     folder = shared_dir / "data" / "canon-dp-real" / "scene_02"
     return read_rgb(folder / "view0.png"), read_rgb(folder / "view1.png")
 
 
-def test_tiled_inference_matches_whole_image(tiny_model, canon_views):
+@pytest.mark.parametrize("name", ["tiny_model", "refined_model"])
+def test_tiled_inference_matches_whole_image(name, canon_views, request):
+    tiny_model = request.getfixturevalue(name)
     left, right = (v[:400, :600] for v in canon_views)
     whole = Deblurrer(tiny_model)
     tiled = Deblurrer(tiny_model, tile=384, overlap=192)
@@ -78,8 +89,10 @@ def test_frame_trained_model_starts_every_frame_afresh(tiny_synthetic_dataset, t
     assert build_model("rdpd", width=0.125).temporal is True
 
 
-def test_onnx_matches_pytorch(tiny_model, tmp_path):
+@pytest.mark.parametrize("name", ["tiny_model", "refined_model"])
+def test_onnx_matches_pytorch(name, tmp_path, request):
     pytest.importorskip("onnxruntime")
+    tiny_model = request.getfixturevalue(name)
     from dualpixel.inference.onnx_export import export_onnx, run_onnx, state_shape
 
     h, w = 40, 56

@@ -172,6 +172,27 @@ def test_reinit_bottleneck_applies_to_the_initial_weights(tiny_synthetic_dataset
     torch.testing.assert_close(after["encoders.3.0.weight"], before["encoders.3.0.weight"])
 
 
+def test_refiner_trains_on_top_of_a_frozen_first_stage(tiny_synthetic_dataset, tmp_path):
+    from dualpixel.models import save_model
+
+    torch.manual_seed(4)
+    start = build_model("rdpd", width=0.125, residual=True)
+    save_model(tmp_path / "start.safetensors", start)
+    train(tiny_config(tiny_synthetic_dataset, epochs=1, residual=True, refiner=[8, 16],
+                      freeze_first_stage=True, init_weights=str(tmp_path / "start.safetensors")),
+          tmp_path / "run", progress=False)
+    after = load_model(tmp_path / "run" / "last.safetensors")
+    assert after.shape.refiner == (8, 16)
+    state = after.state_dict()
+    for key, value in start.state_dict().items():  # the first stage stayed as it was
+        torch.testing.assert_close(state[key], value, rtol=0, atol=0)
+    assert state["refiner.head.weight"].abs().max() > 0  # the refiner learned (it starts at 0)
+    with pytest.raises(ParameterError, match="freeze_first_stage needs a refiner"):
+        load_config(None, {"synthetic_data": "x", "freeze_first_stage": True})
+    with pytest.raises(ParameterError, match="refiner must list channel widths"):
+        load_config(None, {"synthetic_data": "x", "refiner": [0]})
+
+
 def test_refusals(tiny_synthetic_dataset, tmp_path):
     train(tiny_config(tiny_synthetic_dataset, epochs=1), tmp_path / "run", progress=False)
     with pytest.raises(ParameterError, match="--resume"):

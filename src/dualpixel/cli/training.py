@@ -30,7 +30,9 @@ def models(width: float) -> None:
     click.echo("\nshipped checkpoints (dualpixel.load_model(NAME), --checkpoint NAME):")
     for name, info in model_info().items():
         click.echo(f"  {name}: {info['description']}")
-        click.echo(f"    {info['model']} width {info['width']:g}, residual {info['residual']}, "
+        refiner = f", refiner {info['refiner']}" if info["refiner"] else ""
+        click.echo(f"    {info['model']} width {info['width']:g}, residual {info['residual']}"
+                   f"{refiner}, "
                    f"state carried between frames: {info['temporal']}, "
                    f"{info['parameters']:,} parameters, {info['bytes'] / 1e6:.1f} MB, "
                    f"sha256 {info['sha256'][:16]}...")

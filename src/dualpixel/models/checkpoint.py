@@ -1,6 +1,7 @@
 """Model weights in safetensors, with the architecture in the file's metadata.
 
-A checkpoint holds the state dict and ``{"model", "width", "peepholes", "residual", "format"}``
+A checkpoint holds the state dict and ``{"model", "width", "peepholes", "residual", "refiner",
+"format"}``
 (plus free-form ``extra`` JSON), so :func:`load_model` rebuilds the right network without other
 files. Weights may be
 stored in half precision (``dtype=torch.float16``, for shipped models) and are loaded as float32.
@@ -50,6 +51,7 @@ def save_model(
         "width": repr(float(net.width)),
         "peepholes": json.dumps(net.shape.peepholes),
         "residual": json.dumps(net.shape.residual),
+        "refiner": json.dumps(list(net.shape.refiner)),
         "temporal": json.dumps(bool(net.temporal)),
         "extra": json.dumps(extra or {}, sort_keys=True),
     }
@@ -86,6 +88,7 @@ def _parse_metadata(metadata: dict[str, str]) -> dict[str, Any]:
         "width": float(metadata["width"]),
         "peepholes": json.loads(metadata["peepholes"]),
         "residual": json.loads(metadata.get("residual", "false")),
+        "refiner": tuple(int(w) for w in json.loads(metadata.get("refiner", "[]"))),
         "temporal": _temporal(metadata),
         "extra": json.loads(metadata.get("extra", "{}")),
     }
@@ -102,13 +105,19 @@ def _temporal(metadata: dict[str, str]) -> bool:
     return True
 
 
-def load_weights(model: torch.nn.Module, path: str | Path) -> None:
-    """Load a checkpoint into an existing model, refusing one written for another architecture."""
+def load_weights(model: torch.nn.Module, path: str | Path, *,
+                 first_stage_only: bool = False) -> None:
+    """Load a checkpoint into an existing model, refusing one written for another architecture.
+
+    ``first_stage_only``: the checkpoint is a network without a refiner, loaded into the first
+    stage of ``model`` (whose refiner keeps its weights): how a refiner is trained on top of it.
+    """
     path = Path(path)
     meta = read_metadata(path)
     net = _unwrap(model)
     mine = {"model": net.spec.name, "width": float(net.width),
-            "peepholes": net.shape.peepholes, "residual": net.shape.residual}
+            "peepholes": net.shape.peepholes, "residual": net.shape.residual,
+            "refiner": () if first_stage_only else net.shape.refiner}
     theirs = {key: meta[key] for key in mine}
     if mine != theirs:
         raise InputFileError(path, f"checkpoint is for {theirs}, but the model is {mine}")
@@ -117,6 +126,8 @@ def load_weights(model: torch.nn.Module, path: str | Path) -> None:
     for key, value in tensors.items():
         if key in state:
             tensors[key] = value.to(state[key].dtype)
+    if first_stage_only:
+        tensors.update({k: v for k, v in state.items() if k.startswith("refiner.")})
     try:
         net.load_state_dict(tensors)
     except RuntimeError as error:
@@ -128,7 +139,7 @@ def load_model(path: str | Path, *, device: str | torch.device = "cpu") -> Deblu
     meta = read_metadata(path)
     model_spec(meta["model"])
     model = build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
-                        residual=meta["residual"])
+                        residual=meta["residual"], refiner=meta["refiner"])
     load_weights(model, path)
     model.temporal = model.temporal and meta["temporal"]
     return model.to(device).eval()

@@ -94,9 +94,11 @@ def build_model(
     peepholes: bool = True,
     lstm_dropout: float = 0.4,
     residual: bool = False,
+    refiner: tuple[int, ...] = (),
 ) -> DeblurNet:
     """Build a named network; ``width`` scales every layer (0 < width <= 4); ``residual`` adds
-    the blurred input to the output (clamped-output models only; not in the paper)."""
+    the blurred input to the output and ``refiner`` (channel widths, not scaled by ``width``)
+    appends a correcting second stage (clamped-output models only; neither is in the paper)."""
     spec = model_spec(name)
     if not 0.0 < width <= 4.0:
         raise ParameterError(f"width must be in (0, 4], got {width}")
@@ -110,9 +112,14 @@ def build_model(
         lstm_dropout=lstm_dropout,
         peepholes=peepholes,
         residual=residual,
+        refiner=tuple(refiner),
     )
-    if residual and spec.output != "clamp":
-        raise ParameterError(f"model {name!r} has a sigmoid output; residual needs rdpd or rspd")
+    for option, value in (("residual", residual), ("a refiner", refiner)):
+        if value and spec.output != "clamp":
+            raise ParameterError(f"model {name!r} has a sigmoid output; {option} needs rdpd or "
+                                 "rspd")
+    if any(w < 1 for w in refiner):
+        raise ParameterError(f"refiner widths must be >= 1, got {list(refiner)}")
     model = DeblurNet(shape)
     model.spec = spec
     model.width = width

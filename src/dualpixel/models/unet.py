@@ -11,6 +11,10 @@ the head's output before clamping, with the last layer initialised to zero so tr
 the identity, and drops the ReLU of the 3-channel layer (a correction needs both signs). It adds
 no parameters and makes short CPU training converge much faster.
 
+Option (ours, off by default): ``refiner=(w1, w2, ...)`` appends a second stage,
+:class:`~dualpixel.models.refiner.Refiner`, that corrects the clamped output from the input and
+that output; it starts as the identity, so it can be trained on top of a trained (frozen) network.
+
 Any input size: the input is reflect-padded to a multiple of 16 and the output cropped back.
 """
 
@@ -23,11 +27,10 @@ import torch.nn.functional as F
 from torch import nn
 
 from dualpixel.models.convlstm import ConvLSTMCell, LSTMState
+from dualpixel.models.padding import SIZE_MULTIPLE, pad_to_multiple
+from dualpixel.models.refiner import Refiner
 
-__all__ = ["DeblurNet", "NetworkShape", "pad_to_multiple"]
-
-#: Spatial size the network needs: four 2x2 poolings.
-SIZE_MULTIPLE = 16
+__all__ = ["SIZE_MULTIPLE", "DeblurNet", "NetworkShape", "pad_to_multiple"]
 
 
 @dataclass(frozen=True)
@@ -43,6 +46,8 @@ class NetworkShape:
     lstm_dropout: float = 0.4
     peepholes: bool = True
     residual: bool = False  # output = input image + network output (not in the paper)
+    # Widths of a second stage that corrects the output (ours; dualpixel.models.refiner); () none.
+    refiner: tuple[int, ...] = ()
 
 
 def _conv_relu(cin: int, cout: int, kernel: int = 3) -> list[nn.Module]:
@@ -63,18 +68,6 @@ class _UpConv(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         x = F.interpolate(x, scale_factor=2.0, mode="nearest")
         return F.relu(self.conv(F.pad(x, (0, 1, 0, 1))))
-
-
-def pad_to_multiple(
-    x: torch.Tensor, multiple: int = SIZE_MULTIPLE
-) -> tuple[torch.Tensor, int, int]:
-    """Reflect-pad ``(..., H, W)`` at the bottom and right to multiples of ``multiple``."""
-    height, width = x.shape[-2:]
-    pad_h, pad_w = -height % multiple, -width % multiple
-    if pad_h or pad_w:
-        mode = "reflect" if pad_h < height and pad_w < width else "replicate"
-        x = F.pad(x, (0, pad_w, 0, pad_h), mode=mode)
-    return x, height, width
 
 
 class DeblurNet(nn.Module):
@@ -127,6 +120,10 @@ class DeblurNet(nn.Module):
         self._init_weights()
         if shape.residual:  # start as the identity: output = blurred input
             nn.init.zeros_(self.head[-1].weight)
+        # Built after the He initialisation: the refiner initialises itself (identity at first).
+        self.refiner = Refiner(shape.in_channels, shape.refiner) if shape.refiner else None
+        if self.refiner is not None and shape.output != "clamp":
+            raise ValueError("a refined network needs the clamped linear output")
 
     def _init_weights(self) -> None:
         for module in self.modules():
@@ -139,8 +136,9 @@ class DeblurNet(nn.Module):
             nn.init.kaiming_normal_(self.lstm.input_conv.weight, nonlinearity="relu")
 
     def reinit_bottleneck(self) -> None:
-        """Give the coarsest level fresh weights without changing what the network computes from
-        it onwards (ours, after ReDo, Sokar et al. 2023, "The Dormant Neuron Phenomenon").
+        """Give the first stage's coarsest level fresh weights without changing what the network
+        computes from it onwards (ours, after ReDo, Sokar et al. 2023, "The Dormant Neuron
+        Phenomenon").
 
         The bottleneck (conv, ConvLSTM; DPDNet: its two convs) and the first up-convolution get
         new He-normal weights from the global torch RNG, and the first decoder convolution's
@@ -156,6 +154,10 @@ class DeblurNet(nn.Module):
                 mine.load_state_dict(new.state_dict())
             first = self.decoders[0][0]
             first.weight[:, self.shape.encoder[-1]:].zero_()  # input: [skip, upconv(x)]
+
+    def first_stage_parameters(self) -> list[nn.Parameter]:
+        """Every parameter but the refiner's (all of them for a network without one)."""
+        return [p for name, p in self.named_parameters() if not name.startswith("refiner.")]
 
     def coarsest_level(self) -> list[nn.Module]:
         """The modules working at 1/16 of the input size: the bottleneck (and ConvLSTM) and the
@@ -179,6 +181,7 @@ class DeblurNet(nn.Module):
             )
         # The blurred image the residual is added to: the mean of the views (first 3 or 6 channels).
         base = x[:, :3] if self.shape.in_channels in (3, 4) else (x[:, :3] + x[:, 3:6]) / 2
+        inputs = x
         x, height, width = pad_to_multiple(x)
         skips = []
         for index, encoder in enumerate(self.encoders):
@@ -197,6 +200,8 @@ class DeblurNet(nn.Module):
         if self.shape.residual:
             x = x + base
         x = x.clamp(0.0, 1.0) if self.shape.output == "clamp" else torch.sigmoid(x)
+        if self.refiner is not None:
+            x = self.refiner(inputs, x)
         return x, state if self.lstm is not None else None
 
     def forward(

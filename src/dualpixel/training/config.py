@@ -35,6 +35,11 @@ class TrainConfig:
     peepholes: bool = True
     lstm_dropout: float = 0.4
     residual: bool = False  # ours, not the paper's: output = blurred input + network output
+    # Ours: channel widths of a second stage that corrects the output (dualpixel.models.refiner),
+    # e.g. [32, 64, 128]; null: none. With init_weights of a network without one, those weights
+    # go into the first stage and the refiner starts as the identity.
+    refiner: list[int] | None = None
+    freeze_first_stage: bool = False  # ours: train only the refiner
     # Data (DPDD layout). Real data: single images; synthetic data: seq_NNN sequences.
     real_data: str | None = None
     real_split: str = "train"
@@ -108,6 +113,13 @@ class TrainConfig:
         if self.reinit_bottleneck and self.init_weights is None:
             raise ParameterError("reinit_bottleneck needs init_weights (a new network is fresh "
                                  "everywhere already)")
+        if self.refiner is not None and (not self.refiner or min(self.refiner) < 1):
+            raise ParameterError(f"refiner must list channel widths >= 1, got {self.refiner}")
+        if self.freeze_first_stage and not self.refiner:
+            raise ParameterError("freeze_first_stage needs a refiner (nothing else would train)")
+        if self.freeze_first_stage and self.coarsest_lr_scale != 1.0:
+            raise ParameterError("coarsest_lr_scale has nothing to scale with freeze_first_stage "
+                                 "(the coarsest level is frozen)")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ParameterError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         if self.coarsest_lr_scale <= 0:

@@ -42,7 +42,7 @@ from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.io.atomic import atomic_path, remove_partials
-from dualpixel.models.checkpoint import load_weights, save_model
+from dualpixel.models.checkpoint import load_weights, read_metadata, save_model
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
 from dualpixel.training.config import TrainConfig, load_config, save_config
@@ -280,7 +280,11 @@ class Trainer:
                                                      config.val_split)[: config.val_limit]
         self.real_val_sequences = _real_validation(config.real_val_data)
         model = build_model(config.model, width=config.width, peepholes=config.peepholes,
-                            lstm_dropout=config.lstm_dropout, residual=config.residual).to(device)
+                            lstm_dropout=config.lstm_dropout, residual=config.residual,
+                            refiner=tuple(config.refiner or ())).to(device)
+        if config.freeze_first_stage:
+            for parameter in model.first_stage_parameters():
+                parameter.requires_grad_(False)
         # Single frames only (sRDPD+, real pairs): inference must not carry state between frames.
         model.temporal = model.temporal and bool(config.synthetic_data) and not (
             config.synthetic_as_frames)
@@ -327,7 +331,10 @@ class Trainer:
     def start(self) -> None:
         """A new run: initial weights (``init_weights``) and the saved config."""
         if self.config.init_weights is not None:
-            load_weights(self.net, _resolve_weights(self.config.init_weights))
+            path = _resolve_weights(self.config.init_weights)
+            # A network without a refiner goes into the first stage of one with a refiner.
+            first_stage_only = bool(self.config.refiner) and not read_metadata(path)["refiner"]
+            load_weights(self.net, path, first_stage_only=first_stage_only)
             if self.config.reinit_bottleneck:
                 self.net.reinit_bottleneck()
         if self.main:
@@ -418,13 +425,15 @@ class Trainer:
 
 def _parameter_groups(model: DeblurNet, config: TrainConfig) -> list[dict[str, Any]]:
     """Adam's parameter groups: one, or with ``coarsest_lr_scale`` the coarsest level apart at
-    its own rate (the schedule scales both alike)."""
+    its own rate (the schedule scales both alike). Frozen parameters (``freeze_first_stage``)
+    are left out."""
+    trained = [p for p in model.parameters() if p.requires_grad]
     if config.coarsest_lr_scale == 1.0:
-        return [{"params": list(model.parameters())}]
+        return [{"params": trained}]
     coarse = {id(p) for module in model.coarsest_level() for p in module.parameters()}
     return [
-        {"params": [p for p in model.parameters() if id(p) not in coarse]},
-        {"params": [p for p in model.parameters() if id(p) in coarse],
+        {"params": [p for p in trained if id(p) not in coarse]},
+        {"params": [p for p in trained if id(p) in coarse],
          "lr": config.learning_rate * config.coarsest_lr_scale},
     ]
 

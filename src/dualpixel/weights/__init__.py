@@ -25,6 +25,10 @@ RETIRED_CHECKPOINTS: dict[str, str] = {
     "srdpd-light": "the first-generation model (dead-leaves scenes, 24.69 dB on the Canon dev "
                    "scenes, below their input) no longer ships; MODEL_CARD.md says how to make its "
                    "data and train it again with configs/srdpd-light-cpu.yaml (one CPU-hour)",
+    "rdpd-light-stage2": "the default's second stage (27.79 dB held out, 26.06 dB on the Canon "
+                         "scenes) no longer ships; scripts/make_mix_data.sh and "
+                         "scripts/train_finetune.sh (configs/rdpd-light-finetune-cpu.yaml, "
+                         "from rdpd-light-photo, 90 CPU-minutes) make it again",
 }
 
 
@@ -41,7 +45,13 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in seven stages (the default; improves real Canon DP photographs)",
+    "with DSLR-like blur, in seven stages, plus a refiner trained on top (stage 8; the default; "
+    "improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "rdpd-light-stage7", "rdpd-light-stage7.safetensors",
+    "the default's seventh stage (the default before stage 8, and its first stage): stage 6 "
+    "trained on 256-px crops",
 )
 register_checkpoint(
     "rdpd-light-stage6", "rdpd-light-stage6.safetensors",
@@ -62,11 +72,6 @@ register_checkpoint(
     "rdpd-light-stage3", "rdpd-light-stage3.safetensors",
     "the default's third stage (the default before stage 4; the starting point of that run): "
     "stage 2 fine-tuned with the per-patch log loss on 128-px crops",
-)
-register_checkpoint(
-    "rdpd-light-stage2", "rdpd-light-stage2.safetensors",
-    "the default's second stage (the default before stage 3; the starting point of that run): "
-    "stage 1 fine-tuned on 800 one-frame photo scenes with the paper's loss",
 )
 register_checkpoint(
     "rdpd-light-photo", "rdpd-light-photo.safetensors",
@@ -108,10 +113,11 @@ def model_info() -> dict[str, dict]:
         path = resolve_checkpoint(name)
         meta = read_metadata(path)
         network = build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
-                              residual=meta["residual"])
+                              residual=meta["residual"], refiner=meta["refiner"])
         info[name] = {
             "description": description, "model": meta["model"], "width": meta["width"],
-            "residual": meta["residual"], "temporal": meta["temporal"],
+            "residual": meta["residual"], "refiner": list(meta["refiner"]),
+            "temporal": meta["temporal"],
             "parameters": count_parameters(network), "bytes": path.stat().st_size,
             "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
             "training": meta["extra"],
