@@ -28,7 +28,9 @@ import torch
 
 from dualpixel.data import DPPatchDataset, PatchConfig, discover_dp_dataset, radial_distance
 from dualpixel.data.layout import read_frame
-from dualpixel.models import build_model, load_model, load_weights, read_metadata, save_model
+from dualpixel.evaluation.metrics import psnr
+from dualpixel.models import load_model, load_weights, read_metadata, save_model
+from dualpixel.models.checkpoint import build_from_metadata
 from dualpixel.models.refiner import Refiner
 from dualpixel.models.unet import DeblurNet
 from dualpixel.training.losses import DeblurLoss
@@ -50,10 +52,6 @@ def first_stage(net: DeblurNet, batch: dict[str, torch.Tensor]) -> tuple[torch.T
         return x, net.step(x)[0]
 
 
-def psnr(a: torch.Tensor, b: torch.Tensor) -> float:
-    return float(-10 * torch.log10(((a - b) ** 2).mean()))
-
-
 def evaluate(net: DeblurNet, refiner: Refiner, data: str, count: int) -> np.ndarray:
     """Per held-out frame: PSNR of the input, the first stage and the refined output (dB)."""
     frames = [f for s in discover_dp_dataset(data, "test") for f in s.frames][:count]
@@ -66,9 +64,10 @@ def evaluate(net: DeblurNet, refiner: Refiner, data: str, count: int) -> np.ndar
         x, first = first_stage(net, images)
         with torch.no_grad():
             refined = refiner(x, first)
-        target = images["target"]
-        rows.append((psnr((images["left"] + images["right"]) / 2, target), psnr(first, target),
-                     psnr(refined, target)))
+        image = lambda t: t[0].permute(1, 2, 0).numpy()  # noqa: E731  (1, 3, H, W) -> (H, W, 3)
+        target = image(images["target"])
+        rows.append((psnr(image((images["left"] + images["right"]) / 2), target),
+                     psnr(image(first), target), psnr(image(refined), target)))
     return np.array(rows)
 
 
@@ -139,8 +138,7 @@ def write_refined(net: DeblurNet, refiner: Refiner, source: str | Path, path: st
                   recipe: dict) -> None:
     """One float16 checkpoint: the first stage ``source`` and the trained ``refiner``."""
     meta = read_metadata(source)
-    refined = build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
-                          residual=meta["residual"], refiner=refiner.widths)
+    refined = build_from_metadata(meta, refiner=refiner.widths)
     load_weights(refined, source, first_stage_only=True)
     refined.refiner.load_state_dict(refiner.state_dict())
     refined.temporal = net.temporal

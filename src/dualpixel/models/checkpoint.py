@@ -22,7 +22,7 @@ from dualpixel.io.atomic import atomic_path
 from dualpixel.models.registry import build_model, model_spec
 from dualpixel.models.unet import DeblurNet
 
-__all__ = ["load_model", "load_weights", "read_metadata", "save_model"]
+__all__ = ["build_from_metadata", "load_model", "load_weights", "read_metadata", "save_model"]
 
 FORMAT = "dualpixel-model-1"
 
@@ -105,6 +105,16 @@ def _temporal(metadata: dict[str, str]) -> bool:
     return True
 
 
+def build_from_metadata(meta: dict[str, Any], *,
+                        refiner: tuple[int, ...] | None = None) -> DeblurNet:
+    """A fresh network of the architecture that :func:`read_metadata` returned (random weights);
+    ``refiner`` replaces the stored refiner widths (``()``: none)."""
+    model_spec(meta["model"])
+    return build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
+                       residual=meta["residual"],
+                       refiner=meta["refiner"] if refiner is None else refiner)
+
+
 def load_weights(model: torch.nn.Module, path: str | Path, *,
                  first_stage_only: bool = False) -> None:
     """Load a checkpoint into an existing model, refusing one written for another architecture.
@@ -137,9 +147,7 @@ def load_weights(model: torch.nn.Module, path: str | Path, *,
 def load_model(path: str | Path, *, device: str | torch.device = "cpu") -> DeblurNet:
     """Rebuild the network a checkpoint describes, load its weights, and put it in eval mode."""
     meta = read_metadata(path)
-    model_spec(meta["model"])
-    model = build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
-                        residual=meta["residual"], refiner=meta["refiner"])
+    model = build_from_metadata(meta)
     load_weights(model, path)
     model.temporal = model.temporal and meta["temporal"]
     return model.to(device).eval()

@@ -105,15 +105,15 @@ def model_info() -> dict[str, dict]:
     training metadata stored in the file (``extra``)."""
     import hashlib
 
-    from dualpixel.models import build_model, read_metadata
+    from dualpixel.models import read_metadata
+    from dualpixel.models.checkpoint import build_from_metadata
     from dualpixel.models.registry import count_parameters
 
     info = {}
     for name, (_, description) in CHECKPOINTS.items():
         path = resolve_checkpoint(name)
         meta = read_metadata(path)
-        network = build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
-                              residual=meta["residual"], refiner=meta["refiner"])
+        network = build_from_metadata(meta)
         info[name] = {
             "description": description, "model": meta["model"], "width": meta["width"],
             "residual": meta["residual"], "refiner": list(meta["refiner"]),
