@@ -7,7 +7,10 @@ One iteration = forward, Eq. 16 loss, backward and an Adam step on 8 random 128x
 - ``zero-state``: the same frames with an explicit all-zero state, so the recurrent convolution
   runs (the cost before the skip; the outputs are equal);
 - ``log-loss``: ``skip`` with ``loss_reduction: log`` (per-patch loss in dB);
-- ``ema``: ``skip`` plus the moving average of the weights after each step (``ema_decay``).
+- ``ema``: ``skip`` plus the moving average of the weights after each step (``ema_decay``);
+- ``conv2d-edge``: ``skip`` with the edge loss computed as before: both images convolved with
+  the 2-D Sobel kernels (``conv2d``; same values), instead of the separable shifted sums on their
+  difference that :class:`~dualpixel.training.EdgeLoss` uses.
 
 On CUDA (``--device cuda``, what ``dualpixel train`` does there) two more cases of ``skip``:
 
@@ -26,10 +29,28 @@ from __future__ import annotations
 import argparse
 import time
 
+import numpy as np
 import torch
+import torch.nn.functional as F
 
 from dualpixel.models import build_model
-from dualpixel.training import DeblurLoss, weight_average
+from dualpixel.training import DeblurLoss, EdgeLoss, sobel_kernels, weight_average
+
+
+class Conv2dEdgeLoss(EdgeLoss):
+    """Eq. 15 by 2-D convolution of output and target (the computation before the separable one)."""
+
+    def forward(self, output: torch.Tensor, target: torch.Tensor, *, per_image: bool = False
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+        planes = torch.stack([output, target]).reshape(-1, 1, *output.shape[-2:])
+        loss_x = loss_y = output.new_zeros(())
+        for size in self.sizes:
+            kernels = torch.from_numpy(np.stack(sobel_kernels(size))).float()[:, None]
+            grads = F.conv2d(planes, kernels.to(planes.device)).unflatten(0, (2, -1))
+            squared = (grads[0] - grads[1]).square()  # (N * C, 2, h, w)
+            loss_x = loss_x + squared[:, 0].mean()
+            loss_y = loss_y + squared[:, 1].mean()
+        return loss_x / len(self.sizes), loss_y / len(self.sizes)
 
 
 def seconds_per_iteration(
@@ -42,6 +63,8 @@ def seconds_per_iteration(
     optimizer = torch.optim.Adam(model.parameters(), lr=1e-4)
     average = weight_average(model, 0.999) if case == "ema" else None
     criterion = DeblurLoss(reduction="log" if case == "log-loss" else "mean").to(device)
+    if case == "conv2d-edge":
+        criterion.edge = Conv2dEdgeLoss(criterion.edge.sizes)
     frames = torch.rand(8, 1, model.shape.in_channels, patch, patch, device=device)
     target = torch.rand(8, 1, 3, patch, patch, device=device)
     state = None
@@ -80,7 +103,7 @@ def main() -> None:
     device = torch.device(args.device)
     print(f"rdpd width {args.width}, 8 x {args.patch}x{args.patch} frames, {args.device}, "
           f"{args.threads} threads, median of {args.iterations} iterations")
-    cases = ["zero-state", "skip", "log-loss", "ema"]
+    cases = ["zero-state", "skip", "log-loss", "ema", "conv2d-edge"]
     if device.type == "cuda":
         cases += ["bf16", "bf16-cl"]
     results = {}

@@ -4,7 +4,7 @@ import torch
 import torch.nn.functional as F
 from scipy import ndimage
 
-from dualpixel.training.losses import DeblurLoss, EdgeLoss, sobel_kernels
+from dualpixel.training.losses import DeblurLoss, EdgeLoss, sobel_factors, sobel_kernels
 
 
 def test_sobel_kernels_are_the_extended_sobel_normalised():
@@ -80,3 +80,38 @@ def test_log_reduction_weighs_every_image_the_same_in_db():
     assert mean_ratio < 0.2 and log_ratio > 5  # 0.1 vs 10: the weights turn over
     with pytest.raises(ValueError, match="reduction"):
         DeblurLoss(reduction="sum")
+
+
+@pytest.mark.parametrize("per_image", [False, True])
+def test_edge_loss_matches_the_2d_sobel_convolution(per_image):
+    # The separable, difference-based computation gives Eq. 15 as written: each image filtered
+    # with the 2-D kernels (valid region), squared differences averaged, scales averaged.
+    torch.manual_seed(0)
+    output = torch.rand(2, 3, 3, 40, 36, dtype=torch.float64, requires_grad=True)
+    target = torch.rand(2, 3, 3, 40, 36, dtype=torch.float64)
+    sizes = (3, 7, 11)
+    lx, ly = EdgeLoss(sizes)(output, target, per_image=per_image)
+
+    def grads(image, size):
+        kx, ky = (torch.from_numpy(k) for k in sobel_kernels(size))
+        planes = image.reshape(-1, 1, *image.shape[-2:])
+        return [F.conv2d(planes, k[None, None]).unflatten(0, (6, 3))[:, :, 0] for k in (kx, ky)]
+
+    expected = []
+    for axis in (0, 1):
+        terms = [(grads(output, s)[axis] - grads(target, s)[axis]).square() for s in sizes]
+        dims = (1, 2, 3) if per_image else (0, 1, 2, 3)
+        expected.append(sum(t.mean(dim=dims) for t in terms) / len(sizes))
+    torch.testing.assert_close(lx, expected[0])
+    torch.testing.assert_close(ly, expected[1])
+    # Gradients too (training follows them).
+    (got,) = torch.autograd.grad((lx + 2 * ly).sum(), output)
+    (want,) = torch.autograd.grad((expected[0] + 2 * expected[1]).sum(), output)
+    torch.testing.assert_close(got, want)
+
+
+def test_sobel_factors_multiply_to_the_kernels():
+    for size in (3, 5, 7, 11, 31):
+        smoothing, derivative = sobel_factors(size)
+        np.testing.assert_allclose(np.outer(smoothing, derivative), sobel_kernels(size)[0])
+        assert smoothing.shape == derivative.shape == (size,)
