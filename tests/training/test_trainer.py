@@ -187,6 +187,14 @@ def test_refiner_trains_on_top_of_a_frozen_first_stage(tiny_synthetic_dataset, t
     for key, value in start.state_dict().items():  # the first stage stayed as it was
         torch.testing.assert_close(state[key], value, rtol=0, atol=0)
     assert state["refiner.head.weight"].abs().max() > 0  # the refiner learned (it starts at 0)
+    # The starting checkpoint renamed since (a new default shipped): the run still resumes, from
+    # its own state; only the first epoch read init_weights.
+    (tmp_path / "start.safetensors").rename(tmp_path / "renamed.safetensors")
+    resumed = train(tiny_config(tiny_synthetic_dataset, epochs=2, residual=True, refiner=[8, 16],
+                                freeze_first_stage=True,
+                                init_weights=str(tmp_path / "renamed.safetensors")),
+                    tmp_path / "run", resume=True, progress=False)
+    assert [r["epoch"] for r in resumed.history] == [1, 2]
     with pytest.raises(ParameterError, match="freeze_first_stage needs a refiner"):
         load_config(None, {"synthetic_data": "x", "freeze_first_stage": True})
     with pytest.raises(ParameterError, match="refiner must list channel widths"):

@@ -174,7 +174,9 @@ def _set_rng_state(state: dict[str, Any]) -> None:
 def _check_resumable(output: Path, config: TrainConfig) -> None:
     saved = load_config(output / "config.yaml")
     mine, theirs = config.to_dict(), saved.to_dict()
-    for key in ("epochs", "workers", "threads", "device", "tensorboard"):  # may change on resume
+    # May change on resume. The initial weights are read only when a run starts (the state file
+    # holds them after), so a starting checkpoint renamed since (a default shipped anew) resumes.
+    for key in ("epochs", "workers", "threads", "device", "tensorboard", "init_weights"):
         mine.pop(key), theirs.pop(key)
     changed = sorted(k for k in mine if mine[k] != theirs[k])
     if changed:
