@@ -29,6 +29,11 @@ RETIRED_CHECKPOINTS: dict[str, str] = {
                          "scenes) no longer ships; scripts/make_mix_data.sh and "
                          "scripts/train_finetune.sh (configs/rdpd-light-finetune-cpu.yaml, "
                          "from rdpd-light-photo, 90 CPU-minutes) make it again",
+    "rdpd-light-stage3": "the default's third stage (28.06 dB held out, 26.16 dB on the Canon "
+                         "scenes) no longer ships; scripts/make_mix_data.sh, then "
+                         "configs/rdpd-light-stage3-cpu.yaml from a remade rdpd-light-stage2 "
+                         "(scripts/train_stage3.sh, 107 CPU-minutes before the faster loss) make "
+                         "it again",
 }
 
 
@@ -45,8 +50,13 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in seven stages, plus a refiner trained on top (stage 8; the default; "
-    "improves real Canon DP photographs)",
+    "with DSLR-like blur, in seven stages, plus a refiner trained on top in two (stages 8 and 9; "
+    "the default; improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "rdpd-light-stage8", "rdpd-light-stage8.safetensors",
+    "the default's eighth stage (the default before stage 9; the starting point of that run): "
+    "stage 7, frozen, with a refiner trained on top",
 )
 register_checkpoint(
     "rdpd-light-stage7", "rdpd-light-stage7.safetensors",
@@ -67,11 +77,6 @@ register_checkpoint(
     "rdpd-light-stage4", "rdpd-light-stage4.safetensors",
     "the default's fourth stage (the default before stage 5; the starting point of that run): "
     "stage 3 fine-tuned on 256-px crops",
-)
-register_checkpoint(
-    "rdpd-light-stage3", "rdpd-light-stage3.safetensors",
-    "the default's third stage (the default before stage 4; the starting point of that run): "
-    "stage 2 fine-tuned with the per-patch log loss on 128-px crops",
 )
 register_checkpoint(
     "rdpd-light-photo", "rdpd-light-photo.safetensors",
