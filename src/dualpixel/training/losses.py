@@ -83,13 +83,13 @@ class EdgeLoss(nn.Module):
             return zero, zero
         # (N, C, H, W); the gradients are linear, so filter the difference once.
         difference = (output - target).reshape(images, *output.shape[-3:])
+        dims = (1, 2, 3) if per_image else (0, 1, 2, 3)
         loss_x = loss_y = output.new_zeros(())
         for size in self.sizes:
             smoothing, derivative = self.factors[size]
             # Valid filtering (no border artefacts): (N, C, H - s + 1, W - s + 1) each.
             grad_x = _correlate_valid(_correlate_valid(difference, derivative, -1), smoothing, -2)
             grad_y = _correlate_valid(_correlate_valid(difference, smoothing, -1), derivative, -2)
-            dims = (1, 2, 3) if per_image else (0, 1, 2, 3)
             loss_x = loss_x + grad_x.square().mean(dim=dims)
             loss_y = loss_y + grad_y.square().mean(dim=dims)
         return loss_x / len(self.sizes), loss_y / len(self.sizes)
