@@ -26,9 +26,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dualpixel.data import DPPatchDataset, PatchConfig, discover_dp_dataset, radial_distance
+from dualpixel.data import DPPatchDataset, PatchConfig, discover_dp_dataset
 from dualpixel.data.layout import read_frame
 from dualpixel.evaluation.metrics import psnr
+from dualpixel.inference.deblur import frame_tensor
 from dualpixel.models import load_model, load_weights, read_metadata, save_model
 from dualpixel.models.checkpoint import build_from_metadata
 from dualpixel.models.refiner import Refiner
@@ -56,17 +57,15 @@ def evaluate(net: DeblurNet, refiner: Refiner, data: str, count: int) -> np.ndar
     """Per held-out frame: PSNR of the input, the first stage and the refined output (dB)."""
     frames = [f for s in discover_dp_dataset(data, "test") for f in s.frames][:count]
     rows = []
+    image = lambda t: t[0].permute(1, 2, 0).numpy()  # noqa: E731  (1, 3, H, W) -> (H, W, 3)
     for frame in frames:
-        images = {k: torch.from_numpy(v).permute(2, 0, 1)[None] for k, v in
-                  read_frame(frame).items()}
-        height, width = images["left"].shape[-2:]
-        images["radial"] = torch.from_numpy(radial_distance(height, width))[None, None]
-        x, first = first_stage(net, images)
+        views = read_frame(frame)
+        x = frame_tensor(net, views["left"], views["right"])
         with torch.no_grad():
+            first = net.step(x)[0]
             refined = refiner(x, first)
-        image = lambda t: t[0].permute(1, 2, 0).numpy()  # noqa: E731  (1, 3, H, W) -> (H, W, 3)
-        target = image(images["target"])
-        rows.append((psnr(image((images["left"] + images["right"]) / 2), target),
+        target = views["target"]
+        rows.append((psnr((views["left"] + views["right"]) / 2, target),
                      psnr(image(first), target), psnr(image(refined), target)))
     return np.array(rows)
 

@@ -88,6 +88,16 @@ def test_cosine_schedule_decays_over_the_run_and_resumes(tiny_synthetic_dataset,
         tiny_config(tiny_synthetic_dataset, lr_schedule="linear")
 
 
+def _largest_steps(start, run) -> dict[str, float]:
+    """The largest change of each of a few weight tensors from ``start`` to ``run``'s last
+    weights (the first Adam step's size is the rate, whatever the gradient)."""
+    moved = load_model(run / "last.safetensors").state_dict()
+    names = ("bottleneck.0.weight", "upconvs.0.conv.weight", "encoders.0.0.weight",
+             "decoders.0.0.weight", "refiner.head.weight")
+    return {k: (moved[k] - v).abs().max().item() for k, v in start.state_dict().items()
+            if k in names}
+
+
 def test_coarsest_level_learns_at_its_own_rate(tiny_synthetic_dataset, tmp_path):
     """coarsest_lr_scale: two Adam groups on one schedule; the coarsest level's weights move
     `scale` times as far in the first Adam step (whose size is the rate, whatever the gradient);
@@ -113,20 +123,50 @@ def test_coarsest_level_learns_at_its_own_rate(tiny_synthetic_dataset, tmp_path)
                       lr_schedule="cosine", coarsest_lr_scale=4.0, lstm_dropout=0.0,
                       init_weights=str(tmp_path / "start.safetensors"))
     train(one, tmp_path / "one", progress=False)
-    moved = load_model(tmp_path / "one" / "last.safetensors").state_dict()
-    before = start.state_dict()
-    step = {k: (moved[k] - before[k]).abs().max().item() for k in before}
     # Adam's first step moves every weight with a gradient by the rate (1e-3 or 4e-3).
-    assert step["bottleneck.0.weight"] == pytest.approx(4e-3, rel=1e-3)
-    assert step["upconvs.0.conv.weight"] == pytest.approx(4e-3, rel=1e-3)
-    assert step["encoders.0.0.weight"] == pytest.approx(1e-3, rel=1e-3)
-    assert step["decoders.0.0.weight"] == pytest.approx(1e-3, rel=1e-3)
+    assert _largest_steps(start, tmp_path / "one") == pytest.approx(
+        {"bottleneck.0.weight": 4e-3, "upconvs.0.conv.weight": 4e-3,
+         "encoders.0.0.weight": 1e-3, "decoders.0.0.weight": 1e-3}, rel=1e-3)
 
     resumed = train(config, tmp_path / "one", resume=True, progress=False)
     straight = json.loads((tmp_path / "run" / "history.jsonl").read_text().splitlines()[1])
     assert resumed.history[1]["loss"] == pytest.approx(straight["loss"], rel=1e-6)
     with pytest.raises(ParameterError, match="coarsest_lr_scale must be > 0"):
         load_config(None, {"synthetic_data": "x", "coarsest_lr_scale": 0})
+
+
+def test_first_stage_learns_at_its_own_rate_beside_the_refiner(tiny_synthetic_dataset,
+                                                               tmp_path):
+    """first_stage_lr_scale: the first stage of a refined network in an Adam group of its own;
+    Adam's first step moves a weight by its group's rate, and with coarsest_lr_scale too the
+    coarsest level gets both multiples."""
+    from dualpixel.models import save_model
+    from dualpixel.training.trainer import Trainer
+
+    torch.manual_seed(6)
+    start = build_model("rdpd", width=0.125, residual=True, lstm_dropout=0.0, refiner=(8, 16))
+    with torch.no_grad():  # a residual head starts at zero: no gradient below it in step one
+        start.head[-1].weight.normal_(std=0.01)
+    save_model(tmp_path / "start.safetensors", start)
+    config = tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=1,
+                         residual=True, lstm_dropout=0.0, refiner=[8, 16],
+                         first_stage_lr_scale=0.25, coarsest_lr_scale=2.0,
+                         init_weights=str(tmp_path / "start.safetensors"))
+    trainer = Trainer(config, tmp_path / "run", progress=False)
+    trainer.run()
+    assert [g["initial_lr"] for g in trainer.optimizer.param_groups] == [1e-3, 2.5e-4, 5e-4]
+    # The refiner's head starts at zero, so in the first step only it has a gradient there.
+    # (Adam's first step is rate * g / (|g| + eps): a hair short of the rate for tiny g.)
+    assert _largest_steps(start, tmp_path / "run") == pytest.approx(
+        {"refiner.head.weight": 1e-3, "encoders.0.0.weight": 2.5e-4,
+         "decoders.0.0.weight": 2.5e-4, "bottleneck.0.weight": 5e-4,
+         "upconvs.0.conv.weight": 5e-4}, rel=5e-2)
+    for wrong in ({"first_stage_lr_scale": 0.5},  # no refiner
+                  {"first_stage_lr_scale": 0.5, "refiner": [8], "freeze_first_stage": True}):
+        with pytest.raises(ParameterError, match="first_stage_lr_scale needs a refiner"):
+            load_config(None, {"synthetic_data": "x", **wrong})
+    with pytest.raises(ParameterError, match="first_stage_lr_scale must be > 0"):
+        load_config(None, {"synthetic_data": "x", "refiner": [8], "first_stage_lr_scale": 0})
 
 
 def test_weight_average_is_what_a_run_saves(tiny_synthetic_dataset, tmp_path):

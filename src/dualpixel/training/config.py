@@ -40,6 +40,9 @@ class TrainConfig:
     # go into the first stage and the refiner starts as the identity.
     refiner: list[int] | None = None
     freeze_first_stage: bool = False  # ours: train only the refiner
+    # Ours: with a refiner, the first stage learns at this multiple of learning_rate (on the same
+    # schedule), e.g. 0.25 to fine-tune both stages together with a slower first stage.
+    first_stage_lr_scale: float = 1.0
     # Data (DPDD layout). Real data: single images; synthetic data: seq_NNN sequences.
     real_data: str | None = None
     real_split: str = "train"
@@ -120,6 +123,13 @@ class TrainConfig:
         if self.freeze_first_stage and self.coarsest_lr_scale != 1.0:
             raise ParameterError("coarsest_lr_scale has nothing to scale with freeze_first_stage "
                                  "(the coarsest level is frozen)")
+        if self.first_stage_lr_scale <= 0:
+            raise ParameterError("first_stage_lr_scale must be > 0 (freeze_first_stage: true "
+                                 f"freezes it), got {self.first_stage_lr_scale}")
+        if self.first_stage_lr_scale != 1.0 and (self.freeze_first_stage or not self.refiner):
+            raise ParameterError("first_stage_lr_scale needs a refiner whose first stage trains "
+                                 "(refiner set, freeze_first_stage false); without one, set "
+                                 "learning_rate")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ParameterError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         if self.coarsest_lr_scale <= 0:

@@ -426,18 +426,25 @@ class Trainer:
 
 
 def _parameter_groups(model: DeblurNet, config: TrainConfig) -> list[dict[str, Any]]:
-    """Adam's parameter groups: one, or with ``coarsest_lr_scale`` the coarsest level apart at
-    its own rate (the schedule scales both alike). Frozen parameters (``freeze_first_stage``)
-    are left out."""
-    trained = [p for p in model.parameters() if p.requires_grad]
-    if config.coarsest_lr_scale == 1.0:
-        return [{"params": trained}]
+    """Adam's parameter groups, one per learning rate, the base rate first (the schedule scales
+    all alike): with ``first_stage_lr_scale`` the first stage of a refined network and with
+    ``coarsest_lr_scale`` the coarsest level learn at those multiples of ``learning_rate`` (the
+    coarsest level is in the first stage: both apply). Frozen parameters
+    (``freeze_first_stage``) are left out."""
+    first = set()
+    if model.refiner is not None:
+        first = {id(p) for p in model.first_stage_parameters()}
     coarse = {id(p) for module in model.coarsest_level() for p in module.parameters()}
-    return [
-        {"params": [p for p in trained if id(p) not in coarse]},
-        {"params": [p for p in trained if id(p) in coarse],
-         "lr": config.learning_rate * config.coarsest_lr_scale},
-    ]
+    by_scale: dict[float, list[torch.nn.Parameter]] = {1.0: []}
+    for parameter in model.parameters():
+        if not parameter.requires_grad:
+            continue
+        scale = config.first_stage_lr_scale if id(parameter) in first else 1.0
+        if id(parameter) in coarse:
+            scale *= config.coarsest_lr_scale
+        by_scale.setdefault(scale, []).append(parameter)
+    return [{"params": params, "lr": config.learning_rate * scale}
+            for scale, params in by_scale.items() if params]
 
 
 def _cosine_factor(epoch: int, epochs: int) -> float:
