@@ -34,6 +34,11 @@ RETIRED_CHECKPOINTS: dict[str, str] = {
                          "configs/rdpd-light-stage3-cpu.yaml from a remade rdpd-light-stage2 "
                          "(scripts/train_stage3.sh, 107 CPU-minutes before the faster loss) make "
                          "it again",
+    "rdpd-light-stage4": "the default's fourth stage (28.12 dB held out, 26.21 dB on the Canon "
+                         "scenes) no longer ships; scripts/make_mix_data.sh, then "
+                         "configs/rdpd-light-stage4-cpu.yaml from a remade rdpd-light-stage3 "
+                         "(scripts/train_stage4.sh, 104 CPU-minutes before the faster loss) make "
+                         "it again",
 }
 
 
@@ -50,8 +55,13 @@ def register_checkpoint(name: str, filename: str, description: str) -> None:
 register_checkpoint(
     "rdpd-light", "rdpd-light.safetensors",
     "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in seven stages, plus a refiner trained on top in two (stages 8 and 9; "
-    "the default; improves real Canon DP photographs)",
+    "with DSLR-like blur, in seven stages, plus a refiner trained on top in two (stages 8 and 9), "
+    "then both trained together (stage 10; the default; improves real Canon DP photographs)",
+)
+register_checkpoint(
+    "rdpd-light-stage9", "rdpd-light-stage9.safetensors",
+    "the default's ninth stage (the default before stage 10; the starting point of that run): "
+    "stage 8's refiner trained on, its first stage frozen",
 )
 register_checkpoint(
     "rdpd-light-stage8", "rdpd-light-stage8.safetensors",
@@ -72,11 +82,6 @@ register_checkpoint(
     "rdpd-light-stage5", "rdpd-light-stage5.safetensors",
     "the default's fifth stage (the default before stage 6; the starting point of that run): "
     "stage 4 with its coarsest level revived and a moving average of the weights",
-)
-register_checkpoint(
-    "rdpd-light-stage4", "rdpd-light-stage4.safetensors",
-    "the default's fourth stage (the default before stage 5; the starting point of that run): "
-    "stage 3 fine-tuned on 256-px crops",
 )
 register_checkpoint(
     "rdpd-light-photo", "rdpd-light-photo.safetensors",
