@@ -235,6 +235,9 @@ def test_refiner_trains_on_top_of_a_frozen_first_stage(tiny_synthetic_dataset, t
                                 init_weights=str(tmp_path / "renamed.safetensors")),
                     tmp_path / "run", resume=True, progress=False)
     assert [r["epoch"] for r in resumed.history] == [1, 2]
+    # The run folder records the length it now has and the weights it started from.
+    saved = load_config(tmp_path / "run" / "config.yaml")
+    assert (saved.epochs, saved.init_weights) == (2, str(tmp_path / "start.safetensors"))
     with pytest.raises(ParameterError, match="freeze_first_stage needs a refiner"):
         load_config(None, {"synthetic_data": "x", "freeze_first_stage": True})
     with pytest.raises(ParameterError, match="refiner must list channel widths"):

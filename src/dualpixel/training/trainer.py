@@ -24,7 +24,7 @@ import math
 import os
 import random
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -171,18 +171,25 @@ def _set_rng_state(state: dict[str, Any]) -> None:
         torch.cuda.set_rng_state_all(state["cuda"])
 
 
-def _check_resumable(output: Path, config: TrainConfig) -> None:
+# What a resume may change: the run's length and how it runs. The initial weights are read only
+# when a run starts (the state file holds them after), so a starting checkpoint renamed since (a
+# default shipped anew) resumes; the run folder keeps the name it started from.
+_RESUME_MAY_CHANGE = ("epochs", "workers", "threads", "device", "tensorboard")
+
+
+def _check_resumable(output: Path, config: TrainConfig) -> TrainConfig:
+    """The saved run's config with what this resume may change taken from ``config``; raises
+    when anything else differs."""
     saved = load_config(output / "config.yaml")
     mine, theirs = config.to_dict(), saved.to_dict()
-    # May change on resume. The initial weights are read only when a run starts (the state file
-    # holds them after), so a starting checkpoint renamed since (a default shipped anew) resumes.
-    for key in ("epochs", "workers", "threads", "device", "tensorboard", "init_weights"):
+    for key in (*_RESUME_MAY_CHANGE, "init_weights"):
         mine.pop(key), theirs.pop(key)
     changed = sorted(k for k in mine if mine[k] != theirs[k])
     if changed:
         raise ParameterError(
             f"cannot resume {output}: config differs from the saved run in {', '.join(changed)}"
         )
+    return replace(saved, **{k: getattr(config, k) for k in _RESUME_MAY_CHANGE})
 
 
 def _setup_distributed(config: TrainConfig) -> tuple[int, int, torch.device]:
@@ -261,9 +268,10 @@ class Trainer:
         if self.resume and not has_run:
             raise InputFileError(output / "last_state.pt", "nothing to resume (no finished epoch)")
         if self.resume:
-            _check_resumable(output, config)
+            resumed = _check_resumable(output, config)
             if self.main:
                 remove_partials(output)  # what a killed checkpoint write left behind
+                save_config(resumed, output / "config.yaml")  # e.g. a run lengthened on resume
 
     @property
     def averaged(self) -> DeblurNet:
