@@ -33,11 +33,11 @@ def test_wheel_contents(wheel):
         text = archive.read(metadata).decode()
     for needed in ("dualpixel/py.typed", "dualpixel/weights/rdpd-light.safetensors",
                    "dualpixel/weights/rdpd-light-photo.safetensors",
-                   "dualpixel/weights/rdpd-light-stage6.safetensors",
                    "dualpixel/weights/rdpd-light-stage7.safetensors",
                    "dualpixel/weights/rdpd-light-stage8.safetensors",
                    "dualpixel/weights/rdpd-light-stage9.safetensors",
                    "dualpixel/weights/rdpd-light-stage10.safetensors",
+                   "dualpixel/weights/rdpd-light-stage11.safetensors",
                    "dualpixel/weights/MODEL_CARD.md", "dualpixel/evaluation/niqe_builtin.npz",
                    "dualpixel/demo_data/canon_scene_01/LICENSE.md"):
         assert needed in names, needed
