@@ -19,6 +19,17 @@ __all__ = [
 #: name -> (file in this package, description); add entries with :func:`register_checkpoint`.
 CHECKPOINTS: dict[str, tuple[str, str]] = {}
 
+
+def _retired_stage(stage: int, ordinal: str, held_out: float, canon: float, minutes: int) -> str:
+    """How to make a retired stage of the default again (its config, trained from the stage
+    before); ``held_out`` and ``canon`` are its PSNR (dB), ``minutes`` its training time."""
+    return (f"the default's {ordinal} stage ({held_out:.2f} dB held out, {canon:.2f} dB on the "
+            f"Canon scenes) no longer ships; scripts/make_mix_data.sh, then "
+            f"configs/rdpd-light-stage{stage}-cpu.yaml from a remade rdpd-light-stage{stage - 1} "
+            f"(scripts/train_stage{stage}.sh, {minutes} CPU-minutes before the faster loss) make "
+            f"it again")
+
+
 #: Names that shipped once and no longer do (the wheel stays under 100 MB) -> how to get the
 #: weights back. Asking for one gives that answer instead of "not found".
 RETIRED_CHECKPOINTS: dict[str, str] = {
@@ -29,26 +40,10 @@ RETIRED_CHECKPOINTS: dict[str, str] = {
                          "scenes) no longer ships; scripts/make_mix_data.sh and "
                          "scripts/train_finetune.sh (configs/rdpd-light-finetune-cpu.yaml, "
                          "from rdpd-light-photo, 90 CPU-minutes) make it again",
-    "rdpd-light-stage3": "the default's third stage (28.06 dB held out, 26.16 dB on the Canon "
-                         "scenes) no longer ships; scripts/make_mix_data.sh, then "
-                         "configs/rdpd-light-stage3-cpu.yaml from a remade rdpd-light-stage2 "
-                         "(scripts/train_stage3.sh, 107 CPU-minutes before the faster loss) make "
-                         "it again",
-    "rdpd-light-stage4": "the default's fourth stage (28.12 dB held out, 26.21 dB on the Canon "
-                         "scenes) no longer ships; scripts/make_mix_data.sh, then "
-                         "configs/rdpd-light-stage4-cpu.yaml from a remade rdpd-light-stage3 "
-                         "(scripts/train_stage4.sh, 104 CPU-minutes before the faster loss) make "
-                         "it again",
-    "rdpd-light-stage5": "the default's fifth stage (28.16 dB held out, 26.25 dB on the Canon "
-                         "scenes) no longer ships; scripts/make_mix_data.sh, then "
-                         "configs/rdpd-light-stage5-cpu.yaml from a remade rdpd-light-stage4 "
-                         "(scripts/train_stage5.sh, 86 CPU-minutes before the faster loss) make "
-                         "it again",
-    "rdpd-light-stage6": "the default's sixth stage (28.21 dB held out, 26.30 dB on the Canon "
-                         "scenes) no longer ships; scripts/make_mix_data.sh, then "
-                         "configs/rdpd-light-stage6-cpu.yaml from a remade rdpd-light-stage5 "
-                         "(scripts/train_stage6.sh, 105 CPU-minutes before the faster loss) make "
-                         "it again",
+    **{f"rdpd-light-stage{stage}": _retired_stage(stage, ordinal, held_out, canon, minutes)
+       for stage, ordinal, held_out, canon, minutes in (
+           (3, "third", 28.06, 26.16, 107), (4, "fourth", 28.12, 26.21, 104),
+           (5, "fifth", 28.16, 26.25, 86), (6, "sixth", 28.21, 26.30, 105))},
 }
 
 
