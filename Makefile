@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= demo-output
 
-.PHONY: setup demo test lint browser clean
+.PHONY: setup demo test lint browser docs clean
 
 setup: $(STAMP)
 
@@ -28,6 +28,10 @@ browser:
 	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 	  && (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium \
 	  >/dev/null) || echo "chromium not installed: the browser test will be skipped"; }
+
+# The API reference from the docstrings (mkdocs + mkdocstrings) into build/site/.
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests $(wildcard benchmarks)

@@ -31,16 +31,15 @@ def test_wheel_contents(wheel):
         names = set(archive.namelist())
         metadata = next(n for n in names if n.endswith(".dist-info/METADATA"))
         text = archive.read(metadata).decode()
-    for needed in ("dualpixel/py.typed", "dualpixel/weights/rdpd-light.safetensors",
-                   "dualpixel/weights/rdpd-light-photo.safetensors",
-                   "dualpixel/weights/rdpd-light-stage7.safetensors",
-                   "dualpixel/weights/rdpd-light-stage8.safetensors",
-                   "dualpixel/weights/rdpd-light-stage9.safetensors",
-                   "dualpixel/weights/rdpd-light-stage10.safetensors",
-                   "dualpixel/weights/rdpd-light-stage11.safetensors",
+    from dualpixel.weights import WEIGHTS
+
+    shipped = {n for n in names if n.endswith(".safetensors")}
+    assert shipped == {f"dualpixel/weights/{w.file}" for w in WEIGHTS.values()}
+    assert len(shipped) <= 2  # the default and one alternative (issue #32)
+    for needed in ("dualpixel/py.typed", "dualpixel/weights/registry.json",
                    "dualpixel/weights/MODEL_CARD.md", "dualpixel/evaluation/niqe_builtin.npz",
                    "dualpixel/demo_data/canon_scene_01/LICENSE.md"):
         assert needed in names, needed
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     assert "Project-URL: Source" in text and "License-Expression: MIT" in text
-    assert wheel.stat().st_size < 100e6
+    assert wheel.stat().st_size < 80e6

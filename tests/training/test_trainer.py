@@ -314,9 +314,12 @@ def test_models_command_lists_counts():
     from dualpixel.weights import model_info
 
     for name, info in model_info().items():
-        assert f"{name}: {info['description']}" in result.output
+        aliases = f" (alias {', '.join(info['aliases'])})" if info["aliases"] else ""
+        assert f"{name}{aliases}: {info['description']}" in result.output
         assert info["sha256"][:16] in result.output
-    assert "metrics:" in result.output and "training_data:" in result.output
+        assert f"recipes/{info['recipe']} phase {info['phase']}" in result.output
+        for dataset, scores in info["metrics"].items():
+            assert f"{dataset}: {scores['psnr']:.2f} dB" in result.output
 
 
 @pytest.mark.parametrize("as_frames", [False, True])

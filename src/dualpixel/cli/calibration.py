@@ -127,4 +127,62 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
                            "evaluations": fit.evaluations}))
 
 
+@calibrate.command("camera", context_settings=CONTEXT)
+@click.option("--input", "inputs", type=click.Path(file_okay=False, path_type=Path),
+              required=True, multiple=True,
+              help="Real DP pairs with sharp targets: a DPDD-layout folder or a folder of scene "
+                   "folders (view0/view1/target.png); repeat for more.")
+@click.option("--split", default=None, help="Split of DPDD-layout folders [default: test].")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="camera.json to write (for `dualpixel synth --camera`).")
+@click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="PNG: the fitted kernels beside the views, and blur against disparity per "
+                   "channel.")
+@click.option("--name", default=None, help="Label of the camera [default: the input's name].")
+@click.option("--patch", type=click.IntRange(16), default=48, help="Block size in pixels.")
+@click.option("--max-radius", type=click.FloatRange(1.0, 60.0), default=12.0,
+              help="Largest CoC radius (px) searched; twice as large at twice the resolution.")
+@click.option("--psf-grid", type=click.Choice(["single", "pixel4"]), default="single",
+              help="PSF shapes to choose from: single (the Pixel 4 fits' mode; quick) or the "
+                   "36 shapes of the pixel4 bank.")
+@click.option("--skip-misaligned", is_flag=True,
+              help="Leave out (with a warning) pairs whose target is shifted against the views "
+                   "by over 1 px, instead of stopping.")
+def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
+                   figure: Path | None, name: str | None, patch: int, max_radius: float,
+                   psf_grid: str, skip_misaligned: bool) -> None:
+    """Measure a camera's DP blur model from real pairs with targets: per-channel disparity
+    ratio, PSF shape, noise and blur sizes."""
+    from dualpixel.calibration.camera import calibrate_camera, read_calibration_frames
+    from dualpixel.io.atomic import check_writable
+    from dualpixel.optics.psf import PSFParams
+    from dualpixel.optics.psf_bank import PIXEL4_PSF_BANK
+
+    check_writable(output)
+    if figure is not None:
+        from dualpixel.viz.figures import check_figure_path
+
+        check_writable(check_figure_path(figure))
+    candidates = (list(PIXEL4_PSF_BANK) if psf_grid == "pixel4"
+                  else [PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)])
+    import warnings
+
+    frames = read_calibration_frames(inputs, split)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        calibration = calibrate_camera(frames, name=name or inputs[0].name,
+                                       psf_candidates=candidates, patch=patch,
+                                       max_radius=max_radius, skip_misaligned=skip_misaligned,
+                                       progress=True)
+    for warning in caught:
+        click.echo(f"Warning: {warning.message}", err=True)
+    calibration.camera.save(output)
+    click.echo(json.dumps(calibration.camera.to_dict(), indent=2))
+    click.echo(f"wrote {output}")
+    if figure is not None:
+        from dualpixel.viz.camera_figure import render_camera_figure
+
+        click.echo(f"wrote {render_camera_figure(calibration, frames, figure)}")
+
+
 COMMANDS = (pattern, calibrate)

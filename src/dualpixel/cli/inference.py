@@ -125,7 +125,9 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         model, resolved = _load(checkpoint, device)
         deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, flips=flips,
                               multiscale=multiscale)
-        method = Path(checkpoint).stem + ("+flips" if flips else "") + (
+        is_path = Path(checkpoint).suffix == ".safetensors" or "/" in str(checkpoint)
+        method = (Path(checkpoint).stem if is_path else str(checkpoint)) + (
+            "+flips" if flips else "") + (
             "+multiscale" if multiscale else "")
         meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale}
     summary = run_evaluation(request, deblurrer, method, meta)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import click
 
 from dualpixel import __version__
-from dualpixel.cli import calibration, demo, inference, synthesis, training
+from dualpixel.cli import calibration, demo, inference, reproduce, synthesis, training
 from dualpixel.cli.common import CONTEXT, DPGroup
 
 __all__ = ["cli"]
@@ -35,7 +35,7 @@ def _silence_progress_bars() -> None:
     tqdm.__init__ = quiet_init
 
 
-for _module in (synthesis, training, inference, calibration, demo):
+for _module in (synthesis, training, reproduce, inference, calibration, demo):
     for _command in _module.COMMANDS:
         cli.add_command(_command)
 

@@ -94,6 +94,10 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               default="ours", help="DP PSF model (the others for the paper's ablations).")
 @click.option("--psf-bank", type=click.Choice(list(PSF_BANKS)), default="paper",
               help="PSF shapes to draw from: the paper's 48, or around the real Pixel 4 fits.")
+@click.option("--camera", "camera_file", type=click.Path(dir_okay=False, path_type=Path),
+              default=None,
+              help="A calibrated camera (`dualpixel calibrate camera`): its PSF shape replaces "
+                   "--psf-bank and its per-channel disparity ratio shapes the views.")
 @click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
 @click.option("--depth-scale", type=float, default=0.001,
@@ -107,9 +111,11 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, render_mode: str,
           bit_depth: str,
           noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
-          psf_model: str, psf_bank: str, split: str, max_depth: float, depth_scale: float,
-          seed: int, device: str, workers: int, shard: tuple[int, int] | None) -> None:
+          psf_model: str, psf_bank: str, camera_file: Path | None, split: str, max_depth: float,
+          depth_scale: float, seed: int, device: str, workers: int,
+          shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
+    from dualpixel.calibration.camera import load_camera
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 
@@ -123,6 +129,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
         noise=noise,
         noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
+        camera=None if camera_file is None else load_camera(camera_file).to_dict(),
     )
     summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device,
                                  shard=shard)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -25,20 +24,22 @@ def models(width: float) -> None:
     if width == 1.0:
         keras = count_parameters(build_model("rdpd", peepholes=False))
         click.echo(f"(rdpd without peepholes, as the authors' Keras ConvLSTM2D: {keras:,})")
-    from dualpixel.weights import model_info
+    from dualpixel.weights import DEPRECATED, model_info
 
-    click.echo("\nshipped checkpoints (dualpixel.load_model(NAME), --checkpoint NAME):")
-    for name, info in model_info().items():
-        click.echo(f"  {name}: {info['description']}")
+    click.echo("\nshipped weights (dualpixel.load_model(NAME), --checkpoint NAME):")
+    for tag, info in model_info().items():
+        aliases = f" (alias {', '.join(info['aliases'])})" if info["aliases"] else ""
+        click.echo(f"  {tag}{aliases}: {info['description']}")
         refiner = f", refiner {info['refiner']}" if info["refiner"] else ""
         click.echo(f"    {info['model']} width {info['width']:g}, residual {info['residual']}"
-                   f"{refiner}, "
-                   f"state carried between frames: {info['temporal']}, "
-                   f"{info['parameters']:,} parameters, {info['bytes'] / 1e6:.1f} MB, "
-                   f"sha256 {info['sha256'][:16]}...")
-        for key in ("metrics", "training_data"):
-            if key in info["training"]:
-                click.echo(f"    {key}: {json.dumps(info['training'][key])}")
+                   f"{refiner}, {info['parameters']:,} parameters, {info['bytes'] / 1e6:.1f} MB, "
+                   f"sha256 {info['sha256'][:16]}...; made by recipes/{info['recipe']} phase "
+                   f"{info['phase']}")
+        for dataset, scores in info["metrics"].items():
+            click.echo(f"    {dataset}: {scores['psnr']:.2f} dB PSNR, SSIM {scores['ssim']:.3f} "
+                       f"(input {scores['input_psnr']:.2f} dB)")
+    click.echo(f"retired names (asking for one says how to make it again): "
+               f"{', '.join(DEPRECATED)}")
 
 
 def _overrides(_ctx, _param, values: tuple[str, ...]) -> dict[str, str]:

@@ -1,21 +1,20 @@
-"""Two-scale inference (ours, not in the paper): the network's output at full resolution for the
-fine detail, and its output on the views at half resolution for the coarse structure.
+"""Two-scale inference (ours, not in the paper): the network's output at full resolution
+for the fine detail, and its output on the views at half resolution for the coarse structure.
 
 At half resolution a blur of radius r px becomes r / 2 px, where the network does better: on a
-tuning set of the default model's kind (``scripts/make_tune_data.sh``: unseen photo scenes, seed
-22000, not the test set) the half-resolution pass, upsampled, beat the full-resolution one on
-pixels blurred by 8 px or more (20.76 against 20.35 dB on its first 20 frames) and on noisy,
-nearly sharp frames (averaging four pixels halves the noise), but lost the fine detail of
-in-focus pixels (29.4 against 35.6 dB). Splitting the two by frequency keeps the best of each:
-with ``G`` a Gaussian of standard deviation ``sigma`` (px at full resolution) and ``U`` bicubic
-upsampling,
+tuning set of the default model's kind (``experiments/scripts/make_tune_data.sh``: unseen photo
+scenes, seed 22000, not the test set) the half-resolution pass, upsampled, beat the full-resolution
+one on pixels blurred by 8 px or more (20.76 against 20.35 dB on its first 20 frames) and on noisy,
+nearly sharp frames (averaging four pixels halves the noise), but lost the fine detail of in-focus
+pixels (29.4 against 35.6 dB). Splitting the two by frequency keeps the best of each: with ``G`` a
+Gaussian of standard deviation ``sigma`` (px at full resolution) and ``U`` bicubic upsampling,
 
-    fused = fine - G * fine + G * U(coarse) = fine + G * (U(coarse) - fine).
+fused = fine - G * fine + G * U(coarse) = fine + G * (U(coarse) - fine).
 
 ``sigma`` = 3 px was the best of 1, 2, 3, 4 and 6 px on all 40 tuning frames (28.09 -> 28.16 dB
-with stage 5 of the default model; ``scripts/tune_multiscale.py``); a third, quarter-resolution
-scale added nothing (+0.01 dB on the first 20). Large blur gains, mild blur can lose a little:
-see the README for the held-out and real-photograph numbers.
+with stage 5 of the default model; ``experiments/scripts/tune_multiscale.py``); a third, quarter-
+resolution scale added nothing (+0.01 dB on the first 20). Large blur gains, mild blur can lose a
+little: see the README for the held-out and real-photograph numbers.
 """
 
 from __future__ import annotations

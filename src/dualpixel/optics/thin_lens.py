@@ -167,6 +167,9 @@ class DefocusProfile:
     infinity_coc: tuple[float, float]
     max_coc_radius: float
     description: str = ""
+    # False: the CoC is the same in pixels for any frame width (frames that are crops of a
+    # ``reference_width``-wide photograph).
+    scale_with_width: bool = True
 
     def __post_init__(self) -> None:
         check_range("reference_width", self.reference_width, 1)
@@ -182,7 +185,7 @@ class DefocusProfile:
         check_range("focus_distance", focus_distance, 0.0, low_inclusive=False)
         check_range("width", width, 1)
         low, high = self.infinity_coc
-        scale = width / self.reference_width
+        scale = width / self.reference_width if self.scale_with_width else 1.0
         r_inf = float(np.exp(rng.uniform(np.log(low), np.log(high)))) * scale
         focal_length = min(0.05, 0.5 * float(focus_distance))  # any f < s: the pitch absorbs it
         f_number = 2.0
@@ -213,7 +216,8 @@ def focus_from_depth(depth: np.ndarray, percentile: float = FOCUS_PERCENTILE) ->
 
 #: Defocus profiles. "dslr-840": a full-frame DSLR with a fast lens at a half-resolution DPDD frame
 #: (840 px wide; the Canon EOS 5D Mark IV of the DPDD benchmark): backgrounds far behind the
-#: subject blur by 3-20 px radius, near occluders by up to 30 px; "dslr-840-mild": 2-12 px, 20 px.
+#: subject blur by 3-20 px radius, near occluders by up to 30 px; "dslr-840-mild": 2-12 px, 20 px;
+#: "dslr-1680-crop": dslr-840's blur at full resolution (6-40 px, 60 px) in frames of any width.
 DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
     profile.name: profile
     for profile in (
@@ -222,5 +226,9 @@ DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
         DefocusProfile("dslr-840-mild", 840, (2.0, 12.0), 20.0,
                        "as dslr-840 without its heavy tail: the shipped data measured about "
                        "0.75 px blurrier than real DPDD photographs at every percentile"),
+        DefocusProfile("dslr-1680-crop", 1680, (6.0, 40.0), 60.0,
+                       "dslr-840 at full resolution (1680 px wide, twice the blur in pixels), "
+                       "for frames that are crops of such a photograph: the CoC does not scale "
+                       "with the frame width", scale_with_width=False),
     )
 }

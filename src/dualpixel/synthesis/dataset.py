@@ -40,7 +40,7 @@ from dualpixel.io.dpdd import frame_paths, read_manifest
 from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
 from dualpixel.optics.psf import PSFModel, check_psf_model
-from dualpixel.optics.psf_bank import PSF_BANKS
+from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
 from dualpixel.optics.thin_lens import (
     CAMERA_PRESETS,
     DEFOCUS_PROFILES,
@@ -80,6 +80,10 @@ class SynthConfig:
     max_depth: float = 250.0
     depth_scale: float = 0.001
     split: str = "train"
+    # Ours: a calibrated camera (dualpixel.calibration.camera.DPCamera.to_dict(); ``synth
+    # --camera camera.json``): its PSF shape replaces the bank and its per-channel disparity
+    # ratio is applied to every frame. None: the paper's model.
+    camera: dict | None = field(default=None, hash=False)
 
     def __post_init__(self) -> None:
         known = (*CAMERA_PRESETS, *DEFOCUS_PROFILES)
@@ -105,6 +109,16 @@ class SynthConfig:
         check_range("depth_scale", self.depth_scale, 0.0, low_inclusive=False)
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
+        if self.camera is not None:
+            self.dp_camera()  # refuses a bad camera description now
+
+    def dp_camera(self):
+        """The calibrated camera (:class:`~dualpixel.calibration.camera.DPCamera`), or None."""
+        if self.camera is None:
+            return None
+        from dualpixel.calibration.camera import DPCamera
+
+        return DPCamera.from_dict(self.camera, "camera")
 
     def as_dict(self) -> dict:
         data = asdict(self)
@@ -162,6 +176,10 @@ def plan_jobs(
 ) -> list[FrameJob]:
     """Every output frame, with the recipe of its sequence drawn from the seed."""
     jobs = []
+    bank, disparity_ratio = PSF_BANKS[config.psf_bank], None
+    camera_model = config.dp_camera()
+    if camera_model is not None:
+        bank, disparity_ratio = PSFBank([camera_model.psf]), camera_model.disparity_ratio
     for cam_index, camera_name in enumerate(config.cameras):
         for seq_index, sequence in enumerate(sequences):
             number = cam_index * len(sequences) + seq_index + 1
@@ -173,7 +191,8 @@ def plan_jobs(
                 camera = _profile_camera(DEFOCUS_PROFILES[camera_name], sequence, fmt, config,
                                          seed)
             recipe = draw_recipe(
-                seed, camera, psf_model=config.psf_model, bank=PSF_BANKS[config.psf_bank],
+                seed, camera, psf_model=config.psf_model, bank=bank,
+                disparity_ratio=disparity_ratio,
                 distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
                 max_layers=config.max_layers, render_mode=config.render_mode,

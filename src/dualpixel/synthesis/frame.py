@@ -12,6 +12,7 @@ import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError
+from dualpixel.optics.crosstalk import apply_crosstalk, check_disparity_ratio
 from dualpixel.optics.distortion import DISTORTION_PRESETS, DivisionDistortion, distort_image
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, add_noise, sample_noise_sigma
 from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
@@ -35,6 +36,13 @@ class SequenceRecipe:
     noise_model: NoiseModel = "multiplicative"
     max_layers: int = 500
     render_mode: str = "fast"
+    # Ours: per channel, the fraction of the model's disparity the camera's views keep
+    # (dualpixel.optics.crosstalk; a calibrated camera); None: the paper's model (1, 1, 1).
+    disparity_ratio: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.disparity_ratio is not None:
+            check_disparity_ratio(self.disparity_ratio)
 
     def describe(self) -> dict:
         """A JSON-ready description for manifests."""
@@ -54,6 +62,8 @@ class SequenceRecipe:
             "noise_sigma": self.noise_sigma,
             "max_layers": self.max_layers,
             "render_mode": self.render_mode,
+            **({} if self.disparity_ratio is None
+               else {"disparity_ratio": list(self.disparity_ratio)}),
         }
 
 
@@ -69,6 +79,7 @@ def draw_recipe(
     noise_sigmas: tuple[float, ...] = PAPER_NOISE_SIGMAS,
     max_layers: int = 500,
     render_mode: str = "fast",
+    disparity_ratio: tuple[float, ...] | None = None,
 ) -> SequenceRecipe:
     """Draw a sequence's PSF shape and noise strength from ``seed`` for a camera.
 
@@ -99,6 +110,7 @@ def draw_recipe(
         noise_model=noise_model,
         max_layers=max_layers,
         render_mode=render_mode,
+        disparity_ratio=disparity_ratio,
     )
 
 
@@ -158,6 +170,8 @@ def synthesize_frame(
         image, coc, recipe.psf, model=recipe.psf_model, max_layers=recipe.max_layers,
         mode=recipe.render_mode,
     )
+    if recipe.disparity_ratio is not None:
+        left, right = apply_crosstalk(left, right, recipe.disparity_ratio)
     target, defocus = image, coc
     if recipe.distortion is not None:
         # one warp for all planes: the inverse-distortion grid is computed once per frame

@@ -46,10 +46,11 @@ class TrainConfig:
     # Data (DPDD layout). Real data: single images; synthetic data: seq_NNN sequences.
     real_data: str | None = None
     real_split: str = "train"
-    synthetic_data: str | None = None
+    # One dataset folder, or a list of them (pooled; e.g. the same scenes made with two cameras).
+    synthetic_data: str | list[str] | None = None
     synthetic_split: str = "train"
     synthetic_as_frames: bool = False  # sRDPD+: synthetic frames as single images
-    val_data: str | None = None
+    val_data: str | list[str] | None = None
     val_split: str = "test"
     val_limit: int | None = None  # validate on the first N sequences only
     # Real photographs scored every epoch for the log only (DPDD layout or scene folders such as
@@ -163,7 +164,10 @@ def _coerce(name: str, annotation: Any, value: Any) -> Any:
         if origin is float and isinstance(value, int | float) and not isinstance(value, bool):
             return float(value)
         if origin is list and isinstance(value, list | tuple):
-            return [int(v) for v in value]
+            (item,) = typing.get_args(option)
+            if not all(isinstance(v, item) and not isinstance(v, bool) for v in value):
+                raise ParameterError(f"config key {name!r}: {value!r} is not a {hint}")
+            return list(value)
         if origin is not type(None) and isinstance(value, origin) and not (
             origin is int and isinstance(value, bool)
         ):

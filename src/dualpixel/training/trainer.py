@@ -71,6 +71,12 @@ class TrainResult:
     history: list[dict[str, Any]]
 
 
+def _discover(roots: str | list[str], split: str) -> list[DPSequence]:
+    """The sequences of one dataset folder or of several, in order."""
+    folders = [roots] if isinstance(roots, str) else roots
+    return [s for root in folders for s in discover_dp_dataset(root, split)]
+
+
 def _data_kinds(config: TrainConfig) -> list[DataKind]:
     kinds = []
     common = dict(patch_size=config.patch_size, flips=config.flips,
@@ -83,7 +89,7 @@ def _data_kinds(config: TrainConfig) -> list[DataKind]:
             config.real_batch,
         ))
     if config.synthetic_data is not None:
-        sequences = discover_dp_dataset(config.synthetic_data, config.synthetic_split)
+        sequences = _discover(config.synthetic_data, config.synthetic_split)
         frames = 1 if config.synthetic_as_frames else config.sequence_frames
         as_frames = config.synthetic_as_frames
         batch = config.sequence_batch * (config.sequence_frames if as_frames else 1)
@@ -233,6 +239,7 @@ class Trainer:
         self.start_epoch, self.step, self.best = 0, 0, None
         self.history: list[dict[str, Any]] = []
         self.writer = None
+        self.init_record: dict[str, str] | None = None
 
     def run(self) -> TrainResult:
         self.check_folder()
@@ -286,8 +293,7 @@ class Trainer:
         self.kinds = _data_kinds(config)
         self.val_sequences = None
         if config.val_data is not None:
-            self.val_sequences = discover_dp_dataset(config.val_data,
-                                                     config.val_split)[: config.val_limit]
+            self.val_sequences = _discover(config.val_data, config.val_split)[: config.val_limit]
         self.real_val_sequences = _real_validation(config.real_val_data)
         model = build_model(config.model, width=config.width, peepholes=config.peepholes,
                             lstm_dropout=config.lstm_dropout, residual=config.residual,
@@ -331,17 +337,23 @@ class Trainer:
             factor = _cosine_factor(self.scheduler.last_epoch, self.config.epochs)
             for group in self.optimizer.param_groups:
                 group["lr"] = group["initial_lr"] * factor
+        if (self.output / "init.json").is_file():
+            self.init_record = json.loads((self.output / "init.json").read_text())
         self.start_epoch, self.step = state["epoch"] + 1, state["step"]
         self.best, self.history = state["best_psnr"], state["history"]
         _set_rng_state(state["rng"])
         if self.main:
             _write_derived(self.output, self.averaged, state["epoch"], self.step,
-                           self.history, self.config)
+                           self.history, self.config, self.init_record)
 
     def start(self) -> None:
         """A new run: initial weights (``init_weights``) and the saved config."""
         if self.config.init_weights is not None:
+            from dualpixel.weights import file_sha256
+
             path = _resolve_weights(self.config.init_weights)
+            # the start, by the name given (a tag or a path, never re-resolved) and its hash
+            self.init_record = {"name": self.config.init_weights, "sha256": file_sha256(path)}
             # A network without a refiner goes into the first stage of one with a refiner.
             first_stage_only = bool(self.config.refiner) and not read_metadata(path)["refiner"]
             load_weights(self.net, path, first_stage_only=first_stage_only)
@@ -350,6 +362,9 @@ class Trainer:
         if self.main:
             self.output.mkdir(parents=True, exist_ok=True)
             save_config(self.config, self.output / "config.yaml")
+            if self.init_record is not None:
+                with atomic_path(self.output / "init.json") as tmp:
+                    tmp.write_text(json.dumps(self.init_record) + "\n")
 
     def train_epoch(self, epoch: int) -> dict[str, Any]:
         """One epoch of optimisation; returns its record (mean losses, seconds)."""
@@ -427,7 +442,8 @@ class Trainer:
         self.history.append(record)
         _save_state(self.output, self.net, self.ema, self.optimizer, self.scheduler, epoch,
                     self.step, self.best, self.history)
-        _write_derived(self.output, self.averaged, epoch, self.step, self.history, self.config)
+        _write_derived(self.output, self.averaged, epoch, self.step, self.history, self.config,
+                       self.init_record)
         if self.writer is not None:
             self.writer.flush()
         tqdm.write(json.dumps(record))  # one line per epoch, bars or not (logs of long runs)
@@ -512,11 +528,14 @@ def _save_state(output: Path, net: DeblurNet, ema: AveragedModel | None, optimiz
 
 
 def _write_derived(output: Path, net: DeblurNet, epoch: int, step: int,
-                   history: list[dict[str, Any]], config: TrainConfig) -> None:
+                   history: list[dict[str, Any]], config: TrainConfig,
+                   init: dict[str, str] | None = None) -> None:
     """``last.safetensors`` and ``history.jsonl`` from the checkpoint's content; rewritten on
-    resume, so a kill between the state file and these cannot leave them stale."""
+    resume, so a kill between the state file and these cannot leave them stale. ``init``: the
+    starting weights' name and sha256."""
     save_model(output / "last.safetensors", net,
-               extra={"epoch": epoch + 1, "step": step, "config": config.to_dict()})
+               extra={"epoch": epoch + 1, "step": step, "config": config.to_dict(),
+                      "init": init})
     with atomic_path(output / "history.jsonl") as tmp:
         tmp.write_text("".join(json.dumps(r) + "\n" for r in history))
 

@@ -1,146 +1,144 @@
-"""The project's own trained checkpoints, shipped inside the package (see MODEL_CARD.md).
+"""The project's trained weights, shipped inside the package, as data (``registry.json``).
 
-``resolve_checkpoint`` accepts a registry name (``rdpd-light``) or a path to a ``.safetensors`` file
-written by ``dualpixel train``.
+After torchvision's ``Weights`` and timm's ``arch.tag`` names: every shipped file has an
+immutable *tag* (``rdpd-light.v12``) with its sha256, the recipe and phase that made it
+(``dualpixel reproduce recipes/RECIPE --until PHASE``), its parameter count, metrics and a
+one-line doc; an *alias* (``rdpd-light``, the default) names the tag it stands for today. Names
+that shipped once are in the deprecation map, which says which recipe phase remakes them.
+
+``resolve_checkpoint`` takes an alias, a tag or a path to a ``.safetensors`` file written by
+``dualpixel train`` / ``reproduce``.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import json
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
-from dualpixel.errors import InputFileError
+from dualpixel.errors import InputFileError, ParameterError
 
 __all__ = [
-    "CHECKPOINTS", "DEFAULT_CHECKPOINT", "RETIRED_CHECKPOINTS", "model_card", "model_info",
-    "register_checkpoint", "resolve_checkpoint",
+    "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "WEIGHTS", "Weights", "file_sha256",
+    "model_card", "model_info", "phase_weights", "resolve_checkpoint", "resolve_tag",
 ]
 
-#: name -> (file in this package, description); add entries with :func:`register_checkpoint`.
-CHECKPOINTS: dict[str, tuple[str, str]] = {}
+
+@dataclass(frozen=True)
+class Weights:
+    """One shipped weight file (a row of ``registry.json``)."""
+
+    tag: str
+    file: str
+    sha256: str
+    recipe: str
+    phase: str
+    num_params: int
+    doc: str
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def path(self) -> Path:
+        return Path(str(resources.files(__name__).joinpath(self.file)))
 
 
-def _retired_stage(stage: int, ordinal: str, held_out: float, canon: float, minutes: int) -> str:
-    """How to make a retired stage of the default again (its config, trained from the stage
-    before); ``held_out`` and ``canon`` are its PSNR (dB), ``minutes`` its training time."""
-    return (f"the default's {ordinal} stage ({held_out:.2f} dB held out, {canon:.2f} dB on the "
-            f"Canon scenes) no longer ships; scripts/make_mix_data.sh, then "
-            f"configs/rdpd-light-stage{stage}-cpu.yaml from a remade rdpd-light-stage{stage - 1} "
-            f"(scripts/train_stage{stage}.sh, {minutes} CPU-minutes before the faster loss) make "
-            f"it again")
+def _registry() -> dict[str, Any]:
+    return json.loads(resources.files(__name__).joinpath("registry.json").read_text("utf-8"))
 
 
-#: Names that shipped once and no longer do (the wheel stays under 100 MB) -> how to get the
-#: weights back. Asking for one gives that answer instead of "not found".
-RETIRED_CHECKPOINTS: dict[str, str] = {
-    "srdpd-light": "the first-generation model (dead-leaves scenes, 24.69 dB on the Canon dev "
-                   "scenes, below their input) no longer ships; MODEL_CARD.md says how to make its "
-                   "data and train it again with configs/srdpd-light-cpu.yaml (one CPU-hour)",
-    "rdpd-light-stage2": "the default's second stage (27.79 dB held out, 26.06 dB on the Canon "
-                         "scenes) no longer ships; scripts/make_mix_data.sh and "
-                         "scripts/train_finetune.sh (configs/rdpd-light-finetune-cpu.yaml, "
-                         "from rdpd-light-photo, 90 CPU-minutes) make it again",
-    **{f"rdpd-light-stage{stage}": _retired_stage(stage, ordinal, held_out, canon, minutes)
-       for stage, ordinal, held_out, canon, minutes in (
-           (3, "third", 28.06, 26.16, 107), (4, "fourth", 28.12, 26.21, 104),
-           (5, "fifth", 28.16, 26.25, 86), (6, "sixth", 28.21, 26.30, 105))},
-}
+_REGISTRY = _registry()
+#: Shipped files by tag.
+WEIGHTS: dict[str, Weights] = {tag: Weights(tag=tag, **row)
+                               for tag, row in _REGISTRY["weights"].items()}
+#: Alias -> the tag it stands for.
+ALIASES: dict[str, str] = dict(_REGISTRY["aliases"])
+#: Names that no longer ship -> {"recipe", "phase", "note"}: how to make them again.
+DEPRECATED: dict[str, dict[str, str]] = dict(_REGISTRY["deprecated"])
+DEFAULT_CHECKPOINT: str = _REGISTRY["default"]
 
 
-def register_checkpoint(name: str, filename: str, description: str) -> None:
-    """Add a shipped checkpoint to the registry; a name can be registered once only."""
-    from dualpixel.errors import ParameterError
-
-    if name in CHECKPOINTS:
-        raise ParameterError(f"checkpoint name {name!r} is already registered "
-                             f"({CHECKPOINTS[name][0]})")
-    CHECKPOINTS[name] = (filename, description)
-
-
-register_checkpoint(
-    "rdpd-light", "rdpd-light.safetensors",
-    "RDPD, width 0.5, residual output, trained on the CPU on photo-like synthetic frames "
-    "with DSLR-like blur, in seven stages, plus a refiner trained on top in two (stages 8 and 9), "
-    "then both trained together in three (stages 10 to 12; the default; improves real Canon DP "
-    "photographs)",
-)
-register_checkpoint(
-    "rdpd-light-stage11", "rdpd-light-stage11.safetensors",
-    "the default's eleventh stage (the default before stage 12; the starting point of that run): "
-    "stage 10 trained on, both stages together",
-)
-register_checkpoint(
-    "rdpd-light-stage10", "rdpd-light-stage10.safetensors",
-    "the default's tenth stage (the default before stage 11; the starting point of that run): "
-    "stage 9 with both stages trained together",
-)
-register_checkpoint(
-    "rdpd-light-stage9", "rdpd-light-stage9.safetensors",
-    "the default's ninth stage (the default before stage 10; the starting point of that run): "
-    "stage 8's refiner trained on, its first stage frozen",
-)
-register_checkpoint(
-    "rdpd-light-stage8", "rdpd-light-stage8.safetensors",
-    "the default's eighth stage (the default before stage 9; the starting point of that run): "
-    "stage 7, frozen, with a refiner trained on top",
-)
-register_checkpoint(
-    "rdpd-light-stage7", "rdpd-light-stage7.safetensors",
-    "the default's seventh stage (the default before stage 8, and its first stage): stage 6 "
-    "trained on 256-px crops",
-)
-register_checkpoint(
-    "rdpd-light-photo", "rdpd-light-photo.safetensors",
-    "the default's first stage: RDPD, width 0.5, residual output, 12 CPU epochs on 200 photo-like "
-    "scenes (the default until it was fine-tuned on 800 more; the starting point of that run)",
-)
-DEFAULT_CHECKPOINT = "rdpd-light"
+def _deprecation(name: str) -> str:
+    entry = DEPRECATED[name]
+    how = (f"`dualpixel reproduce recipes/{entry['recipe']} --output DIR --until "
+           f"{entry['phase']}` makes it again" if entry.get("phase") else entry.get("note", ""))
+    replacement = f"; use {entry['use']} instead" if entry.get("use") else ""
+    return f"{name} no longer ships ({entry.get('note', 'retired')}){replacement}; {how}"
 
 
 def resolve_checkpoint(name_or_path: str | Path) -> Path:
-    """The file of a registry name, or the given path; a clear error when neither exists."""
+    """The file of an alias or tag, or the given path; a clear error when neither exists."""
     text = str(name_or_path)
-    if text in CHECKPOINTS:
-        path = Path(str(resources.files(__name__).joinpath(CHECKPOINTS[text][0])))
+    tag = ALIASES.get(text, text)
+    if tag in WEIGHTS:
+        path = WEIGHTS[tag].path
         if not path.is_file():
-            raise InputFileError(path, f"shipped checkpoint {text!r} is missing from the package")
+            raise InputFileError(path, f"shipped weights {tag!r} are missing from the package")
         return path
-    if text in RETIRED_CHECKPOINTS:
-        raise InputFileError(text, f"retired checkpoint: {RETIRED_CHECKPOINTS[text]}")
+    if text in DEPRECATED:
+        raise InputFileError(text, f"retired checkpoint: {_deprecation(text)}")
     path = Path(name_or_path)
     if not path.is_file():
-        known = ", ".join(CHECKPOINTS)
+        known = ", ".join([*ALIASES, *WEIGHTS])
         raise InputFileError(
-            path, f"checkpoint not found (not a file, nor a registry name: {known})"
-        )
+            path, f"checkpoint not found (not a file, nor a shipped name: {known})")
     return path
 
 
-def model_info() -> dict[str, dict]:
-    """Per shipped checkpoint: description, architecture, parameter count, size, sha256 and the
-    training metadata stored in the file (``extra``)."""
-    import hashlib
+def file_sha256(path: str | Path) -> str:
+    """The sha256 of a file, read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
+
+def resolve_tag(tag: str) -> Path:
+    """The file of a shipped *tag* (not an alias: a recipe names what it starts from for good),
+    checked against its sha256."""
+    if tag in ALIASES:
+        raise ParameterError(f"{tag!r} is an alias (of {ALIASES[tag]}); name the tag, which "
+                             "never changes")
+    if tag not in WEIGHTS:
+        raise ParameterError(f"no shipped weights tagged {tag!r} (tags: {', '.join(WEIGHTS)})")
+    path = resolve_checkpoint(tag)
+    if file_sha256(path) != WEIGHTS[tag].sha256:
+        raise InputFileError(path, f"sha256 differs from the registry's for {tag}")
+    return path
+
+
+def phase_weights(recipe: str, phase: str) -> str | None:
+    """The tag of the shipped weights a recipe's phase made, if any ships."""
+    for tag, weights in WEIGHTS.items():
+        if weights.recipe == recipe and weights.phase == phase:
+            return tag
+    return None
+
+
+@functools.lru_cache(maxsize=1)
+def model_info() -> dict[str, dict]:
+    """Per shipped tag: doc, aliases, recipe and phase, architecture (the file's header only; no
+    network is built), parameter count, size, sha256 and metrics."""
     from dualpixel.models import read_metadata
-    from dualpixel.models.checkpoint import build_from_metadata
-    from dualpixel.models.registry import count_parameters
 
     info = {}
-    for name, (_, description) in CHECKPOINTS.items():
-        path = resolve_checkpoint(name)
-        meta = read_metadata(path)
-        network = build_from_metadata(meta)
-        info[name] = {
-            "description": description, "model": meta["model"], "width": meta["width"],
-            "residual": meta["residual"], "refiner": list(meta["refiner"]),
-            "temporal": meta["temporal"],
-            "parameters": count_parameters(network), "bytes": path.stat().st_size,
-            "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
-            "training": meta["extra"],
+    for tag, weights in WEIGHTS.items():
+        meta = read_metadata(resolve_checkpoint(tag))
+        info[tag] = {
+            "description": weights.doc, "aliases": [a for a, t in ALIASES.items() if t == tag],
+            "recipe": weights.recipe, "phase": weights.phase,
+            "model": meta["model"], "width": meta["width"], "residual": meta["residual"],
+            "refiner": list(meta["refiner"]), "temporal": meta["temporal"],
+            "parameters": weights.num_params, "bytes": weights.path.stat().st_size,
+            "sha256": weights.sha256, "metrics": weights.metrics,
         }
     return info
 
 
 def model_card() -> str:
-    """The model card (Markdown) of the shipped checkpoints."""
+    """The model card (Markdown) of the shipped weights."""
     return resources.files(__name__).joinpath("MODEL_CARD.md").read_text(encoding="utf-8")

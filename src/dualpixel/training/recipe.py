@@ -1,0 +1,507 @@
+"""Recipes: one YAML file per model, from data to the shipped weights (``dualpixel reproduce``).
+
+A recipe (``recipes/NAME.yaml``; after BasicSR/Restormer's one option file per published model,
+with phases inside it) holds:
+
+- ``name``, ``description``;
+- ``data``: steps run in order, each ``{name, scenes: {...}}`` (:class:`SceneConfig` keys plus
+  ``sequences`` and ``seed``) or ``{name, synth: {...}}`` (:class:`SynthConfig` keys plus
+  ``input``, a step's name or a folder, and ``format``; ``camera`` is a camera file, relative to
+  the recipe). Step NAME writes ``OUTPUT/data/NAME``;
+- ``train``: :class:`TrainConfig` keys shared by every phase. In the data keys (``real_data``,
+  ``synthetic_data``, ``val_data``, ``real_val_data``) a step's name stands for its folder; other
+  paths are relative to the working directory;
+- ``phases``: each ``{name, set: {...}, init: ...}`` names only what changes; it starts from the
+  previous phase's weights (``init: previous``, the default after the first phase), from
+  nothing (``init: none``, the first phase's default) or from a shipped tag
+  (``init: rdpd-light.v12``, checked by its sha256). A phase trains in
+  ``OUTPUT/phases/NN-NAME`` and resumes there;
+- ``ship``: ``{name, doc, phase}``: the phase (default the last) whose weights are exported in
+  float16 to ``OUTPUT/ship/NAME.safetensors`` with their provenance and metrics;
+- ``evaluate``: ``[{name, dataset, split}]`` scored with the shipped weights (a step's name or a
+  folder; a folder outside the run that is missing is skipped with a note).
+
+Every step resumes: a rerun of ``reproduce`` continues where the last one stopped. Bad input
+(an unknown key, a phase whose start cannot be resolved, a missing data step) is refused before
+any work, naming the recipe, the phase and the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from dualpixel.errors import InputFileError, ParameterError
+
+__all__ = ["Phase", "Recipe", "load_recipe", "plan_text", "reproduce"]
+
+_TOP_KEYS = {"name", "description", "data", "train", "phases", "ship", "evaluate"}
+_DATA_KEYS = ("real_data", "synthetic_data", "val_data", "real_val_data")
+
+
+@dataclass(frozen=True)
+class DataStep:
+    """One data step: ``kind`` is ``scenes`` or ``synth``, ``args`` its settings."""
+
+    name: str
+    kind: str
+    args: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One training phase: the config keys it changes and where its weights start."""
+
+    name: str
+    settings: dict[str, Any]
+    init: str  # "none", "previous" or a shipped tag
+
+
+@dataclass
+class Recipe:
+    """A parsed recipe (see the module docstring)."""
+
+    path: Path
+    name: str
+    description: str
+    data: list[DataStep]
+    train: dict[str, Any]
+    phases: list[Phase]
+    ship: dict[str, Any]
+    evaluate: list[dict[str, Any]] = field(default_factory=list)
+
+    def phase_folder(self, output: Path, index: int) -> Path:
+        return output / "phases" / self.phases[index].name
+
+    def phase_index(self, name: str) -> int:
+        names = [p.name for p in self.phases]
+        if name not in names:
+            raise ParameterError(f"recipe {self.path}: no phase {name!r} (phases: "
+                                 f"{', '.join(names)})")
+        return names.index(name)
+
+
+def _fail(path: Path, where: str, problem: str) -> InputFileError:
+    return InputFileError(path, f"{where}: {problem}")
+
+
+def _mapping(path: Path, where: str, value: Any) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise _fail(path, where, f"expected a mapping, got {type(value).__name__}")
+    return value
+
+
+def load_recipe(path: str | Path) -> Recipe:
+    """Read and check a recipe's structure (the settings are checked by :func:`check_recipe`)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "recipe not found")
+    try:
+        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        raise InputFileError(path, f"not valid YAML: {error}") from None
+    raw = _mapping(path, "recipe", raw)
+    unknown = sorted(set(raw) - _TOP_KEYS)
+    if unknown:
+        raise _fail(path, "recipe", f"unknown key(s) {', '.join(unknown)}; known: "
+                                    f"{', '.join(sorted(_TOP_KEYS))}")
+    for key in ("name", "phases"):
+        if key not in raw:
+            raise _fail(path, "recipe", f"missing key {key!r}")
+    steps = []
+    for k, item in enumerate(raw.get("data") or []):
+        item = _mapping(path, f"data step {k + 1}", item)
+        kinds = [key for key in ("scenes", "synth") if key in item]
+        extra = sorted(set(item) - {"name", "scenes", "synth"})
+        if "name" not in item or len(kinds) != 1 or extra:
+            raise _fail(path, f"data step {k + 1}", "expected {name, scenes: {...}} or {name, "
+                        "synth: {...}}" + (f"; unknown key(s) {', '.join(extra)}" if extra
+                                          else ""))
+        steps.append(DataStep(str(item["name"]), kinds[0],
+                              dict(_mapping(path, f"data step {item['name']}", item[kinds[0]]))))
+    names = [s.name for s in steps]
+    if len(set(names)) != len(names):
+        raise _fail(path, "data", "step names must be unique")
+    phases = []
+    raw_phases = raw["phases"]
+    if not isinstance(raw_phases, list) or not raw_phases:
+        raise _fail(path, "phases", "expected a non-empty list")
+    for k, item in enumerate(raw_phases):
+        item = _mapping(path, f"phase {k + 1}", item)
+        extra = sorted(set(item) - {"name", "set", "init"})
+        if "name" not in item or extra:
+            raise _fail(path, f"phase {k + 1}", "expected {name, set: {...}, init: ...}"
+                        + (f"; unknown key(s) {', '.join(extra)}" if extra else ""))
+        init = str(item.get("init", "none" if k == 0 else "previous"))
+        if k == 0 and init == "previous":
+            raise _fail(path, f"phase {item['name']}", "init: previous, but it is the first phase")
+        phases.append(Phase(str(item["name"]),
+                            dict(_mapping(path, f"phase {item['name']}", item.get("set") or {})),
+                            init))
+    if len({p.name for p in phases}) != len(phases):
+        raise _fail(path, "phases", "phase names must be unique")
+    ship = dict(_mapping(path, "ship", raw.get("ship") or {}))
+    unknown = sorted(set(ship) - {"name", "doc", "phase"})
+    if unknown:
+        raise _fail(path, "ship", f"unknown key(s) {', '.join(unknown)}")
+    evaluate = []
+    for k, item in enumerate(raw.get("evaluate") or []):
+        item = dict(_mapping(path, f"evaluate entry {k + 1}", item))
+        unknown = sorted(set(item) - {"name", "dataset", "split"})
+        if unknown or "name" not in item or "dataset" not in item:
+            raise _fail(path, f"evaluate entry {k + 1}", "expected {name, dataset, split}")
+        evaluate.append(item)
+    recipe = Recipe(path, str(raw["name"]), str(raw.get("description", "")), steps,
+                    dict(_mapping(path, "train", raw.get("train") or {})), phases, ship, evaluate)
+    check_recipe(recipe)
+    return recipe
+
+
+# -- resolving -------------------------------------------------------------------------------
+
+def _data_folder(recipe: Recipe, output: Path, value: Any) -> Any:
+    """A data step's name -> its folder; other values unchanged (lists element-wise)."""
+    if isinstance(value, list):
+        return [_data_folder(recipe, output, v) for v in value]
+    steps = {s.name for s in recipe.data}
+    return str(output / "data" / value) if isinstance(value, str) and value in steps else value
+
+
+def scene_config(step: DataStep):
+    """``(SceneConfig, sequences, seed)`` of a scenes step."""
+    from dualpixel.synthesis.scenes import SceneConfig
+
+    args = dict(step.args)
+    sequences, seed = int(args.pop("sequences", 1)), int(args.pop("seed", 0))
+    return SceneConfig(**args), sequences, seed
+
+
+def synth_config(recipe: Recipe, step: DataStep, output: Path):
+    """``(SynthConfig, input folder, format)`` of a synth step."""
+    from dualpixel.calibration.camera import load_camera
+    from dualpixel.synthesis.dataset import SynthConfig
+
+    args = dict(step.args)
+    if "input" not in args:
+        raise ParameterError("needs input (a data step's name or a folder)")
+    source = _data_folder(recipe, output, args.pop("input"))
+    fmt = args.pop("format", "rgbd")
+    for key in ("cameras", "noise_sigmas"):
+        if key in args:
+            args[key] = tuple(args[key])
+    if "camera" in args:
+        args["camera"] = load_camera(recipe.path.parent / args["camera"]).to_dict()
+    return SynthConfig(**args), Path(source), fmt
+
+
+def phase_config(recipe: Recipe, index: int, output: Path, init_weights: str | None):
+    """The :class:`TrainConfig` of phase ``index`` (shared settings, then the phase's)."""
+    from dualpixel.training.config import load_config
+
+    values = {**recipe.train, **recipe.phases[index].settings}
+    if "init_weights" in values:
+        raise ParameterError("init_weights is set by the phase's init (previous, none or a tag)")
+    for key in _DATA_KEYS:
+        if key in values:
+            values[key] = _data_folder(recipe, output, values[key])
+    values["init_weights"] = init_weights
+    return load_config(None, values)
+
+
+def check_recipe(recipe: Recipe, output: Path = Path("OUTPUT")) -> None:
+    """Build every step's and phase's settings (no work done): each error names the recipe, the
+    step or phase and the problem."""
+    steps_seen: set[str] = set()
+    for step in recipe.data:
+        where = f"data step {step.name}"
+        try:
+            if step.kind == "scenes":
+                scene_config(step)
+            else:
+                source = step.args.get("input")
+                if isinstance(source, str) and source not in steps_seen and "/" not in source:
+                    raise ParameterError(f"input {source!r} is no earlier data step")
+                synth_config(recipe, step, output)
+        except (ParameterError, TypeError, InputFileError) as error:
+            raise _fail(recipe.path, where, str(error)) from None
+        steps_seen.add(step.name)
+    for index, phase in enumerate(recipe.phases):
+        where = f"phase {phase.name}"
+        try:
+            init = phase_start(recipe, index, output, must_exist=False)
+        except (ParameterError, InputFileError) as error:
+            raise _fail(recipe.path, where, f"init {phase.init!r} cannot be resolved: "
+                                            f"{error}") from None
+        try:
+            config = phase_config(recipe, index, output, init)
+        except (ParameterError, TypeError) as error:
+            raise _fail(recipe.path, where, str(error)) from None
+        for key in _DATA_KEYS:
+            for value in _as_list(getattr(config, key)):
+                inside = str(output / "data") + "/"
+                if value.startswith(inside) and value[len(inside):] not in steps_seen:
+                    raise _fail(recipe.path, where, f"{key} names no data step: {value}")
+                if not value.startswith(inside) and not Path(value).is_dir():
+                    raise _fail(recipe.path, where, f"{key} {value!r} is no data step of the "
+                                                    "recipe and no folder")
+    if recipe.ship:
+        if "name" not in recipe.ship:
+            raise _fail(recipe.path, "ship", "missing key 'name'")
+        if "phase" in recipe.ship:
+            try:
+                recipe.phase_index(str(recipe.ship["phase"]))
+            except ParameterError as error:
+                raise _fail(recipe.path, "ship", str(error)) from None
+    for entry in recipe.evaluate:
+        dataset = entry["dataset"]
+        if dataset not in steps_seen and "/" not in str(dataset):
+            raise _fail(recipe.path, f"evaluate {entry['name']}",
+                        f"dataset {dataset!r} is no data step (nor a folder path)")
+
+
+def phase_start(recipe: Recipe, index: int, output: Path, *, must_exist: bool = True
+                ) -> str | None:
+    """Where phase ``index`` starts: None (``init: none``), a shipped tag (``init: TAG``,
+    checked by its sha256) or, for ``init: previous``, the previous phase's final weights in
+    ``output``; when that run is not there (``--from``), the shipped tag that phase made.
+    ``must_exist=False`` (a dry run) accepts a previous phase that this run will make."""
+    from dualpixel.weights import phase_weights, resolve_tag
+
+    phase = recipe.phases[index]
+    if phase.init == "none":
+        return None
+    if phase.init != "previous":
+        resolve_tag(phase.init)
+        return phase.init
+    previous = recipe.phases[index - 1].name
+    weights = recipe.phase_folder(output, index - 1) / "last.safetensors"
+    if weights.is_file() or not must_exist:
+        return str(weights)
+    tag = phase_weights(recipe.path.name, previous)
+    if tag is None:
+        raise ParameterError(f"phase {phase.name} starts from phase {previous}, which is "
+                             f"neither in {output} nor shipped; run that phase first")
+    resolve_tag(tag)
+    return tag
+
+
+def _as_list(value: Any) -> list[str]:
+    if value is None:
+        return []
+    return [value] if isinstance(value, str) else list(value)
+
+
+def plan_text(recipe: Recipe, output: Path, until: str | None = None) -> str:
+    """The plan ``--dry-run`` prints: every step and phase with what it changes and its state."""
+    lines = [f"recipe {recipe.name} ({recipe.path}) -> {output}", recipe.description, "", "data:"]
+    for step in recipe.data:
+        state = _step_state(output / "data" / step.name)
+        args = ", ".join(f"{k}={v}" for k, v in step.args.items())
+        lines.append(f"  {step.name:<20} {step.kind}: {args}  [{state}]")
+    lines.append("phases:")
+    last = recipe.phase_index(until) if until else len(recipe.phases) - 1
+    for index, phase in enumerate(recipe.phases[: last + 1]):
+        folder = recipe.phase_folder(output, index)
+        config = phase_config(recipe, index, output,
+                              phase_start(recipe, index, output, must_exist=False))
+        changes = ", ".join(f"{k}={v}" for k, v in phase.settings.items()) or "(shared only)"
+        lines.append(f"  {index + 1:02d} {phase.name:<14} from {phase.init}; {changes}; "
+                     f"{config.epochs} x {config.iterations_per_epoch or 'auto'} iterations  "
+                     f"[{_phase_state(folder, config.epochs)}]")
+    if until is None and recipe.ship:
+        lines.append(f"ship: {recipe.ship['name']} from phase "
+                     f"{recipe.ship.get('phase', recipe.phases[-1].name)} (float16)")
+        for entry in recipe.evaluate:
+            lines.append(f"evaluate: {entry['name']} on {entry['dataset']}")
+    return "\n".join(lines)
+
+
+def _step_state(folder: Path) -> str:
+    for name in ("dataset.json", "scenes.json"):
+        path = folder / name
+        if path.is_file():
+            try:
+                status = json.loads(path.read_text()).get("status", "complete")
+            except json.JSONDecodeError:
+                return "unreadable"
+            return "done" if status == "complete" else "started"
+    return "to do"
+
+
+def _phase_state(folder: Path, epochs: int) -> str:
+    history = folder / "history.jsonl"
+    if not (folder / "last_state.pt").is_file() or not history.is_file():
+        return "to do"
+    done = len(history.read_text().splitlines())
+    return "done" if done >= epochs else f"{done}/{epochs} epochs"
+
+
+# -- running -----------------------------------------------------------------------------------
+
+def _claim_folder(recipe: Recipe, output: Path) -> None:
+    """Refuse a folder made by another recipe; mark a new one as this recipe's."""
+    from dualpixel.io.atomic import atomic_path
+
+    marker = output / "recipe.json"
+    if marker.is_file():
+        try:
+            owner = json.loads(marker.read_text()).get("name")
+        except json.JSONDecodeError:
+            raise InputFileError(marker, "is corrupt; remove it if the folder is this "
+                                         "recipe's") from None
+        if owner != recipe.name:
+            raise InputFileError(output, f"was made by recipe {owner!r}, not {recipe.name!r} "
+                                         f"({recipe.path}); choose another --output")
+        return
+    output.mkdir(parents=True, exist_ok=True)
+    with atomic_path(marker) as tmp:
+        tmp.write_text(json.dumps({"name": recipe.name, "recipe": str(recipe.path)}) + "\n")
+
+
+def run_data(recipe: Recipe, output: Path, *, workers: int = 1, progress: bool = True,
+             log=print) -> None:
+    """Every data step (each resumes; a finished one is checked and skipped)."""
+    from dualpixel.synthesis.dataset import synthesize_dataset
+    from dualpixel.synthesis.scenes import write_scene_folder
+
+    for step in recipe.data:
+        folder = output / "data" / step.name
+        log(f"data {step.name}: {step.kind}")
+        if step.kind == "scenes":
+            config, sequences, seed = scene_config(step)
+            write_scene_folder(folder, sequences, config, seed=seed, workers=workers,
+                               progress=progress)
+        else:
+            config, source, fmt = synth_config(recipe, step, output)
+            summary = synthesize_dataset(source, fmt, folder, config, workers=workers,
+                                         device="cpu", progress=progress)
+            if summary["status"] != "complete":
+                raise InputFileError(folder, "synthesis did not finish; rerun reproduce")
+
+
+def run_phase(recipe: Recipe, index: int, output: Path, *, overrides: dict[str, Any] | None = None,
+              progress: bool = True, log=print) -> Path:
+    """Train phase ``index`` (resuming its folder); returns the folder."""
+    from dualpixel.training.trainer import train
+
+    phase = recipe.phases[index]
+    folder = recipe.phase_folder(output, index)
+    config = phase_config(recipe, index, output, phase_start(recipe, index, output))
+    if overrides:
+        config = dataclasses.replace(config, **overrides)
+    state = _phase_state(folder, config.epochs)
+    if state == "done":
+        log(f"phase {phase.name}: done ({folder})")
+        return folder
+    log(f"phase {phase.name}: {state} -> {folder}")
+    train(config, folder, resume=(folder / "last_state.pt").is_file(), progress=progress)
+    return folder
+
+
+def ship_phase(recipe: Recipe, folder: Path, output: Path, phase: str,
+               metrics: dict[str, Any] | None = None) -> Path:
+    """Export a phase's final weights in float16 with their provenance (and metrics)."""
+    import torch
+
+    from dualpixel.models.checkpoint import load_model, read_metadata, save_model
+    from dualpixel.models.registry import count_parameters
+
+    source = folder / "last.safetensors"
+    meta = read_metadata(source)["extra"]
+    model = load_model(source)
+    name = str(recipe.ship["name"])
+    extra = {
+        "name": name, "doc": str(recipe.ship.get("doc", recipe.description)),
+        "recipe": recipe.path.name, "phase": phase, "num_params": count_parameters(model),
+        "init": meta.get("init"), "metrics": metrics or {},
+        "config": meta.get("config"),
+    }
+    target = output / "ship" / f"{name}.safetensors"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    save_model(target, model, dtype=torch.float16, extra=extra)
+    return target
+
+
+def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) -> dict:
+    """Score the shipped weights on each ``evaluate`` entry; returns ``{name: metrics}``."""
+    from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
+    from dualpixel.inference.deblur import Deblurrer
+    from dualpixel.models.checkpoint import load_model
+
+    results = {}
+    for entry in recipe.evaluate:
+        dataset = Path(_data_folder(recipe, output, entry["dataset"]))
+        if not dataset.is_dir():
+            log(f"evaluate {entry['name']}: {dataset} not found, skipped")
+            continue
+        folder = output / "eval" / entry["name"]
+        deblurrer = Deblurrer(load_model(weights))
+        run_evaluation(EvaluationRequest(output=folder, dataset=dataset,
+                                         split=entry.get("split", "test"), niqe=False,
+                                         figures=1), deblurrer, "model")
+        summary = json.loads((folder / "summary.json").read_text())
+        results[entry["name"]] = _mean_scores(summary)
+        log(f"evaluate {entry['name']}: {results[entry['name']]}")
+    return results
+
+
+def _mean_scores(summary: dict) -> dict:
+    """PSNR / SSIM of the model and the input from an evaluation's ``summary.json``."""
+    return {method: {k: round(float(rows["combined"][k]), 4) for k in ("psnr", "ssim")}
+            for method, rows in summary["summary"].items()}
+
+
+def needed_steps(recipe: Recipe, output: Path, first: int, last: int) -> list[DataStep]:
+    """The data steps phases ``first..last`` and the evaluation read, with the steps those are
+    made from, in recipe order."""
+    folders = {str(output / "data" / s.name): s.name for s in recipe.data}
+    wanted: set[str] = {e["dataset"] for e in recipe.evaluate if e["dataset"] in
+                        {s.name for s in recipe.data}}
+    for index in range(first, last + 1):
+        config = phase_config(recipe, index, output,
+                              phase_start(recipe, index, output, must_exist=False))
+        for key in _DATA_KEYS:
+            wanted |= {folders[v] for v in _as_list(getattr(config, key)) if v in folders}
+    for step in reversed(recipe.data):  # inputs come before the steps that read them
+        if step.name in wanted and step.kind == "synth" and step.args.get("input") in {
+                s.name for s in recipe.data}:
+            wanted.add(step.args["input"])
+    return [s for s in recipe.data if s.name in wanted]
+
+
+def reproduce(recipe: Recipe, output: str | Path, *, until: str | None = None,
+              start: str | None = None, workers: int = 1, progress: bool = True,
+              log=print) -> Path | None:
+    """Run the data, every phase (from ``start``, up to ``until``), export and evaluation;
+    resumes. Returns the shipped file (None with ``until``)."""
+    output = Path(output)
+    check_recipe(recipe, output)
+    first = recipe.phase_index(start) if start else 0
+    last = recipe.phase_index(until) if until else len(recipe.phases) - 1
+    if first > last:
+        raise ParameterError(f"--from {start} comes after --until {until}")
+    if first > 0:
+        phase_start(recipe, first, output)  # a start that cannot be resolved fails now
+    _claim_folder(recipe, output)
+    steps = needed_steps(recipe, output, first, last)
+    run_data(dataclasses.replace(recipe, data=steps), output, workers=workers,
+             progress=progress, log=log)
+    folders = {i: run_phase(recipe, i, output, progress=progress, log=log)
+               for i in range(first, last + 1)}
+    if until is not None or not recipe.ship:
+        return None
+    phase = str(recipe.ship.get("phase", recipe.phases[-1].name))
+    index = recipe.phase_index(phase)
+    folder = folders.get(index, recipe.phase_folder(output, index))
+    shipped = ship_phase(recipe, folder, output, phase)
+    metrics = evaluate_shipped(recipe, shipped, output, log=log)
+    shipped = ship_phase(recipe, folder, output, phase, metrics)
+    from dualpixel.weights import file_sha256
+
+    log(f"shipped {shipped} (sha256 {file_sha256(shipped)[:16]}...)")
+    return shipped

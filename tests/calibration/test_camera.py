@@ -1,0 +1,176 @@
+"""Camera calibration from real DP pairs (dualpixel.calibration.camera) and view crosstalk."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import torch
+from click.testing import CliRunner
+
+from dualpixel.calibration.camera import DPCamera, calibrate_camera, load_camera
+from dualpixel.cli.main import cli
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.optics.crosstalk import apply_crosstalk
+from dualpixel.optics.psf import PSFParams, dp_psf
+from dualpixel.optics.thin_lens import ThinLensCamera
+from dualpixel.synthesis.frame import SequenceRecipe, synthesize_frame
+
+TRUE_PSF = PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)
+OTHER_PSF = PSFParams(n=9, alpha=1.0, beta=0.4, kappa=0.14)
+RATIO = (0.6, 0.85, 0.75)
+
+
+def _texture(height: int, width: int, seed: int) -> np.ndarray:
+    """Colour texture with edges at every scale (rectangles over smoothed noise)."""
+    rng = np.random.default_rng(seed)
+    image = cv2.GaussianBlur(rng.random((height, width, 3)).astype(np.float32), (0, 0), 1.0)
+    for _ in range(120):
+        x0, y0 = rng.integers(0, width), rng.integers(0, height)
+        w, h = rng.integers(4, 40, size=2)
+        image[y0:y0 + h, x0:x0 + w] = rng.random(3)
+    return np.clip(image, 0.0, 1.0)
+
+
+def _pair(seed: int, ratio=RATIO, params=TRUE_PSF, size=(192, 288)):
+    """A rendered DP pair of a slanted plane (CoC from -6 to +8 px across the frame)."""
+    height, width = size
+    target = _texture(height, width, seed)
+    depth = np.tile(np.linspace(1.3, 8.0, width, dtype=np.float32), (height, 1))
+    lens = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=1.0)
+    camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 10.0,
+                            max_coc_radius=9.0)
+    recipe = SequenceRecipe(camera=camera, psf=params, distortion=None, noise_sigma=None,
+                            disparity_ratio=ratio)
+    frame = synthesize_frame(target, depth, recipe)
+    hwc = [t.permute(1, 2, 0).numpy() for t in (frame.left, frame.right, frame.target)]
+    return (f"pair{seed}", *hwc)
+
+
+def _centroid_x(kernel: torch.Tensor) -> float:
+    x = torch.arange(kernel.shape[-1], dtype=kernel.dtype) - kernel.shape[-1] // 2
+    return float((kernel.sum(0) * x).sum() / kernel.sum())
+
+
+@pytest.mark.parametrize("ratio", [0.0, 0.4, 1.0, 1.3])
+def test_crosstalk_scales_the_disparity_and_keeps_the_sum(ratio):
+    kernels = dp_psf(7.0, TRUE_PSF)
+    left, right = (k[None].expand(3, -1, -1) for k in (kernels.left, kernels.right))
+    mixed_left, mixed_right = apply_crosstalk(left, right, (ratio,) * 3)
+    before = _centroid_x(kernels.right) - _centroid_x(kernels.left)
+    after = _centroid_x(mixed_right[1]) - _centroid_x(mixed_left[1])
+    assert after == pytest.approx(ratio * before, abs=1e-5)
+    torch.testing.assert_close(mixed_left + mixed_right, left + right)
+
+
+def test_crosstalk_refuses_bad_ratios():
+    views = torch.zeros(3, 4, 4)
+    with pytest.raises(ParameterError, match="one value per channel"):
+        apply_crosstalk(views, views, (1.0, 1.0))
+    with pytest.raises(ParameterError, match=r"\[0, 1.5\]"):
+        apply_crosstalk(views, views, (1.0, float("nan"), 1.0))
+
+
+def test_calibration_recovers_known_ratios_and_psf_shape():
+    frames = [_pair(seed) for seed in (1, 2)]
+    result = calibrate_camera(frames, psf_candidates=(OTHER_PSF, TRUE_PSF), patch=32,
+                              max_radius=10.0)
+    camera = result.camera
+    np.testing.assert_allclose(camera.disparity_ratio, RATIO, atol=0.05)
+    assert camera.psf == TRUE_PSF
+    assert camera.blocks >= 40 and camera.width == 288
+    # the shape matters: the wrong one explains the pairs worse
+    scores = dict((p, s) for p, s in result.scores)
+    assert scores[TRUE_PSF] < scores[OTHER_PSF]
+
+
+def test_calibration_tells_the_paper_model_from_a_real_camera():
+    paper = calibrate_camera([_pair(3, ratio=(1.0, 1.0, 1.0))], patch=32, max_radius=10.0,
+                             psf_candidates=(TRUE_PSF,))
+    np.testing.assert_allclose(paper.camera.disparity_ratio, 1.0, atol=0.05)
+
+
+def test_calibration_refuses_misaligned_and_textureless_pairs():
+    name, left, right, target = _pair(4)
+    shifted = np.roll(target, 3, axis=0)
+    with pytest.raises(InputFileError, match=r"pair4.*shifted"):
+        calibrate_camera([(name, left, right, shifted)], patch=32, max_radius=10.0)
+    with pytest.warns(UserWarning, match="left out"), pytest.raises(ParameterError,
+                                                                      match="misaligned"):
+        calibrate_camera([(name, left, right, shifted)], patch=32, max_radius=10.0,
+                         skip_misaligned=True)
+    flat = np.full_like(target, 0.5)
+    with pytest.raises(ParameterError, match="too few usable blocks"):
+        calibrate_camera([("flat", flat, flat, flat)], patch=32, max_radius=10.0)
+
+
+def test_camera_file_round_trip_and_bad_fields(tmp_path):
+    camera = DPCamera("test", 840, (0.7, 0.95, 1.0), TRUE_PSF, noise_std=0.01)
+    path = camera.save(tmp_path / "camera.json")
+    assert load_camera(path) == camera
+    data = json.loads(path.read_text())
+    for change, message in (({"disparity_ratio": [1.0, 1.0]}, "one value per channel"),
+                            ({"psf": {"n": 3}}, "psf must hold"),
+                            ({"colour": 1}, "unknown camera field.*colour"),
+                            ({"format": "x"}, "not a dualpixel camera file")):
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps({**data, **change}))
+        with pytest.raises(InputFileError, match=message):
+            load_camera(bad)
+    missing = {k: v for k, v in data.items() if k != "width"}
+    (tmp_path / "missing.json").write_text(json.dumps(missing))
+    with pytest.raises(InputFileError, match="missing: width"):
+        load_camera(tmp_path / "missing.json")
+
+
+def _write_scene(folder, left, right, target):
+    folder.mkdir(parents=True)
+    for name, image in (("view0", left), ("view1", right), ("target", target)):
+        cv2.imwrite(str(folder / f"{name}.png"),
+                    np.round(image[..., ::-1] * 255).astype(np.uint8))
+
+
+def test_calibrate_camera_command_and_synth_with_its_camera(tmp_path):
+    for seed in (5, 6):
+        _write_scene(tmp_path / "real" / f"scene_{seed}", *_pair(seed)[1:])
+    out = tmp_path / "camera.json"
+    result = CliRunner().invoke(cli, ["-q", "calibrate", "camera", "--input",
+                                      str(tmp_path / "real"), "--output", str(out),
+                                      "--patch", "32", "--max-radius", "10",
+                                      "--figure", str(tmp_path / "camera.png")])
+    assert result.exit_code == 0, result.output
+    camera = load_camera(out)
+    np.testing.assert_allclose(camera.disparity_ratio, RATIO, atol=0.06)  # 8-bit files
+    assert (tmp_path / "camera.png").stat().st_size > 10_000
+    # synth --camera: the views carry the camera's ratio, recorded in the dataset
+    scenes = tmp_path / "scenes"
+    assert CliRunner().invoke(cli, ["-q", "scenes", "--output", str(scenes), "--sequences", "1",
+                                    "--frames", "1", "--size", "96x64"]).exit_code == 0
+    data = tmp_path / "data"
+    result = CliRunner().invoke(cli, ["-q", "synth", "--input", str(scenes), "--output",
+                                      str(data), "--cameras", "set1", "--camera", str(out),
+                                      "--no-noise", "--no-distortion"])
+    assert result.exit_code == 0, result.output
+    description = json.loads((data / "dataset.json").read_text())
+    assert description["config"]["camera"]["disparity_ratio"] == list(camera.to_dict()[
+        "disparity_ratio"])
+    record = json.loads((data / "manifest.jsonl").read_text().splitlines()[0])
+    assert record["disparity_ratio"] == list(camera.disparity_ratio)
+    assert record["psf"] == camera.psf.as_dict()
+
+
+def test_calibrate_and_synth_refuse_bad_input(tmp_path):
+    (tmp_path / "nothing").mkdir()
+    _name, left, right, target = _pair(7)
+    _write_scene(tmp_path / "real" / "scene_a", left, right, np.roll(target, 4, axis=1))
+    runner = CliRunner()
+    result = runner.invoke(cli, ["calibrate", "camera", "--input", str(tmp_path / "real"),
+                                 "--output", str(tmp_path / "c.json"), "--patch", "32"])
+    assert result.exit_code == 1 and "scene_a" in result.output and "shifted" in result.output
+    assert "Traceback" not in result.output
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"format": "dualpixel-camera-1", "name": "x"}))
+    result = runner.invoke(cli, ["synth", "--input", str(tmp_path / "nothing"), "--output",
+                                 str(tmp_path / "d"), "--camera", str(bad)])
+    assert result.exit_code == 1 and "bad.json" in result.output
+    assert "missing: width, disparity_ratio, psf" in result.output

@@ -1,0 +1,161 @@
+"""Recipes and ``dualpixel reproduce`` (issue #32)."""
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.errors import InputFileError
+from dualpixel.models import load_model, read_metadata
+from dualpixel.training.recipe import load_recipe, reproduce
+from tests.conftest import write_dpdd_pairs
+
+RECIPES = Path(__file__).resolve().parents[2] / "recipes"
+TINY_SCENES = {"sequences": 1, "frames": 2, "width": 96, "height": 64}
+TINY_PHASE = {"epochs": 1, "iterations_per_epoch": 2, "patch_size": 32, "val_limit": 1,
+              "width": 0.125, "tensorboard": False, "threads": 1, "sequence_frames": 2,
+              "workers": 0, "device": "cpu"}
+
+
+def _shrunk(source: Path, folder: Path, real: Path) -> Path:
+    """``source`` with tiny data and two iterations per phase, written into ``folder`` beside
+    a copy of its cameras; real-data folders point at ``real``."""
+    raw = yaml.safe_load(source.read_text())
+    for step in raw.get("data", []):
+        if "scenes" in step:
+            step["scenes"].update(TINY_SCENES)
+        else:
+            step["synth"].update(max_layers=40)
+    for section in [raw.get("train", {})] + [p.setdefault("set", {}) for p in raw["phases"]]:
+        for key in ("real_data", "real_val_data"):
+            if key in section and not any(section[key] == s["name"] for s in raw["data"]):
+                section[key] = str(real)
+    for phase in raw["phases"]:
+        phase["set"].update(TINY_PHASE)
+        if phase["set"].get("width", 1) != 0.125:
+            phase["set"]["width"] = 0.125
+    for entry in raw.get("evaluate", []):
+        if not any(entry["dataset"] == s["name"] for s in raw["data"]):
+            entry["dataset"] = str(real)
+    if (source.parent / "cameras").is_dir():
+        shutil.copytree(source.parent / "cameras", folder / "cameras", dirs_exist_ok=True)
+    path = folder / source.name
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return path
+
+
+@pytest.fixture(scope="module")
+def real_pairs(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("dpdd")
+    for split in ("train", "test"):
+        write_dpdd_pairs(root, split, ["a", "b"], size=(64, 96))
+    return root
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in RECIPES.glob("*.yaml")))
+def test_every_recipe_runs_end_to_end_on_tiny_data(name, tmp_path, real_pairs):
+    recipe = load_recipe(_shrunk(RECIPES / name, tmp_path, real_pairs))
+    shipped = reproduce(recipe, tmp_path / "run", workers=1, progress=False, log=lambda _: None)
+    extra = read_metadata(shipped)["extra"]
+    last = recipe.phases[-1].name
+    assert extra["recipe"] == name and extra["phase"] == recipe.ship.get("phase", last)
+    assert extra["num_params"] > 0 and set(extra["metrics"]) <= {e["name"] for e in
+                                                                  recipe.evaluate}
+    load_model(shipped)
+    for index, phase in enumerate(recipe.phases):
+        history = (recipe.phase_folder(tmp_path / "run", index) / "history.jsonl").read_text()
+        assert json.loads(history.splitlines()[-1])["step"] == 2, phase.name
+        init = read_metadata(recipe.phase_folder(tmp_path / "run", index)
+                             / "last.safetensors")["extra"]["init"]
+        if phase.init == "none":
+            assert init is None
+        else:  # the start by name and hash, never by alias
+            assert len(init["sha256"]) == 64 and not init["name"].startswith("rdpd-light/")
+
+
+def _tiny_recipe(tmp_path: Path, **changes) -> Path:
+    raw = {
+        "name": "tiny",
+        "description": "a tiny model",
+        "data": [
+            {"name": "scenes", "scenes": {**TINY_SCENES, "seed": 1}},
+            {"name": "synth", "synth": {"input": "scenes", "cameras": ["set1"],
+                                        "max_layers": 40, "noise_sigmas": [0.01]}},
+        ],
+        "train": {"model": "rdpd", "synthetic_data": "synth", "val_data": "synth",
+                  "val_split": "train", "sequence_frames": 2, "workers": 0, **TINY_PHASE},
+        "phases": [{"name": "first", "set": {"learning_rate": 1e-3}},
+                   {"name": "second", "set": {"refiner": [4, 8]}}],
+        "ship": {"name": "tiny", "doc": "a tiny model"},
+        "evaluate": [{"name": "synth", "dataset": "synth", "split": "train"}],
+    }
+    for key, value in changes.items():
+        raw[key] = value
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return path
+
+
+def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path):
+    recipe_path = _tiny_recipe(tmp_path)
+    out = tmp_path / "run"
+    runner = CliRunner()
+    result = runner.invoke(cli, ["reproduce", str(recipe_path), "--output", str(out),
+                                 "--until", "first", "--no-progress"])
+    assert result.exit_code == 0, result.output
+    assert (out / "phases/first/last.safetensors").is_file()
+    assert not (out / "phases/second").exists()
+    stamp = (out / "phases/first/last.safetensors").stat().st_mtime_ns
+    dry = runner.invoke(cli, ["reproduce", str(recipe_path), "--output", str(out), "--dry-run"])
+    assert dry.exit_code == 0, dry.output
+    assert "first" in dry.output and "[done]" in dry.output and "second" in dry.output
+    assert "to do" in dry.output and "plan checked" in dry.output
+    result = runner.invoke(cli, ["reproduce", str(recipe_path), "--output", str(out),
+                                 "--no-progress"])
+    assert result.exit_code == 0, result.output
+    assert "phase first: done" in result.output  # not trained again
+    assert (out / "phases/first/last.safetensors").stat().st_mtime_ns == stamp
+    assert (out / "ship/tiny.safetensors").is_file()
+    # the second phase started from the first's weights, by path and hash
+    init = read_metadata(out / "phases/second/last.safetensors")["extra"]["init"]
+    assert init["name"].endswith("phases/first/last.safetensors")
+    # a folder made by another recipe is refused, naming both
+    other = tmp_path / "other.yaml"
+    other.write_text(recipe_path.read_text().replace("name: tiny\n", "name: other\n", 1))
+    result = runner.invoke(cli, ["reproduce", str(other), "--output", str(out)])
+    assert result.exit_code == 1 and "'tiny'" in result.output and "'other'" in result.output
+
+
+@pytest.mark.parametrize(("changes", "message"), [
+    ({"colour": 1}, "recipe: unknown key"),
+    ({"phases": [{"name": "first", "set": {"epochs": 1, "nope": 2}}]},
+     "phase first: unknown config key.*nope"),
+    ({"phases": [{"name": "first", "init": "rdpd-light"}]},
+     "phase first: init 'rdpd-light' cannot be resolved.*alias"),
+    ({"phases": [{"name": "first", "init": "previous"}]}, "first phase"),
+    ({"phases": [{"name": "first", "set": {"synthetic_data": "nothing"}}]},
+     "phase first: .*no data step|not found"),
+    ({"data": [{"name": "synth", "synth": {"input": "scenes"}}]},
+     "data step synth: input 'scenes' is no earlier data step"),
+    ({"data": [{"name": "s", "scenes": {"sequences": 1, "width": -3}}]}, "data step s: width"),
+    ({"ship": {"name": "x", "phase": "third"}}, "ship: .*no phase 'third'"),
+])
+def test_bad_recipes_are_refused_before_any_work(tmp_path, changes, message):
+    path = _tiny_recipe(tmp_path, **changes)
+    result = CliRunner().invoke(cli, ["reproduce", str(path), "--output", str(tmp_path / "run"),
+                                      "--dry-run"])
+    assert result.exit_code in (1, 2), result.output
+    assert "Traceback" not in result.output
+    assert str(path) in result.output or "tiny.yaml" in result.output
+    assert re.search(message, result.output), result.output
+    assert not (tmp_path / "run").exists()
+
+
+def test_missing_recipe_is_named(tmp_path):
+    with pytest.raises(InputFileError, match="recipe not found"):
+        load_recipe(tmp_path / "none.yaml")
