@@ -264,10 +264,12 @@ def image_shift(moving: np.ndarray, fixed: np.ndarray, *, search: int = 4,
 
 
 def check_alignment(left: np.ndarray, right: np.ndarray, target: np.ndarray,
-                    source: str | Path) -> None:
-    """Refuse a target shifted against the views' mean by more than :data:`MAX_MISALIGNMENT`."""
+                    source: str | Path, max_radius: float = 12.0) -> None:
+    """Refuse a target shifted against the views' mean by more than :data:`MAX_MISALIGNMENT`
+    (both smoothed by a third of the largest blur, so strong defocus does not read as a shift)."""
     views = np.asarray((left + right) / 2, np.float32).mean(axis=-1)
-    dx, dy = image_shift(np.asarray(target, np.float32).mean(axis=-1), views)
+    dx, dy = image_shift(np.asarray(target, np.float32).mean(axis=-1), views,
+                         smoothing=max(3.0, max_radius / 3))
     if np.hypot(dx, dy) > MAX_MISALIGNMENT:
         raise InputFileError(source, f"the target is shifted by ({dx:+.1f}, {dy:+.1f}) px against "
                                      "the views: pairs must be aligned to calibrate")
@@ -311,7 +313,7 @@ def calibrate_camera(
     aligned = []
     for frame in frames:
         try:
-            check_alignment(*frame[1:], frame[0])
+            check_alignment(*frame[1:], frame[0], max_radius)
         except InputFileError as error:
             if not skip_misaligned:
                 raise
