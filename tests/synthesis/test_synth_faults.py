@@ -118,3 +118,38 @@ def test_three_shards_merged_equal_the_single_run(scenes, tmp_path):
     assert every_file(tmp_path / "merged") == every_file(tmp_path / "single")
     bad = runner.invoke(cli, [*args, "--output", str(tmp_path / "x"), "--shard", "3/3"])
     assert bad.exit_code == 2 and "--shard" in bad.output
+
+
+def test_paths_from_manifests_and_options_stay_inside_their_folders(scenes, tmp_path):
+    """Issue #34: a shard's manifest naming an absolute path or ``../`` is refused before any
+    file is written; a split name that is a path is refused."""
+    from click.testing import CliRunner
+
+    from dualpixel.cli.main import cli
+
+    runner = CliRunner()
+    args = ["synth", "--input", str(scenes), "--cameras", "set0", "--layers", "40", "--seed", "3"]
+    parts = []
+    for k in range(2):
+        part = tmp_path / f"part{k}"
+        done = runner.invoke(cli, [*args, "--output", str(part), "--shard", f"{k}/2"])
+        assert done.exit_code == 0, done.output
+        parts.append(part)
+    manifest = parts[1] / "manifest.jsonl"
+    original = manifest.read_text()
+    victim = tmp_path / "victim.txt"
+    victim.write_text("the user's file")
+    for hostile in (str(victim), "../../victim.txt"):
+        records = [json.loads(line) for line in original.splitlines()]
+        records[0]["outputs"]["left"] = hostile
+        manifest.write_text("".join(json.dumps(r) + "\n" for r in records))
+        out = tmp_path / f"merged-{len(hostile)}"
+        result = runner.invoke(cli, ["merge-shards", *map(str, parts), "--output", str(out)])
+        assert result.exit_code == 1, result.output
+        assert "manifest.jsonl" in result.output and "leads outside" in result.output
+        assert victim.read_text() == "the user's file"
+        assert not out.exists() or not any(out.rglob("*.png"))
+    for split in ("../../x", "a/b", ".."):
+        result = runner.invoke(cli, [*args, "--output", str(tmp_path / "s"), "--split", split])
+        assert result.exit_code == 2 and "split must be a plain name" in result.output
+    assert not (tmp_path / "x").exists()

@@ -76,3 +76,32 @@ def test_kill_during_checkpoint_write_resumes_to_the_same_weights(
         torch.testing.assert_close(a[key], b[key], rtol=0, atol=0)
     history = (killed / "history.jsonl").read_text().splitlines()
     assert len(history) == 2
+
+
+class _Payload:
+    """Pickles as a call that creates ``marker``: what a crafted state file would run."""
+
+    def __init__(self, marker: str) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def test_a_crafted_state_file_runs_no_code(tiny_synthetic_dataset, tmp_path):
+    from dualpixel.errors import InputFileError
+
+    out = tmp_path / "run"
+    config = tiny_config(tiny_synthetic_dataset, epochs=1)
+    train(config, out, progress=False)
+    marker = tmp_path / "pwned"
+    torch.save({"model": _Payload(str(marker)), "epoch": 0}, out / "last_state.pt")
+    longer = tiny_config(tiny_synthetic_dataset, epochs=2)
+    with pytest.raises(InputFileError, match=r"last_state\.pt.*safely"):
+        train(longer, out, resume=True, progress=False)
+    assert not marker.exists()
+    # the trainer's own state files still resume (they hold tensors and plain containers only)
+    fresh = tmp_path / "fresh"
+    train(config, fresh, progress=False)
+    result = train(longer, fresh, resume=True, progress=False)
+    assert result.step == 6 and len(result.history) == 2

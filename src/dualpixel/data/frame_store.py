@@ -82,7 +82,7 @@ class FrameStore:
             with atomic_path(path) as tmp:
                 np.save(tmp, stacked)
         try:
-            mapped = np.load(path, mmap_mode="r")
+            mapped = np.load(path, mmap_mode="r", allow_pickle=False)
         except (OSError, ValueError) as error:
             raise InputFileError(path, f"frame store entry cannot be read ({error}); delete it "
                                        "to decode the frame again") from None

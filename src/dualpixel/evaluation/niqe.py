@@ -73,7 +73,7 @@ class NIQEModel:
         if not path.is_file():
             raise InputFileError(path, "NIQE model not found")
         try:
-            with np.load(path) as data:
+            with np.load(path, allow_pickle=False) as data:
                 mean, cov, source = data["mean"], data["cov"], str(data["source"])
                 blocks = int(data["blocks"]) if "blocks" in data else 0
         except (OSError, KeyError, ValueError):

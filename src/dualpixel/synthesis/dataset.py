@@ -38,6 +38,7 @@ from dualpixel.errors import InputFileError, OutputFileError, ParameterError, ch
 from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.dpdd import frame_paths, read_manifest
 from dualpixel.io.images import quantise, save_npy, write_png
+from dualpixel.io.paths import check_plain_name, contained
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
@@ -107,6 +108,7 @@ class SynthConfig:
             check_range("noise_sigmas", sigma, 0.0, 1.0)
         check_range("max_depth", self.max_depth, 0.0, low_inclusive=False)
         check_range("depth_scale", self.depth_scale, 0.0, low_inclusive=False)
+        check_plain_name(self.split, "split")
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
         if self.camera is not None:
@@ -308,6 +310,11 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
     out = Path(output_dir)
     if out.exists() and any(out.iterdir()):
         raise OutputFileError(out, "is not empty; merge into a new folder")
+    for job in jobs:  # every path a manifest names stays inside its folders, checked first
+        manifest = owner[job.key] / "manifest.jsonl"
+        for relative in records[job.key]["outputs"].values():
+            contained(owner[job.key], relative, manifest)
+            contained(out, relative, manifest)
     for job in tqdm(jobs, desc="merging shards", unit="frame", disable=not progress):
         for relative in records[job.key]["outputs"].values():
             with atomic_path(out / relative) as tmp:

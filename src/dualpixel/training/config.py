@@ -17,6 +17,7 @@ import yaml
 
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.atomic import atomic_path
+from dualpixel.io.paths import check_plain_name
 from dualpixel.models.registry import model_spec
 from dualpixel.training.losses import LOSS_REDUCTIONS
 
@@ -101,6 +102,8 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         model_spec(self.model)
+        for key in ("real_split", "synthetic_split", "val_split"):
+            check_plain_name(getattr(self, key), key)
         if self.real_data is None and self.synthetic_data is None:
             raise ParameterError("give real_data, synthetic_data or both")
         positive = ("patch_size", "real_batch", "sequence_batch", "sequence_frames", "epochs",

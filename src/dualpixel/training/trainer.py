@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import pickle
 import random
 import time
 from dataclasses import dataclass, replace
@@ -321,7 +322,12 @@ class Trainer:
         """Continue from ``last_state.pt``, the one atomic unit of a checkpoint (weights,
         optimiser, schedule, RNG): a kill while the derived files were rewritten cannot break it."""
         path = self.output / "last_state.pt"
-        state = torch.load(path, map_location="cpu", weights_only=False)
+        try:  # tensors and plain containers only: a state file never runs code
+            state = torch.load(path, map_location="cpu", weights_only=True)
+        except (pickle.UnpicklingError, RuntimeError, EOFError, OSError) as error:
+            reason = str(error).splitlines()[0][:200]
+            raise InputFileError(path, f"not a training state this version can read safely "
+                                       f"({reason}); start anew or remove it") from None
         if "model" not in state:
             raise InputFileError(path, "written by an older version without the weights; start "
                                        "anew")
