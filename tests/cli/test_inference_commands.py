@@ -158,3 +158,41 @@ def test_export_command(checkpoint, tmp_path):
                  "--size", "48x32", "--step")
     assert result.exit_code == 0, result.output
     assert (tmp_path / "m.onnx").stat().st_size > 1000
+
+
+def test_deblur_never_overwrites_its_inputs(checkpoint, tiny_synthetic_dataset, tmp_path):
+    """Issue #34: an output that is an input, or a folder holding one, is refused before any
+    work (symlinks resolved); one-frame sequences with repeated frame names keep apart."""
+    rng = np.random.default_rng(1)
+    for name in ("l", "r"):
+        cv2.imwrite(str(tmp_path / f"{name}.png"), rng.integers(0, 255, (32, 48, 3), np.uint8))
+    before = (tmp_path / "l.png").read_bytes()
+    (tmp_path / "link.png").symlink_to(tmp_path / "l.png")
+    for output in (tmp_path / "l.png", tmp_path / "link.png"):
+        result = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
+                     "--output", output, "--checkpoint", checkpoint)
+        assert result.exit_code == 1 and "is the input" in result.output, result.output
+    assert (tmp_path / "l.png").read_bytes() == before
+    left = tiny_synthetic_dataset / "train_l" / "source" / "seq_001"
+    right = tiny_synthetic_dataset / "train_r" / "source" / "seq_001"
+    for output in (left, tiny_synthetic_dataset):
+        result = run("deblur", "--left", left, "--right", right, "--output", output,
+                     "--checkpoint", checkpoint)
+        assert result.exit_code == 1 and "holds the input" in result.output, result.output
+    result = run("deblur", "--input", tiny_synthetic_dataset, "--split", "train", "--output",
+                 tiny_synthetic_dataset, "--checkpoint", checkpoint)
+    assert result.exit_code == 1 and "holds the input" in result.output
+    # one-frame sequences whose frames share a name go into a folder each
+    one_frame = tmp_path / "one"
+    for seq in ("seq_001", "seq_002"):
+        for role in ("train_l", "train_r", "train_c"):
+            folder = one_frame / role / "source" / seq
+            folder.mkdir(parents=True)
+            cv2.imwrite(str(folder / "frame_0000.png"),
+                        rng.integers(0, 255, (32, 48, 3), np.uint8))
+    result = run("deblur", "--input", one_frame, "--split", "train", "--output",
+                 tmp_path / "out", "--checkpoint", checkpoint)
+    assert result.exit_code == 0, result.output
+    assert sorted(str(p.relative_to(tmp_path / "out")) for p in
+                  (tmp_path / "out").rglob("*.png")) == ["seq_001/frame_0000.png",
+                                                         "seq_002/frame_0000.png"]

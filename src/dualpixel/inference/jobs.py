@@ -50,11 +50,18 @@ def plan_deblur_jobs(
     if (dataset is None) == (left is None):
         raise ParameterError("give left and right views (--left/--right) or a dataset (--input)")
     if dataset is not None:
+        sequences = discover_dp_dataset(dataset, split, require_target=False)
+        # pairs go straight into the folder; sequences (and one-frame sequences whose frame
+        # names repeat, as synthetic seq_NNN/frame_0000) into a folder each
+        names = [f.left.stem for s in sequences if len(s.frames) == 1 for f in s.frames]
+        own_folder = len(set(names)) < len(names)
         jobs = []
-        for sequence in discover_dp_dataset(dataset, split, require_target=False):
-            folder = output / sequence.name if len(sequence.frames) > 1 else output
+        for sequence in sequences:
+            single = len(sequence.frames) == 1 and not own_folder
+            folder = output if single else output / sequence.name
             jobs.append([DeblurJob(f.left, f.right, folder / f"{f.left.stem}.png")
                          for f in sequence.frames])
+        _refuse_overwriting_inputs(jobs, output, folder=True)
         _output_folder(output)
         return jobs
     left = Path(left)
@@ -69,8 +76,10 @@ def plan_deblur_jobs(
         kind = "a folder" if left.is_dir() else "a file"
         raise InputFileError(right, f"must be {kind}, like --left {left}")
     if not left.is_dir():
+        jobs = [[DeblurJob(left, right, output)]]
+        _refuse_overwriting_inputs(jobs, output, folder=False)
         check_writable(check_image_path(output))
-        return [[DeblurJob(left, right, output)]]
+        return jobs
     lefts = list(image_files(left).values())
     if not lefts:
         raise InputFileError(left, "no images found")
@@ -80,8 +89,23 @@ def plan_deblur_jobs(
         if other is not None and not other.is_file():
             raise InputFileError(other, f"right frame for {path.name} is missing")
         sequence.append(DeblurJob(path, other, output / path.name))
+    _refuse_overwriting_inputs([sequence], output, folder=True)
     _output_folder(output)
     return [sequence]
+
+
+def _refuse_overwriting_inputs(jobs: list[list[DeblurJob]], output: Path, *, folder: bool
+                               ) -> None:
+    """An output that is an input, or a folder that holds one (symlinks resolved), is refused
+    before any work: deblurring never overwrites the user's views."""
+    inputs = {p.resolve() for sequence in jobs for job in sequence
+              for p in (job.left, job.right) if p is not None}
+    target = output.resolve()
+    clash = (next((p for p in inputs if p.is_relative_to(target)), None) if folder
+             else next((p for p in inputs if p == target), None))
+    if clash is not None:
+        what = "holds the input" if folder and clash != target else "is the input"
+        raise OutputFileError(output, f"{what} {clash}; choose an output apart from the views")
 
 
 def run_deblur_jobs(deblurrer: Deblurrer, jobs: list[list[DeblurJob]]) -> Iterator[Path]:
