@@ -27,7 +27,7 @@ _EXPORTS = {
     "deblur": "dualpixel.api",
     "synthesize": "dualpixel.api",
     "load_model": "dualpixel.api",
-    "list_models": "dualpixel.api",
+    "list_models": "dualpixel.weights",
     "psnr": "dualpixel.evaluation.metrics",
     "ssim": "dualpixel.evaluation.metrics",
     "mae": "dualpixel.evaluation.metrics",

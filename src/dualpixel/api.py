@@ -47,10 +47,10 @@ def _from_hwc(images: np.ndarray, layout: str) -> np.ndarray | torch.Tensor:
 
 
 def list_models() -> dict[str, dict[str, Any]]:
-    """The shipped checkpoints with their metadata (``dualpixel models`` prints the same)."""
-    from dualpixel.weights import model_info
+    """The shipped weights with their metadata (:func:`dualpixel.weights.list_models`)."""
+    from dualpixel.weights import list_models as shipped
 
-    return model_info()
+    return shipped()
 
 
 def load_model(name_or_path: str | Path = "rdpd-light", *, device: str = "cpu"):

@@ -72,6 +72,13 @@ def test_clear_errors_and_the_listing():
     assert set(dualpixel.__all__) >= {"deblur", "synthesize", "load_model", "list_models", "psnr"}
 
 
+def test_list_models_reads_headers_without_torch():
+    code = ("import sys, dualpixel; models = dualpixel.list_models(); "
+            "print('torch' in sys.modules, sorted(models))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.startswith("False [")
+
+
 def test_import_is_light():
     code = "import sys, dualpixel; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

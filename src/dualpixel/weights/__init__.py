@@ -24,7 +24,7 @@ from dualpixel.errors import InputFileError, ParameterError
 
 __all__ = [
     "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "WEIGHTS", "Weights", "file_sha256",
-    "model_card", "model_info", "phase_weights", "resolve_checkpoint", "resolve_tag",
+    "list_models", "model_card", "model_info", "phase_weights", "resolve_checkpoint", "resolve_tag",
 ]
 
 
@@ -121,22 +121,30 @@ def phase_weights(recipe: str, phase: str) -> str | None:
 
 @functools.lru_cache(maxsize=1)
 def model_info() -> dict[str, dict]:
-    """Per shipped tag: doc, aliases, recipe and phase, architecture (the file's header only; no
-    network is built), parameter count, size, sha256 and metrics."""
-    from dualpixel.models import read_metadata
+    """Per shipped tag: doc, aliases, recipe and phase, architecture (the file's header only: no
+    network is built and torch is not imported), parameter count, size, sha256 and metrics."""
+    from safetensors import safe_open
 
     info = {}
     for tag, weights in WEIGHTS.items():
-        meta = read_metadata(resolve_checkpoint(tag))
+        with safe_open(str(resolve_checkpoint(tag)), framework="numpy") as handle:
+            meta = handle.metadata()
         info[tag] = {
             "description": weights.doc, "aliases": [a for a, t in ALIASES.items() if t == tag],
-            "recipe": weights.recipe, "phase": weights.phase,
-            "model": meta["model"], "width": meta["width"], "residual": meta["residual"],
-            "refiner": list(meta["refiner"]), "temporal": meta["temporal"],
+            "recipe": weights.recipe, "phase": weights.phase, "model": meta["model"],
+            "width": float(meta["width"]), "residual": json.loads(meta["residual"]),
+            "refiner": json.loads(meta.get("refiner", "[]")),
+            "temporal": json.loads(meta.get("temporal", "true")),
             "parameters": weights.num_params, "bytes": weights.path.stat().st_size,
             "sha256": weights.sha256, "metrics": weights.metrics,
         }
     return info
+
+
+def list_models() -> dict[str, dict]:
+    """The shipped weights with their metadata (``dualpixel models`` prints the same); reads
+    file headers only, without importing torch."""
+    return {tag: dict(row) for tag, row in model_info().items()}
 
 
 def model_card() -> str:
