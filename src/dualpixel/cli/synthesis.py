@@ -7,9 +7,7 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, float_list, parse_size
-from dualpixel.optics.psf import PSF_MODELS
-from dualpixel.optics.psf_bank import PSF_BANKS
-from dualpixel.synthesis.scenes import SCENE_LAYOUTS
+from dualpixel.names import PSF_BANK_NAMES, PSF_MODELS, SCENE_LAYOUTS
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -92,7 +90,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--distortion/--no-distortion", default=True, help="Radial distortion (Eq. 5).")
 @click.option("--psf-model", type=click.Choice(PSF_MODELS),
               default="ours", help="DP PSF model (the others for the paper's ablations).")
-@click.option("--psf-bank", type=click.Choice(list(PSF_BANKS)), default="paper",
+@click.option("--psf-bank", type=click.Choice(PSF_BANK_NAMES), default="paper",
               help="PSF shapes to draw from: the paper's 48, or around the real Pixel 4 fits.")
 @click.option("--camera", "camera_file", type=click.Path(dir_okay=False, path_type=Path),
               default=None,

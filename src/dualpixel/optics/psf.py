@@ -27,6 +27,7 @@ import torch.nn.functional as F
 
 from dualpixel.errors import ParameterError, check_range
 from dualpixel.memory import require_memory
+from dualpixel.names import PSF_MODELS
 
 __all__ = [
     "PSF_MODELS",
@@ -47,7 +48,6 @@ __all__ = [
 ]
 
 PSFModel = Literal["ours", "punnappurath", "disk", "gaussian"]
-PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
 
 #: Standard deviation of the Gaussian baseline PSF, as a fraction of |r|.
 GAUSSIAN_SIGMA_PER_RADIUS = 0.5

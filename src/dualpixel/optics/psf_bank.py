@@ -8,6 +8,7 @@ from collections.abc import Iterable, Iterator, Sequence
 import numpy as np
 
 from dualpixel.errors import ParameterError
+from dualpixel.names import PSF_BANK_NAMES
 from dualpixel.optics.psf import PSFParams
 
 __all__ = ["PAPER_PSF_BANK", "PIXEL4_PSF_BANK", "PSF_BANKS", "PSFBank"]
@@ -67,4 +68,5 @@ PIXEL4_PSF_BANK = PSFBank.from_grid(
 )
 
 #: Banks by name (``dualpixel synth --psf-bank``).
-PSF_BANKS: dict[str, PSFBank] = {"paper": PAPER_PSF_BANK, "pixel4": PIXEL4_PSF_BANK}
+PSF_BANKS: dict[str, PSFBank] = dict(zip(PSF_BANK_NAMES, (PAPER_PSF_BANK, PIXEL4_PSF_BANK),
+                                          strict=True))

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import ParameterError, check_range
+from dualpixel.names import SCENE_LAYOUTS
 from dualpixel.parallel import completed
 from dualpixel.synthesis.textures import dead_leaves, load_photograph, random_texture
 
@@ -28,7 +29,6 @@ __all__ = ["SCENE_LAYOUTS", "SceneConfig", "render_scene_sequence", "write_scene
 #: "photo": laid out like a photograph: an in-focus subject near the centre (the camera focuses on
 #: it), a ground plane receding to a background, objects between them and, sometimes, a blurred
 #: foreground occluder; textures from :mod:`dualpixel.synthesis.textures`.
-SCENE_LAYOUTS = ("leaves", "photo")
 
 _PHOTOS = ("astronaut", "coffee", "chelsea", "rocket", "brick", "grass", "gravel", "camera")
 

@@ -1,0 +1,13 @@
+"""Names of the choices the library offers, in a module that imports nothing heavy, so the
+command line can list them without importing torch (``dualpixel --help`` stays fast)."""
+
+from __future__ import annotations
+
+__all__ = ["PSF_BANK_NAMES", "PSF_MODELS", "SCENE_LAYOUTS"]
+
+#: DP PSF models: ours (Eq. 2-4) and the ablation's baselines.
+PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
+#: Banks of PSF shapes (:data:`dualpixel.optics.psf_bank.PSF_BANKS`).
+PSF_BANK_NAMES: tuple[str, ...] = ("paper", "pixel4")
+#: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`).
+SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo")
