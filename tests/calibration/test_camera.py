@@ -174,3 +174,15 @@ def test_calibrate_and_synth_refuse_bad_input(tmp_path):
                                  str(tmp_path / "d"), "--camera", str(bad)])
     assert result.exit_code == 1 and "bad.json" in result.output
     assert "missing: width, disparity_ratio, psf" in result.output
+
+
+def test_stats_reports_the_disparity_ratio_per_channel(tmp_path):
+    for seed in (8, 9):
+        _write_scene(tmp_path / "pairs" / f"scene_{seed}", *_pair(seed)[1:])
+    result = CliRunner().invoke(cli, ["-q", "stats", str(tmp_path / "pairs"), "--patch", "32",
+                                      "--disparity-ratio", "10", "--json",
+                                      str(tmp_path / "s.json")])
+    assert result.exit_code == 0, result.output
+    assert "disparity ratio R/G/B" in result.output
+    (summary,) = json.loads((tmp_path / "s.json").read_text())
+    np.testing.assert_allclose(summary["disparity_ratio"], RATIO, atol=0.06)

@@ -191,8 +191,13 @@ def preview(dataset: Path, output: Path, rows: int) -> None:
               help="Histogram figure (PNG) of all datasets side by side.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Write the percentiles as JSON too.")
+@click.option("--disparity-ratio", "max_radius", type=click.FloatRange(1.0, 60.0), default=None,
+              metavar="MAX_RADIUS",
+              help="Also measure, on frames with targets, the disparity kept per colour channel "
+                   "at a given blur (as `calibrate camera`: 1 = the paper's model), searching "
+                   "CoC radii up to MAX_RADIUS px.")
 def stats(datasets: tuple[Path, ...], split: str | None, limit: int | None, patch: int,
-          output: Path | None, json_path: Path | None) -> None:
+          output: Path | None, json_path: Path | None, max_radius: float | None) -> None:
     """Measure DP datasets: disparity, blur, noise and gradient content (percentiles).
 
     Give two datasets to compare them, e.g. synthetic training data beside real photographs.
@@ -213,6 +218,19 @@ def stats(datasets: tuple[Path, ...], split: str | None, limit: int | None, patc
         for p in ("p25", "p50", "p75", "p90"):
             rows.append((f"{label} {p}", lambda s, k=key, p=p: "-" if s[k] is None else
                          f"{s[k][p]:.4g}"))
+    if max_radius is not None:
+        from dualpixel.calibration.camera import calibrate_camera, read_calibration_frames
+
+        for dataset, stats_ in zip(datasets, measured):
+            frames = read_calibration_frames([dataset], split)[:limit]
+            camera = calibrate_camera(frames, patch=patch, max_radius=max_radius,
+                                      skip_misaligned=True).camera
+            stats_.extra["disparity_ratio"] = list(camera.disparity_ratio)
+            stats_.extra["coc_percentiles"] = camera.coc_percentiles
+        rows.append(("disparity ratio R/G/B", lambda s: "/".join(
+            f"{v:.2f}" for v in s.get("disparity_ratio", [])) or "-"))
+        rows.append(("CoC px p50 (p90)", lambda s: "-" if "coc_percentiles" not in s else
+                     f"{s['coc_percentiles']['p50']:g} ({s['coc_percentiles']['p90']:g})"))
     summaries = [m.summary() for m in measured]
     click.echo(f"{'':<22}" + "".join(f"{s['name'][:20]:>22}" for s in summaries))
     for label, value in rows:

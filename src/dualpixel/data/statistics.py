@@ -83,6 +83,7 @@ class DatasetStatistics:
                                      if self.blur.size else None),
             "noise_std": pct(self.noise),
             "gradient_fraction": pct(self.gradient_fraction),
+            **self.extra,
         }
 
 
