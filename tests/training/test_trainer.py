@@ -347,3 +347,21 @@ def test_torchrun_two_processes(tiny_synthetic_dataset, tmp_path, as_frames):
     assert load_model(out / "last.safetensors").spec.name == "rdpd"
     history = [json.loads(line) for line in (out / "history.jsonl").read_text().splitlines()]
     assert history[-1]["step"] == 2
+
+
+@pytest.mark.parametrize(("key", "value", "message"), [
+    ("learning_rate", ".inf", "learning_rate must be finite"),
+    ("learning_rate", ".nan", "learning_rate must be finite"),
+    ("iterations_per_epoch", "0", "iterations_per_epoch must be >= 1"),
+    ("val_limit", "0", "val_limit must be >= 1"),
+    ("lambda_x", "-0.1", "lambda_x"),
+    ("lstm_dropout", "5", "lstm_dropout"),
+    ("workers", "-1", "workers must be >= 0"),
+    ("threads", "0", "threads must be >= 1"),
+    ("width", "0", "width must be > 0"),
+])
+def test_config_values_are_checked_up_front(tiny_synthetic_dataset, key, value, message):
+    """Issue #34: values that would train to NaN, do nothing, or crash later are refused by
+    name before any work."""
+    with pytest.raises(ParameterError, match=message):
+        load_config(None, {"synthetic_data": str(tiny_synthetic_dataset), key: value})

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.errors import InputFileError, ParameterError, check_range
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.paths import check_plain_name
 from dualpixel.models.registry import model_spec
@@ -107,10 +107,22 @@ class TrainConfig:
         if self.real_data is None and self.synthetic_data is None:
             raise ParameterError("give real_data, synthetic_data or both")
         positive = ("patch_size", "real_batch", "sequence_batch", "sequence_frames", "epochs",
-                    "lr_halve_every")
+                    "lr_halve_every", "iterations_per_epoch", "val_limit", "threads")
         for name in positive:
-            if getattr(self, name) < 1:
-                raise ParameterError(f"{name} must be >= 1, got {getattr(self, name)}")
+            value = getattr(self, name)
+            if value is not None and value < 1:
+                raise ParameterError(f"{name} must be >= 1, got {value}")
+        # every float finite and in its range: a run must not train to NaN and exit 0
+        for name, low, high in (("width", 0.0, 16.0), ("lstm_dropout", 0.0, 1.0),
+                                ("learning_rate", 0.0, 1.0), ("lambda_x", 0.0, 1e3),
+                                ("lambda_y", 0.0, 1e3), ("min_sharpness", 0.0, 1.0)):
+            check_range(name, getattr(self, name), low, high)
+        if self.width <= 0 or self.lstm_dropout >= 1:
+            raise ParameterError(f"width must be > 0 and lstm_dropout < 1, got {self.width} and "
+                                 f"{self.lstm_dropout}")
+        for name in ("workers", "log_images", "seed"):
+            if getattr(self, name) < 0:
+                raise ParameterError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ParameterError(f"lr_schedule must be one of {', '.join(LR_SCHEDULES)}, "
                                  f"got {self.lr_schedule!r}")
