@@ -15,6 +15,7 @@ import pytest
 
 from dualpixel.data import discover_dp_dataset
 from dualpixel.errors import InputFileError
+from dualpixel.io.lock import LOCK_NAME
 from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 
@@ -31,7 +32,7 @@ _CHILD = textwrap.dedent("""
 
 def every_file(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
-            if p.is_file()}
+            if p.is_file() and p.name != LOCK_NAME}  # the lock names its holder's pid
 
 
 @pytest.fixture(scope="module")
@@ -153,3 +154,38 @@ def test_paths_from_manifests_and_options_stay_inside_their_folders(scenes, tmp_
         result = runner.invoke(cli, [*args, "--output", str(tmp_path / "s"), "--split", split])
         assert result.exit_code == 2 and "split must be a plain name" in result.output
     assert not (tmp_path / "x").exists()
+
+
+_HOLDER = textwrap.dedent("""
+    import sys, time
+    from dualpixel.io.lock import folder_lock
+    with folder_lock(sys.argv[1], "synth"):
+        print("locked", flush=True)
+        time.sleep(60)
+""")
+
+
+def test_two_writers_into_one_folder_one_is_refused(scenes, tmp_path):
+    """Issue #34: a second `synth` into a folder another process writes gets an error naming
+    the holder; once the holder is gone (SIGKILL included) its lock is taken over."""
+    from click.testing import CliRunner
+
+    from dualpixel.cli.main import cli
+
+    out = tmp_path / "data"
+    holder = subprocess.Popen([sys.executable, "-c", _HOLDER, str(out)], stdout=subprocess.PIPE,
+                              text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        args = ["synth", "--input", str(scenes), "--output", str(out), "--cameras", "set0",
+                "--layers", "40"]
+        result = CliRunner().invoke(cli, args)
+        assert result.exit_code == 1, result.output
+        assert f"pid {holder.pid}" in result.output and "being written" in result.output
+        assert not (out / "manifest.jsonl").exists()
+    finally:
+        holder.send_signal(signal.SIGKILL)
+        holder.wait()
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 0, result.output
+    assert json.loads((out / "dataset.json").read_text())["status"] == "complete"

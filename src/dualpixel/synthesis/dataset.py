@@ -38,6 +38,7 @@ from dualpixel.errors import InputFileError, OutputFileError, ParameterError, ch
 from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.dpdd import frame_paths, read_manifest
 from dualpixel.io.images import quantise, save_npy, write_png
+from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
 from dualpixel.optics.psf import PSFModel, check_psf_model
@@ -397,12 +398,19 @@ def synthesize_dataset(
     sequences = discover_sequences(input_dir, fmt, split=config.split)
     jobs = plan_jobs(sequences, config, fmt)
     if shard is not None:
-        index, count = _check_shard(shard)
-        jobs = jobs[index::count]
-    root.mkdir(parents=True, exist_ok=True)
+        shard = _check_shard(shard)
+        jobs = jobs[shard[0]::shard[1]]
+    with folder_lock(root, "synth"):
+        return _synthesize_locked(root, jobs, input_dir, fmt, config, shard, workers, device,
+                                  progress, limit)
+
+
+def _synthesize_locked(root: Path, jobs: list, input_dir, fmt, config: SynthConfig, shard,
+                       workers: int, device: str, progress: bool, limit: int | None) -> dict:
+    """:func:`synthesize_dataset` once it holds the folder's lock."""
     description = _description(config, input_dir, fmt, len(jobs))
     if shard is not None:
-        description["shard"] = [index, count]
+        description["shard"] = list(shard)
     _check_or_write_description(root, description)
     remove_partials(root)  # temporary files of writes a kill interrupted
     manifest_path = root / "manifest.jsonl"

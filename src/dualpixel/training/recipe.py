@@ -487,6 +487,15 @@ def reproduce(recipe: Recipe, output: str | Path, *, until: str | None = None,
         raise ParameterError(f"--from {start} comes after --until {until}")
     if first > 0:
         phase_start(recipe, first, output)  # a start that cannot be resolved fails now
+    from dualpixel.io.lock import folder_lock
+
+    with folder_lock(output, "reproduce"):
+        return _reproduce_locked(recipe, output, first, last, until, workers, progress, log)
+
+
+def _reproduce_locked(recipe: Recipe, output: Path, first: int, last: int, until: str | None,
+                      workers: int, progress: bool, log) -> Path | None:
+    """:func:`reproduce` once it holds the run folder's lock."""
     _claim_folder(recipe, output)
     steps = needed_steps(recipe, output, first, last)
     run_data(dataclasses.replace(recipe, data=steps), output, workers=workers,

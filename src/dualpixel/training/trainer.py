@@ -243,6 +243,15 @@ class Trainer:
         self.init_record: dict[str, str] | None = None
 
     def run(self) -> TrainResult:
+        import contextlib
+
+        from dualpixel.io.lock import folder_lock
+
+        # one writer per run folder (the main process; torchrun's others write nothing)
+        with folder_lock(self.output, "train") if self.main else contextlib.nullcontext():
+            return self._run()
+
+    def _run(self) -> TrainResult:
         self.check_folder()
         self.build()
         self.restore() if self.resume else self.start()
