@@ -189,3 +189,33 @@ def test_two_writers_into_one_folder_one_is_refused(scenes, tmp_path):
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 0, result.output
     assert json.loads((out / "dataset.json").read_text())["status"] == "complete"
+
+
+def test_a_merge_cut_short_never_reads_as_finished(scenes, tmp_path, monkeypatch):
+    """Issue #34: merge-shards marks its output unfinished before the first copy and finished
+    after the last, so readers refuse a merge that was cut short."""
+    import shutil
+
+    from dualpixel.synthesis.dataset import merge_shards
+
+    parts = []
+    for k in range(2):
+        parts.append(tmp_path / f"part{k}")
+        synthesize_dataset(scenes, "rgbd", parts[-1], SynthConfig(**CONFIG), shard=(k, 2),
+                           progress=False)
+    copies = {"n": 0}
+    real_copy = shutil.copyfile
+
+    def copy_then_die(source, target, *args, **kwargs):
+        copies["n"] += 1
+        if copies["n"] == 7:
+            raise KeyboardInterrupt  # a kill mid-merge (no cleanup runs after it)
+        return real_copy(source, target, *args, **kwargs)
+
+    monkeypatch.setattr(shutil, "copyfile", copy_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        merge_shards(parts, tmp_path / "merged", progress=False)
+    monkeypatch.setattr(shutil, "copyfile", real_copy)
+    assert list((tmp_path / "merged").rglob("*.png"))  # some frames landed
+    with pytest.raises(InputFileError, match="unfinished"):
+        discover_dp_dataset(tmp_path / "merged", "train")

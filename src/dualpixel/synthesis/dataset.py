@@ -264,7 +264,6 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
     """Join the folders of ``synth --shard K/N`` (all N, each complete) into ``output_dir``:
     files, manifest and ``dataset.json`` byte-identical to a single run's. The input folder the
     shards were made from must be readable here (the frame plan is rebuilt from it)."""
-    import shutil
 
     roots = [Path(s) for s in shards]
     if not roots:
@@ -311,17 +310,29 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
     out = Path(output_dir)
     if out.exists() and any(out.iterdir()):
         raise OutputFileError(out, "is not empty; merge into a new folder")
+    with folder_lock(out, "merge-shards"):
+        return _merge_locked(out, jobs, records, owner, config, first, progress)
+
+
+def _merge_locked(out: Path, jobs: list, records: dict, owner: dict, config: SynthConfig,
+                  first: dict, progress: bool) -> dict:
+    """:func:`merge_shards` once it holds the output's lock: ``dataset.json`` says
+    "incomplete" before the first file is copied and "complete" after the last, so a merge cut
+    short never reads as a finished dataset."""
+    import shutil
+
     for job in jobs:  # every path a manifest names stays inside its folders, checked first
         manifest = owner[job.key] / "manifest.jsonl"
         for relative in records[job.key]["outputs"].values():
             contained(owner[job.key], relative, manifest)
             contained(out, relative, manifest)
+    description = _description(config, first["input"], first["format"], len(jobs))
+    _write_json(out / "dataset.json", description)  # "incomplete" until the end
     for job in tqdm(jobs, desc="merging shards", unit="frame", disable=not progress):
         for relative in records[job.key]["outputs"].values():
             with atomic_path(out / relative) as tmp:
                 shutil.copyfile(owner[job.key] / relative, tmp)
     _write_manifest(out / "manifest.jsonl", [records[job.key] for job in jobs])
-    description = _description(config, first["input"], first["format"], len(jobs))
     description.update(frames_done=len(jobs), status="complete")
     _write_json(out / "dataset.json", description)
     return description
