@@ -1,5 +1,9 @@
 """Independent jobs in worker processes (dataset synthesis, procedural scenes).
 
+Workers never outlive the command: an error, Ctrl-C or a closed generator in the parent
+terminates them, and each worker watches its parent and exits as soon as it is gone (a parent
+killed by SIGKILL or SIGTERM runs no cleanup), so no orphan keeps writing.
+
 Workers are spawned, not forked: a fork copies OpenCV's and torch's thread pools in whatever state
 the parent left them, and the children can hang on their locks (seen with ``filter2D``). Each
 worker runs one torch and one OpenCV thread, so ``workers`` processes use ``workers`` cores.
@@ -8,6 +12,8 @@ worker runs one torch and one OpenCV thread, so ``workers`` processes use ``work
 from __future__ import annotations
 
 import multiprocessing
+import os
+import signal
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
@@ -26,10 +32,46 @@ def completed(
             yield function(*job)
         return
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                               initializer=_watch_parent, initargs=(os.getpid(),))
+    try:
         futures = [pool.submit(_single_threaded, function, job) for job in jobs]
         for future in as_completed(futures):
             yield future.result()
+    except BaseException:  # an error, KeyboardInterrupt, or the caller closing the generator
+        processes = list(getattr(pool, "_processes", None) or {})
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in (getattr(pool, "_processes", None) or {}).values():
+            process.terminate()
+        for pid in processes:
+            _terminate(pid)
+        raise
+    pool.shutdown()
+
+
+#: How often (s) a worker checks that its parent is still there.
+PARENT_POLL = 0.25
+
+
+def _watch_parent(parent: int) -> None:
+    """Worker initializer: a daemon thread that ends this process once ``parent`` is gone (the
+    worker is then re-parented, so ``os.getppid()`` changes)."""
+    import threading
+    import time
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="watch-parent", daemon=True).start()
+
+
+def _terminate(pid: int) -> None:
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except (ProcessLookupError, PermissionError):
+        pass
 
 
 def _single_threaded(function: Callable[..., Any], job: tuple) -> Any:

@@ -219,3 +219,41 @@ def test_a_merge_cut_short_never_reads_as_finished(scenes, tmp_path, monkeypatch
     assert list((tmp_path / "merged").rglob("*.png"))  # some frames landed
     with pytest.raises(InputFileError, match="unfinished"):
         discover_dp_dataset(tmp_path / "merged", "train")
+
+
+def _children(pid: int) -> list[int]:
+    found = []
+    for task in Path(f"/proc/{pid}/task").glob("*/children"):
+        found += [int(p) for p in task.read_text().split()]
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except FileNotFoundError:
+        return False
+    return state != "Z"
+
+
+def test_workers_die_with_their_parent(scenes, tmp_path):
+    """Issue #34: `synth --workers 2` killed by SIGKILL leaves no worker behind (each watches
+    its parent), and nothing is written after the kill."""
+    command = [sys.executable, "-m", "dualpixel", "-q", "synth", "--input", str(scenes),
+               "--output", str(tmp_path / "data"), "--cameras", "set0,set1,set2,set3,set4",
+               "--workers", "2"]
+    parent = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)
+    deadline = time.monotonic() + 120
+    workers: list[int] = []
+    while time.monotonic() < deadline and len(workers) < 2:
+        workers = [p for p in _children(parent.pid) if "spawn_main" in
+                   Path(f"/proc/{p}/cmdline").read_bytes().decode(errors="replace")]
+        time.sleep(0.2)
+    assert len(workers) >= 2, "the workers never started"
+    parent.send_signal(signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(p) for p in workers):
+        time.sleep(0.1)
+    assert not any(_alive(p) for p in workers), "a worker outlived its parent"
