@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import signal
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
@@ -39,12 +38,11 @@ def completed(
         for future in as_completed(futures):
             yield future.result()
     except BaseException:  # an error, KeyboardInterrupt, or the caller closing the generator
-        processes = list(getattr(pool, "_processes", None) or {})
+        # the executor has no public way to stop its workers; shutdown() forgets them
+        processes = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
-        for process in (getattr(pool, "_processes", None) or {}).values():
+        for process in processes:
             process.terminate()
-        for pid in processes:
-            _terminate(pid)
         raise
     pool.shutdown()
 
@@ -66,12 +64,6 @@ def _watch_parent(parent: int) -> None:
 
     threading.Thread(target=watch, name="watch-parent", daemon=True).start()
 
-
-def _terminate(pid: int) -> None:
-    try:
-        os.kill(pid, signal.SIGTERM)
-    except (ProcessLookupError, PermissionError):
-        pass
 
 
 def _single_threaded(function: Callable[..., Any], job: tuple) -> Any:

@@ -29,6 +29,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from dualpixel.data.statistics import block_sums
 from dualpixel.errors import InputFileError, ParameterError, check_range
 from dualpixel.optics.crosstalk import check_disparity_ratio
 from dualpixel.optics.psf import PSFParams, dp_psf
@@ -150,11 +151,9 @@ class BlockFits:
     centres: np.ndarray
 
 
-def _block_sums(values: np.ndarray, patch: int) -> np.ndarray:
-    """``(H, W, C)`` -> ``(H // patch, W // patch, C)`` sums over non-overlapping blocks."""
-    rows, cols = values.shape[0] // patch, values.shape[1] // patch
-    trimmed = values[: rows * patch, : cols * patch]
-    return trimmed.reshape(rows, patch, cols, patch, -1).sum(axis=(1, 3), dtype=np.float64)
+def _sums(values: np.ndarray, patch: int) -> np.ndarray:
+    """Block sums accumulated in float64 (the normal equations subtract large sums)."""
+    return block_sums(values, patch, np.float64)
 
 
 def _view_kernels(radius: float, params: PSFParams) -> tuple[np.ndarray, np.ndarray]:
@@ -183,7 +182,7 @@ def fit_blocks(
     lo, ro = (np.asarray(v, np.float32)[inner] for v in (left, right))
     sharp = np.ascontiguousarray(target, np.float32)
     count = 2.0 * patch * patch
-    sums = {"ll": _block_sums(lo * lo + ro * ro, patch), "l1": _block_sums(lo + ro, patch)}
+    sums = {"ll": _sums(lo * lo + ro * ro, patch), "l1": _sums(lo + ro, patch)}
     best = None
     for radius in radii:
         if radius <= 0:
@@ -192,10 +191,10 @@ def fit_blocks(
             kl, kr = _view_kernels(radius, params)
             a = cv2.filter2D(sharp, -1, kl, borderType=cv2.BORDER_REFLECT)[inner]
             b = cv2.filter2D(sharp, -1, kr, borderType=cv2.BORDER_REFLECT)[inner]
-        m11 = _block_sums(a * a + b * b, patch)
-        m12 = 2.0 * _block_sums(a * b, patch)
-        m13 = _block_sums(a + b, patch)
-        rhs = np.stack([_block_sums(lo * a + ro * b, patch), _block_sums(lo * b + ro * a, patch),
+        m11 = _sums(a * a + b * b, patch)
+        m12 = 2.0 * _sums(a * b, patch)
+        m13 = _sums(a + b, patch)
+        rhs = np.stack([_sums(lo * a + ro * b, patch), _sums(lo * b + ro * a, patch),
                         sums["l1"]], axis=-1)
         n = np.full_like(m11, count)
         matrix = np.stack([np.stack([m11, m12, m13], -1), np.stack([m12, m11, m13], -1),
@@ -219,18 +218,19 @@ def fit_blocks(
     ys, xs = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     centres = np.stack([margin + (xs + 0.5) * patch, margin + (ys + 0.5) * patch], axis=-1)
     return BlockFits(best["radius"], ratio, best["residual"],
-                     _block_sums(gradient, patch) / patch**2, centres)
+                     _sums(gradient, patch) / patch**2, centres)
 
 
 @dataclass
 class CameraCalibration:
     """The camera model and what it was measured from: per PSF candidate the total residual,
-    and the block fits of the winning candidate (one :class:`BlockFits` per frame)."""
+    and the block fits of the winning candidate (one :class:`BlockFits` per frame fitted)."""
 
     camera: DPCamera
     scores: list[tuple[PSFParams, float]]
     fits: list[BlockFits]
     usable: list[np.ndarray]  # per frame, (rows, cols) bool: the blocks the ratios rest on
+    frames: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]  # the frames fitted (aligned)
 
 
 def _usable(fit: BlockFits, min_radius: float, max_radius: float) -> np.ndarray:
@@ -359,7 +359,7 @@ def calibrate_camera(
                          for p in (10, 25, 50, 75, 90)},
         blocks=count,
     )
-    return CameraCalibration(camera, scores, fits, usable)
+    return CameraCalibration(camera, scores, fits, usable, frames)
 
 
 def read_calibration_frames(

@@ -182,7 +182,7 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
     if figure is not None:
         from dualpixel.viz.camera_figure import render_camera_figure
 
-        click.echo(f"wrote {render_camera_figure(calibration, frames, figure)}")
+        click.echo(f"wrote {render_camera_figure(calibration, figure)}")
 
 
 COMMANDS = (pattern, calibrate)

@@ -33,6 +33,7 @@ from dualpixel.errors import InputFileError, ParameterError
 __all__ = [
     "DatasetStatistics",
     "FrameStatistics",
+    "block_sums",
     "dataset_statistics",
     "frame_statistics",
 ]
@@ -91,17 +92,19 @@ def _grey(image: np.ndarray) -> np.ndarray:
     return image.mean(axis=-1, dtype=np.float32)
 
 
-def _block_sums(values: np.ndarray, patch: int) -> np.ndarray:
-    """Sum over non-overlapping ``patch`` blocks (the remainder at the borders is dropped)."""
+def block_sums(values: np.ndarray, patch: int, dtype=None) -> np.ndarray:
+    """Sums over non-overlapping ``patch`` blocks of ``(H, W, ...)`` values, ``(H // patch,
+    W // patch, ...)`` (the remainder at the borders is dropped); ``dtype``: the accumulator."""
     rows, cols = values.shape[0] // patch, values.shape[1] // patch
     trimmed = values[: rows * patch, : cols * patch]
-    return trimmed.reshape(rows, patch, cols, patch).sum(axis=(1, 3))
+    return trimmed.reshape(rows, patch, cols, patch, *values.shape[2:]).sum(axis=(1, 3),
+                                                                          dtype=dtype)
 
 
 def _textured(grey: np.ndarray, patch: int, threshold: float) -> np.ndarray:
     """Blocks whose mean absolute horizontal gradient exceeds ``threshold`` (bool per block)."""
     gradient = np.abs(np.diff(grey, axis=1, append=grey[:, -1:]))
-    return _block_sums(gradient, patch) / patch**2 > threshold
+    return block_sums(gradient, patch) / patch**2 > threshold
 
 
 def block_disparity(
@@ -118,7 +121,7 @@ def block_disparity(
     for shift in range(-max_shift, max_shift + 1):
         # R(x) = L(x - d): compare R at x with L at x - d
         diff = gr[:, core] - gl[:, max_shift - shift : width - max_shift - shift]
-        costs.append(_block_sums(diff * diff, patch))
+        costs.append(block_sums(diff * diff, patch))
     cost = np.stack(costs)  # (S, rows, cols)
     best = cost.argmin(axis=0)
     inner = np.clip(best, 1, cost.shape[0] - 2)
@@ -144,7 +147,7 @@ def block_blur(
         blurred = grey_target if sigma == 0 else cv2.GaussianBlur(
             grey_target, (0, 0), float(sigma), borderType=cv2.BORDER_REFLECT
         )
-        costs.append(_block_sums((blurred - grey_in) ** 2, patch))
+        costs.append(block_sums((blurred - grey_in) ** 2, patch))
     best = np.stack(costs).argmin(axis=0)
     textured = _textured(grey_target, patch, min_texture)
     return sigmas[best][textured].astype(np.float32)

@@ -27,10 +27,10 @@ def model_disparity(radii: np.ndarray, params) -> np.ndarray:
     return np.asarray(out)
 
 
-def render_camera_figure(calibration, frames, path: str | Path, *, kernels_shown: int = 3) -> Path:
+def render_camera_figure(calibration, path: str | Path, *, kernels_shown: int = 3) -> Path:
     """Left: disparity against blur per channel (blocks, the camera's lines and the paper's
     model, a = 1). Right: kernels estimated from the strongest-blurred blocks beside the fitted
-    model's (green channel)."""
+    model's (green channel), from the frames the calibration fitted (misaligned ones left out)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -69,7 +69,7 @@ def render_camera_figure(calibration, frames, path: str | Path, *, kernels_shown
     chosen = candidates[:: max(1, len(candidates) // (4 * kernels_shown))][:kernels_shown]
     for k, (radius, index, row, col) in enumerate(chosen):
         fit = calibration.fits[index]
-        _, left, right, target = frames[index]
+        _, left, right, target = calibration.frames[index]
         half = int(np.ceil(radius * 1.4)) + 2
         patch = round(fit.centres[0, 1, 0] - fit.centres[0, 0, 0])
         estimated = estimate_block_kernels(left[..., 1:2], right[..., 1:2], target[..., 1:2],
