@@ -28,7 +28,7 @@ def test_psf_command_writes_figure_and_arrays(tmp_path):
     assert data["left"].shape[0] == 2
     np.testing.assert_allclose(data["left"].sum(axis=(1, 2)), 0.5, atol=1e-5)
     np.testing.assert_allclose(data["right"], data["left"][:, :, ::-1])
-    assert not list(tmp_path.glob(".*partial*"))
+    assert not list(tmp_path.glob(".*"))
 
 
 def test_psf_command_rejects_bad_parameters(tmp_path):

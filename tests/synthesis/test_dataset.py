@@ -9,6 +9,7 @@ from click.testing import CliRunner
 from dualpixel.cli.main import cli
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.images import decode_synthia_depth, read_synthia_depth
+from dualpixel.io.atomic import PARTIAL_GLOB
 from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 
@@ -88,7 +89,7 @@ def test_interrupted_run_resumes_to_the_same_dataset(scene_dir, tmp_path):
     assert done["status"] == "complete" and done["frames_done"] == 8
     synthesize_dataset(scene_dir, "rgbd", tmp_path / "full", config, progress=False)
     assert tree_bytes(tmp_path / "r") == tree_bytes(tmp_path / "full")
-    assert not list((tmp_path / "r").rglob("*.partial*"))
+    assert not list((tmp_path / "r").rglob(PARTIAL_GLOB))
 
 
 def test_output_folder_with_other_configuration_is_refused(scene_dir, tmp_path):

@@ -67,7 +67,7 @@ def test_killed_synth_resumes_byte_identical(scenes, tmp_path):
     # What a kill can leave besides: a temporary file, and one view of a frame whose other
     # files and manifest line were never written.
     first = json.loads(manifest.read_text().splitlines()[0])
-    (killed / "train_c" / "source" / ".frame_0009.x.partial.png").write_bytes(b"junk")
+    (killed / "train_c" / "source" / ".frame_0009.dualpixel-partial-x.png").write_bytes(b"junk")
     orphan = (killed / first["outputs"]["left"]).parent.parent / "seq_004" / "frame_0002.png"
     orphan.parent.mkdir(parents=True, exist_ok=True)
     orphan.write_bytes(b"not a finished view")

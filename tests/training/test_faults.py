@@ -10,6 +10,7 @@ import textwrap
 import pytest
 import torch
 
+from dualpixel.io.atomic import PARTIAL_GLOB
 from dualpixel.models import load_model
 from dualpixel.training import train
 from tests.training.test_trainer import tiny_config
@@ -62,14 +63,14 @@ def test_kill_during_checkpoint_write_resumes_to_the_same_weights(
     )
     assert child.returncode == -signal.SIGKILL, child.stderr
     if moment == "state":  # killed mid-write: epoch 1 is the last consistent checkpoint
-        assert list(killed.glob(".*.partial*"))
+        assert list(killed.glob(PARTIAL_GLOB))
         assert torch.load(killed / "last_state.pt", weights_only=False)["epoch"] == 0
     else:  # killed after the state file: last.safetensors still holds epoch 1
         assert torch.load(killed / "last_state.pt", weights_only=False)["epoch"] == 1
 
     resumed = train(config, killed, resume=True, progress=False)
     assert resumed.step == straight.step == 6
-    assert not list(killed.glob(".*.partial*"))
+    assert not list(killed.glob(PARTIAL_GLOB))
     a = load_model(tmp_path / "straight" / "last.safetensors").state_dict()
     b = load_model(killed / "last.safetensors").state_dict()
     for key in a:

@@ -11,10 +11,13 @@ from pathlib import Path
 
 from dualpixel.errors import OutputFileError
 
-__all__ = ["PARTIAL_GLOB", "atomic_path", "check_writable", "remove_partials"]
+__all__ = ["PARTIAL_GLOB", "PARTIAL_MARKER", "atomic_path", "check_writable", "remove_partials"]
 
-#: Names of the temporary files of :func:`atomic_path` (hidden, ``.partial`` before the suffix).
-PARTIAL_GLOB = ".*.partial*"
+#: Marker in the names of :func:`atomic_path`'s temporary files: hidden, then
+#: ``.<stem>.dualpixel-partial-<random><suffix>``. Cleanup matches only this project's marker, so a
+#: user's own ``.notes.partial.txt`` is never taken for a leftover.
+PARTIAL_MARKER = ".dualpixel-partial-"
+PARTIAL_GLOB = f".*{PARTIAL_MARKER}*"
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -29,7 +32,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     target = Path(path)
     check_writable(target)
     fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{target.stem}.", suffix=f".partial{target.suffix}", dir=target.parent
+        prefix=f".{target.stem}{PARTIAL_MARKER}", suffix=target.suffix, dir=target.parent
     )
     os.close(fd)
     tmp = Path(tmp_name)

@@ -293,18 +293,23 @@ def write_scene_folder(
     and existing complete sequences are kept."""
     from tqdm import tqdm
 
+    from dualpixel.io.atomic import remove_partials
+    from dualpixel.io.lock import folder_lock
+
     check_range("workers", workers, low=1)
     root = Path(output)
-    _check_or_write_description(root, {"config": asdict(config), "seed": seed})
     folders = [root / f"seq_{k:03d}" for k in range(sequences)]
     names = [f"frame_{t:04d}" for t in range(config.frames)]
-    missing = [(folder, k, names, config, seed) for k, folder in enumerate(folders) if not all(
-        (folder / "depth" / f"{n}.npy").is_file() and (folder / "rgb" / f"{n}.png").is_file()
-        for n in names)]
-    with tqdm(total=sequences, initial=sequences - len(missing), desc="rendering scenes",
-              unit="seq", disable=not progress) as bar:
-        for _ in completed(_write_sequence, missing, workers):
-            bar.update()
+    with folder_lock(root, "scenes"):
+        _check_or_write_description(root, {"config": asdict(config), "seed": seed})
+        remove_partials(root)  # temporary files of writes a kill interrupted
+        missing = [(folder, k, names, config, seed) for k, folder in enumerate(folders)
+                   if not all((folder / "depth" / f"{n}.npy").is_file()
+                              and (folder / "rgb" / f"{n}.png").is_file() for n in names)]
+        with tqdm(total=sequences, initial=sequences - len(missing), desc="rendering scenes",
+                  unit="seq", disable=not progress) as bar:
+            for _ in completed(_write_sequence, missing, workers):
+                bar.update()
     return folders
 
 

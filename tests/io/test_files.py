@@ -1,0 +1,44 @@
+"""Issue #34: temporary files, leftovers and locks belong to this project alone."""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.errors import OutputFileError
+from dualpixel.io.atomic import PARTIAL_GLOB, atomic_path, remove_partials
+from dualpixel.io.lock import folder_lock
+from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
+
+
+def test_cleanup_removes_only_this_projects_leftovers(tmp_path):
+    users = [tmp_path / ".notes.partial.txt", tmp_path / "a" / ".x.partial.png",
+             tmp_path / "a" / "draft.partial"]
+    for path in users:
+        path.parent.mkdir(exist_ok=True)
+        path.write_text("the user's")
+    with atomic_path(tmp_path / "a" / "frame.png") as tmp:
+        tmp.write_bytes(b"half")
+        assert list(tmp_path.rglob(PARTIAL_GLOB)) == [tmp]  # our temporary name, and only it
+    leftover = tmp_path / "a" / ".frame.dualpixel-partial-k3j2.png"  # what a kill leaves
+    leftover.write_bytes(b"half")
+    assert remove_partials(tmp_path) == 1
+    assert not leftover.exists()
+    assert all(path.read_text() == "the user's" for path in users)
+
+
+def test_scenes_holds_its_folder(tmp_path):
+    out = tmp_path / "scenes"
+    config = SceneConfig(frames=1, width=32, height=24)
+    with folder_lock(out, "synth"):
+        with pytest.raises(OutputFileError, match="being written by pid"):
+            write_scene_folder(out, 1, config, progress=False)
+        result = CliRunner().invoke(cli, ["scenes", "--output", str(out), "--sequences", "1",
+                                          "--frames", "1", "--size", "32x24"])
+        assert result.exit_code == 1 and "being written" in result.output, result.output
+        assert not any(out.glob("seq_*"))
+    (out / ".rgb.dualpixel-partial-1.png").write_bytes(b"half")  # a killed run's leftover
+    write_scene_folder(out, 1, config, progress=False)
+    assert (out / "seq_000" / "rgb" / "frame_0000.png").is_file()
+    assert not list(out.rglob(PARTIAL_GLOB))
