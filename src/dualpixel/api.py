@@ -1,8 +1,9 @@
 """The package's face for notebooks: synthesise, load a model, deblur, score.
 
-One array convention at this boundary: images are NumPy ``(H, W, 3)`` or torch ``(3, H, W)`` /
-``(B, 3, H, W)``, float in [0, 1] or integers read by their dtype's range (uint8 / 255, uint16 /
-65535); what comes back has the layout and library of what came in, as float32 in [0, 1].
+One array convention at this boundary (:mod:`dualpixel.io.arrays`): images are NumPy ``(H, W, C)``,
+``(H, W)`` or ``(N, H, W, C)``, torch ``(C, H, W)`` or ``(N, C, H, W)``, or PIL images; ``C`` is 1,
+3 or 4 (grey copied to RGB, alpha dropped); floats in [0, 1] or uint8 / uint16 read by their range.
+What comes back has the layout and library of what came in (PIL: NumPy), as float32 RGB in [0, 1].
 """
 
 from __future__ import annotations
@@ -14,36 +15,9 @@ import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError
-from dualpixel.io.arrays import to_unit_float
+from dualpixel.io.arrays import as_image_batch, restore_layout
 
 __all__ = ["deblur", "list_models", "load_model", "synthesize"]
-
-
-def _to_hwc(image: Any, name: str) -> tuple[np.ndarray, str]:
-    """``image`` as float32 ``(N, H, W, 3)`` and the layout it came in."""
-    if isinstance(image, torch.Tensor):
-        array = image.detach().cpu()
-        if array.ndim == 3 and array.shape[0] == 3:
-            layout, array = "torch-chw", array[None]
-        elif array.ndim == 4 and array.shape[1] == 3:
-            layout = "torch-bchw"
-        else:
-            raise ParameterError(f"{name}: expected a torch (3, H, W) or (B, 3, H, W) image, "
-                                 f"got {tuple(array.shape)}")
-        array = array.permute(0, 2, 3, 1).numpy()
-    else:
-        array = np.asarray(image)
-        if array.ndim != 3 or array.shape[2] != 3:
-            raise ParameterError(f"{name}: expected a NumPy (H, W, 3) image, got {array.shape}")
-        layout, array = "numpy-hwc", array[None]
-    return to_unit_float(array, name, np.float32), layout
-
-
-def _from_hwc(images: np.ndarray, layout: str) -> np.ndarray | torch.Tensor:
-    if layout == "numpy-hwc":
-        return images[0]
-    tensor = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2)
-    return tensor[0] if layout == "torch-chw" else tensor
 
 
 def list_models() -> dict[str, dict[str, Any]]:
@@ -63,13 +37,14 @@ def load_model(name_or_path: str | Path = "rdpd-light", *, device: str = "cpu"):
 
 
 def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: str = "auto",
-           tile: int | None = None, flips: bool = False,
-           multiscale: bool = False) -> np.ndarray | torch.Tensor:
+           tile: int | None = None, flips: bool = False, multiscale: bool = False,
+           precision: str = "auto") -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD). ``model``: a name, a checkpoint path or a loaded network. ``flips``:
     average over the flips that keep DP geometry (self-ensemble, 4x the time; ``Deblurrer``).
     ``multiscale``: fuse with a pass at half resolution (at most 1.25x the time;
-    :mod:`dualpixel.inference.multiscale`).
+    :mod:`dualpixel.inference.multiscale`). ``precision``: ``auto`` (bf16 where the device
+    computes it natively), ``fp32``, ``bf16`` or ``fp16`` (:mod:`dualpixel.inference.precision`).
 
     >>> out = deblur(np.full((32, 48, 3), 0.5, np.float32), np.full((32, 48, 3), 0.5, np.float32))
     >>> out.shape, out.dtype
@@ -78,24 +53,24 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
     from dualpixel.device import resolve_device
     from dualpixel.inference import Deblurrer
 
-    lefts, layout = _to_hwc(left, "left")
+    lefts, layout = as_image_batch(left, "left")
     rights = None
     if right is not None:
-        rights, _ = _to_hwc(right, "right")
+        rights, _ = as_image_batch(right, "right")
         if rights.shape != lefts.shape:
-            raise ParameterError(f"left {lefts.shape[1:3]} and right {rights.shape[1:3]} views "
-                                 "differ in size")
+            raise ParameterError(f"left {lefts.shape[:3]} and right {rights.shape[:3]} views "
+                                 "differ in size or count")
     resolved = resolve_device(device)
     net = load_model(model, device=str(resolved)) if isinstance(model, (str, Path)) else model
     if right is None and net.spec.views == 2:
         raise ParameterError(f"this model ({net.spec.name}) needs both views; give right")
     deblurrer = Deblurrer(net, device=resolved, tile=tile, flips=flips,
-                          multiscale=multiscale)
+                          multiscale=multiscale, precision=precision)
     outputs = []
     for index in range(len(lefts)):
         deblurrer.reset()  # a batch holds independent pairs
         outputs.append(deblurrer(lefts[index], None if rights is None else rights[index]))
-    return _from_hwc(np.stack(outputs), layout)
+    return restore_layout(np.stack(outputs), layout)
 
 
 def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
@@ -119,11 +94,14 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES, focus_from_depth
     from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
 
-    images, layout = _to_hwc(rgb, "rgb")
+    images, layout = as_image_batch(rgb, "rgb")
     if len(images) != 1:
         raise ParameterError("synthesize takes one frame; call it per frame of a batch")
-    depth_map = np.asarray(depth.detach().cpu() if isinstance(depth, torch.Tensor) else depth,
-                           dtype=np.float32)
+    depth_map = np.asarray(depth.detach().cpu() if isinstance(depth, torch.Tensor) else depth)
+    if not (np.issubdtype(depth_map.dtype, np.floating)
+            or np.issubdtype(depth_map.dtype, np.integer)):
+        raise ParameterError(f"depth must be real numbers (metres), got dtype {depth_map.dtype}")
+    depth_map = depth_map.astype(np.float32)
     if depth_map.shape != images.shape[1:3]:
         raise ParameterError(f"depth {depth_map.shape} must be (H, W) of rgb {images.shape[1:3]}")
     if not np.isfinite(depth_map).all() or (depth_map <= 0).any():
@@ -141,13 +119,14 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
         raise ParameterError(f"camera must be one of {known}, got {camera!r}")
     recipe = draw_recipe(seed, lens, bank=PSF_BANKS[psf_bank], distortion=distortion,
                          noise=noise, noise_model=noise_model,
-                         noise_sigmas=tuple(noise_sigmas or PAPER_NOISE_SIGMAS))
+                         noise_sigmas=PAPER_NOISE_SIGMAS if noise_sigmas is None
+                         else tuple(noise_sigmas))
     frame = synthesize_frame(images[0], depth_map, recipe, noise_seed=seed,
                              device=resolve_device(device))
     result: dict[str, Any] = {}
     for key in ("left", "right", "combined", "target"):
         hwc = getattr(frame, key).permute(1, 2, 0).float().cpu().numpy()[None]
-        result[key] = _from_hwc(hwc, layout)
+        result[key] = restore_layout(hwc, layout)
     defocus = frame.defocus.float().cpu()
-    result["defocus"] = defocus.numpy() if layout == "numpy-hwc" else defocus
+    result["defocus"] = defocus if layout.startswith("torch") else defocus.numpy()
     return result

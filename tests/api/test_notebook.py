@@ -54,6 +54,53 @@ def test_torch_in_torch_out_and_batches_are_independent_pairs():
     np.testing.assert_allclose(single.permute(1, 2, 0).numpy(), numpy_out, atol=1e-6)
 
 
+def test_every_function_takes_every_layout_alike():
+    """Issue #33: NumPy (H, W, C) / grey / RGBA, PIL, torch (C, H, W) / (N, C, H, W) give the same
+    numbers in every top-level function; a batch scores as the mean of its images."""
+    from PIL import Image
+
+    rgb, depth = scene()
+    frame = dualpixel.synthesize(rgb, depth, camera="set1", seed=2)
+    left8 = np.rint(frame["left"] * 255).astype(np.uint8)
+    right8 = np.rint(frame["right"] * 255).astype(np.uint8)
+    target8 = np.rint(frame["target"] * 255).astype(np.uint8)
+    chw = lambda a: torch.from_numpy(a).permute(2, 0, 1)  # noqa: E731
+    rgba = lambda a: np.dstack([a, np.full(a.shape[:2], 255, np.uint8)])  # noqa: E731
+    layouts = {
+        "numpy": (left8, right8, target8),
+        "pil": tuple(Image.fromarray(a) for a in (left8, right8, target8)),
+        "pil-rgba": tuple(Image.fromarray(rgba(a)) for a in (left8, right8, target8)),
+        "rgba": (rgba(left8), rgba(right8), rgba(target8)),
+        "torch": (chw(left8), chw(right8), chw(target8)),
+        "torch-float": tuple(chw(a).float() / 255 for a in (left8, right8, target8)),
+    }
+    expected = {name: fn(left8, target8) for name, fn in
+                (("psnr", dualpixel.psnr), ("ssim", dualpixel.ssim), ("mae", dualpixel.mae))}
+    expected["niqe"] = dualpixel.niqe(np.tile(left8, (2, 2, 1)))
+    sharp = dualpixel.deblur(left8, right8, device="cpu", precision="fp32")
+    for name, (left, right, target) in layouts.items():
+        for metric, value in expected.items():
+            if metric == "niqe":
+                got = dualpixel.niqe(np.tile(np.asarray(left), (2, 2, 1)) if "pil" in name else
+                                     (left.repeat(1, 2, 2) if "torch" in name else
+                                      np.tile(left, (2, 2, 1))))
+            else:
+                got = getattr(dualpixel, metric)(left, target)
+            assert got == pytest.approx(value, rel=1e-6, abs=1e-6), (name, metric)
+        out = dualpixel.deblur(left, right, device="cpu", precision="fp32")
+        as_hwc = out.permute(1, 2, 0).numpy() if isinstance(out, torch.Tensor) else out
+        np.testing.assert_allclose(as_hwc, sharp, atol=1e-5, err_msg=name)
+    grey = left8[..., 1]
+    assert dualpixel.psnr(grey, target8[..., 1]) == pytest.approx(
+        dualpixel.psnr(np.dstack([grey] * 3), np.dstack([target8[..., 1]] * 3)))
+    assert dualpixel.deblur(grey, right8[..., 1], device="cpu").shape == (48, 64, 3)
+    batch = torch.stack([chw(left8), chw(target8)])
+    assert dualpixel.ssim(batch, torch.stack([chw(target8)] * 2)) == pytest.approx(
+        (expected["ssim"] + 1.0) / 2)
+    with pytest.raises(ValueError, match=r"np.moveaxis"):
+        dualpixel.psnr(left8.transpose(2, 0, 1), target8.transpose(2, 0, 1))
+
+
 def test_clear_errors_and_the_listing():
     rgb, depth = scene()
     with pytest.raises(ValueError, match=r"left .* and right .* differ"):

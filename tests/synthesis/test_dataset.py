@@ -8,8 +8,8 @@ from click.testing import CliRunner
 
 from dualpixel.cli.main import cli
 from dualpixel.errors import InputFileError, ParameterError
-from dualpixel.io.images import decode_synthia_depth, read_synthia_depth
 from dualpixel.io.atomic import PARTIAL_GLOB
+from dualpixel.io.images import decode_synthia_depth, read_synthia_depth
 from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 

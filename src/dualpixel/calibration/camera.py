@@ -31,6 +31,7 @@ import numpy as np
 
 from dualpixel.data.statistics import block_sums
 from dualpixel.errors import InputFileError, ParameterError, check_range
+from dualpixel.io.documents import read_mapping
 from dualpixel.optics.crosstalk import check_disparity_ratio
 from dualpixel.optics.psf import PSFParams, dp_psf
 
@@ -129,13 +130,7 @@ class DPCamera:
 def load_camera(path: str | Path) -> DPCamera:
     """Read a ``camera.json`` written by ``dualpixel calibrate camera``."""
     path = Path(path)
-    if not path.is_file():
-        raise InputFileError(path, "camera file not found")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise InputFileError(path, "not a JSON camera file") from None
-    return DPCamera.from_dict(data, path)
+    return DPCamera.from_dict(read_mapping(path, "camera file"), path)
 
 
 @dataclass

@@ -12,16 +12,15 @@ Synthetic sequences, as ``dualpixel synth`` writes them: the same folders with o
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
 
 from dualpixel.errors import InputFileError
+from dualpixel.io.documents import read_mapping
 from dualpixel.io.dpdd import list_files, role_folder
-from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
+from dualpixel.io.images import IMAGE_SUFFIXES, image_size, read_rgb
 
 __all__ = [
     "DPFramePaths",
@@ -69,24 +68,13 @@ def image_files(folder: Path) -> dict[str, Path]:
     return list_files(folder, IMAGE_SUFFIXES)
 
 
-def _image_size(path: Path) -> tuple[int, int]:
-    """(H, W) read from the image header, without decoding the pixels."""
-    try:
-        with Image.open(path) as image:
-            width, height = image.size
-    except (UnidentifiedImageError, OSError):
-        problem = "cannot be read as an image (corrupt or unsupported format)"
-        raise InputFileError(path, problem) from None
-    return height, width
-
-
 def _check_sizes(frames: list[DPFramePaths]) -> tuple[int, int]:
     """The common (H, W) of all views and targets of ``frames``; an error names the odd file."""
     first = frames[0].left
-    height, width = _image_size(first)
+    height, width = image_size(first)
     for frame in frames:
         for path in (frame.left, frame.right, frame.target):
-            if path is not None and (size := _image_size(path)) != (height, width):
+            if path is not None and (size := image_size(path)) != (height, width):
                 raise InputFileError(
                     path, f"size {size[1]}x{size[0]} differs from {first.name} ({width}x{height})"
                 )
@@ -120,11 +108,8 @@ def _check_finished(description: Path) -> None:
     """Refuse a dataset ``dualpixel synth`` has not finished (its frames may be half-written)."""
     if not description.is_file():
         return  # a real dataset (DPDD) has no description
-    try:
-        status = json.loads(description.read_text())
-    except (json.JSONDecodeError, OSError) as error:
-        raise InputFileError(description, f"cannot be read ({error})") from None
-    if isinstance(status, dict) and status.get("status", "complete") != "complete":
+    status = read_mapping(description, "dataset description")
+    if status.get("status", "complete") != "complete":
         raise InputFileError(
             description, f"says the dataset is unfinished ({status.get('frames_done', '?')}/"
             f"{status.get('frames_total', '?')} frames); rerun `dualpixel synth` with the same "

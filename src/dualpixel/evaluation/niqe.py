@@ -32,7 +32,7 @@ from scipy import ndimage
 from scipy.special import gamma as gamma_fn
 
 from dualpixel.errors import InputFileError, ParameterError
-from dualpixel.io.arrays import to_unit_float
+from dualpixel.io.arrays import as_image_batch
 from dualpixel.io.atomic import atomic_path
 
 __all__ = [
@@ -150,7 +150,10 @@ def niqe_features(image: np.ndarray, *, overlap: bool = False) -> tuple[np.ndarr
     """Per-block features ``(n_blocks, 36)`` and block sharpness ``(n_blocks,)`` of an image
     (float in [0, 1] or integer by its dtype's range). ``overlap``: blocks half a block apart
     (for fitting models), instead of the standard disjoint blocks."""
-    grey = _luminance(to_unit_float(image, "NIQE image"))
+    images, _ = as_image_batch(image, "NIQE image", np.float64)
+    if len(images) != 1:
+        raise ParameterError(f"NIQE image: expected one image, got a batch of {len(images)}")
+    grey = _luminance(images[0])
     if min(grey.shape) < BLOCK:
         raise ParameterError(f"NIQE needs images of at least {BLOCK}x{BLOCK}, got {grey.shape}")
     rows, cols = grey.shape[0] // BLOCK * BLOCK, grey.shape[1] // BLOCK * BLOCK
@@ -182,10 +185,17 @@ def fit_niqe_model(images, *, source: str = "", overlap: bool = False) -> NIQEMo
     return NIQEModel(stacked.mean(0), np.cov(stacked, rowvar=False), source, len(stacked))
 
 
-def niqe(image: np.ndarray, model: NIQEModel | None = None) -> float:
-    """NIQE score of a float RGB image in [0, 1] under ``model`` (the built-in one by default)."""
+def niqe(image, model: NIQEModel | None = None) -> float:
+    """NIQE score of an image (any layout of :mod:`dualpixel.io.arrays`; a batch gives the mean
+    over its images) under ``model`` (the built-in one by default). Lower is more natural."""
     model = model if model is not None else load_builtin_model()
-    features, _ = niqe_features(image)
+    images, _ = as_image_batch(image, "NIQE image", np.float64)
+    return float(np.mean([_niqe_one(features, model)
+                          for features, _ in map(niqe_features, images)]))
+
+
+def _niqe_one(features: np.ndarray, model: NIQEModel) -> float:
+    """NIQE (Mittal et al. 2013): distance of the image's feature Gaussian to the model's."""
     mean = np.nanmean(features, axis=0)
     cov = np.cov(features, rowvar=False) if len(features) > 1 else np.zeros_like(model.cov)
     diff = model.mean - mean

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ __all__ = [
     "WRITE_FORMATS",
     "check_image_path",
     "decode_synthia_depth",
+    "image_size",
     "load_npy",
     "quantise",
     "read_depth",
@@ -31,19 +33,67 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 DEPTH_SUFFIXES = (".png", ".npy", ".exr", ".tif", ".tiff")
 
 
-def _imread(path: Path) -> np.ndarray:
+#: Bytes per pixel a decode may take at its peak: the decoded RGB(A) at up to 16 bits and two
+#: float32 RGB copies (channel order, unit range).
+DECODE_BYTES_PER_PIXEL = 32
+_HEADER_LOCK = threading.Lock()
+
+
+def image_size(path: str | Path) -> tuple[int, int]:
+    """``(H, W)`` from the file's header, without decoding its pixels (any size is reported:
+    PIL's decompression-bomb refusal is the memory guard's job here, see :func:`_imread`)."""
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    with _HEADER_LOCK:  # PIL's pixel limit is a module global
+        limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+        try:
+            with Image.open(path) as image:
+                width, height = image.size
+        except FileNotFoundError:
+            raise InputFileError(path, "file not found") from None
+        except (UnidentifiedImageError, OSError, ValueError):
+            raise InputFileError(path, "cannot be read as an image (corrupt or unsupported "
+                                       "format)") from None
+        finally:
+            Image.MAX_IMAGE_PIXELS = limit
+    return height, width
+
+
+def _check_decodable(path: Path) -> None:
+    """Refuse, with the numbers, a file whose declared size cannot be decoded in the memory
+    available (a decompression bomb, or a photo too large for this machine)."""
+    from dualpixel.memory import GIB, available_memory
+
+    try:
+        height, width = image_size(path)
+    except InputFileError:
+        return  # a format PIL does not know (e.g. EXR): OpenCV decides
+    needed, available = height * width * DECODE_BYTES_PER_PIXEL, available_memory()
+    if needed > available:
+        raise InputFileError(path, f"declares {width}x{height} pixels, which need about "
+                                   f"{needed / GIB:.1f} GiB to decode, but only "
+                                   f"{available / GIB:.1f} GiB is available")
+
+
+def _imread(path: Path, kind: str = "image") -> np.ndarray:
+    """The file's pixels as OpenCV reads them; ``kind`` ("image" or "depth map") words errors."""
     if not path.is_file():
         raise InputFileError(path, "file not found")
+    _check_decodable(path)
     try:
         data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     except cv2.error:
         data = None
     if data is None and path.suffix.lower() == ".exr" and not cv2.haveImageReader(str(path)):
+        hint = "a .npy of metres" if kind == "depth map" else "a 16-bit PNG or TIFF"
         raise InputFileError(
-            path, "this OpenCV build cannot read OpenEXR; convert the depth maps to .npy"
+            path, f"this OpenCV build cannot read OpenEXR; convert this {kind} to {hint}"
         )
     if data is None:
-        raise InputFileError(path, "cannot be decoded as an image (corrupt or unsupported format)")
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise InputFileError(path, f"cannot be decoded as {article} {kind} "
+                                   "(corrupt or unsupported format)")
     return data
 
 
@@ -103,13 +153,15 @@ def read_depth(path: str | Path, *, png_scale: float = 0.001) -> np.ndarray:
     if path.suffix.lower() == ".npy":
         depth = load_npy(path)
     else:
-        depth = _imread(path)
+        depth = _imread(path, "depth map")
         if path.suffix.lower() == ".png":
             if depth.dtype != np.uint16:
                 raise InputFileError(
                     path, f"depth PNG must be 16-bit (one channel), got {depth.dtype}"
                 )
             depth = depth.astype(np.float32) * png_scale
+    if not (np.issubdtype(depth.dtype, np.floating) or np.issubdtype(depth.dtype, np.integer)):
+        raise InputFileError(path, f"depth must hold real numbers (metres), not {depth.dtype}")
     if depth.ndim == 3 and depth.shape[2] >= 1:
         depth = depth[:, :, 0]
     if depth.ndim != 2:

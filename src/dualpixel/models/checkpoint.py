@@ -15,7 +15,7 @@ from typing import Any
 
 import torch
 from safetensors import SafetensorError
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file, save
 
 from dualpixel.errors import InputFileError
 from dualpixel.io.atomic import atomic_path
@@ -55,8 +55,9 @@ def save_model(
         "temporal": json.dumps(bool(net.temporal)),
         "extra": json.dumps(extra or {}, sort_keys=True),
     }
+    data = save(tensors, metadata=metadata)  # in memory, so a full disk is a plain OSError
     with atomic_path(path) as tmp:
-        save_file(tensors, str(tmp), metadata=metadata)
+        tmp.write_bytes(data)
 
 
 def read_metadata(path: str | Path) -> dict[str, Any]:
@@ -132,6 +133,11 @@ def load_weights(model: torch.nn.Module, path: str | Path, *,
     if mine != theirs:
         raise InputFileError(path, f"checkpoint is for {theirs}, but the model is {mine}")
     tensors = load_file(str(path))
+    for key, value in tensors.items():
+        if value.is_floating_point() and not torch.isfinite(value).all():
+            bad = int((~torch.isfinite(value)).sum())
+            raise InputFileError(path, f"tensor {key} has {bad} NaN or infinite weights "
+                                       "(a diverged or damaged checkpoint)")
     state = net.state_dict()
     for key, value in tensors.items():
         if key in state:

@@ -15,7 +15,9 @@ import torch
 
 from dualpixel.errors import ParameterError, check_range
 
-__all__ = ["PAPER_NOISE_SIGMAS", "NoiseModel", "add_noise", "sample_noise_sigma"]
+__all__ = [
+    "PAPER_NOISE_SIGMAS", "NoiseModel", "add_noise", "check_noise_sigmas", "sample_noise_sigma",
+]
 
 NoiseModel = Literal["multiplicative", "poisson-gaussian"]
 
@@ -23,6 +25,14 @@ NoiseModel = Literal["multiplicative", "poisson-gaussian"]
 PAPER_NOISE_SIGMAS: tuple[float, ...] = tuple(
     round(0.05 + 0.005 * i, 4) for i in range(91)
 )
+
+
+def check_noise_sigmas(sigmas) -> tuple[float, ...]:
+    """The noise strengths as a tuple, refused unless at least one, each finite in [0, 1]."""
+    values = tuple(sigmas)
+    if not values:
+        raise ParameterError("noise_sigmas must hold at least one value")
+    return tuple(check_range("noise_sigmas", sigma, 0.0, 1.0) for sigma in values)
 
 
 def sample_noise_sigma(rng: np.random.Generator, sigmas=PAPER_NOISE_SIGMAS) -> float:

@@ -36,11 +36,12 @@ from dualpixel import __version__
 from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError, check_range
 from dualpixel.io.atomic import atomic_path, remove_partials
+from dualpixel.io.documents import read_mapping
 from dualpixel.io.dpdd import frame_paths, read_manifest
 from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
-from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel
+from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
 from dualpixel.optics.thin_lens import (
@@ -103,10 +104,7 @@ class SynthConfig:
         check_render_mode(self.render_mode)
         if self.bit_depth not in (8, 16):
             raise ParameterError(f"bit_depth must be 8 or 16, got {self.bit_depth}")
-        if not self.noise_sigmas:
-            raise ParameterError("noise_sigmas must hold at least one value")
-        for sigma in self.noise_sigmas:
-            check_range("noise_sigmas", sigma, 0.0, 1.0)
+        check_noise_sigmas(self.noise_sigmas)
         check_range("max_depth", self.max_depth, 0.0, low_inclusive=False)
         check_range("depth_scale", self.depth_scale, 0.0, low_inclusive=False)
         check_plain_name(self.split, "split")
@@ -164,8 +162,8 @@ def _profile_camera(
     focus = None
     if scene_file.is_file():
         try:
-            focus = float(json.loads(scene_file.read_text())["focus_distance"])
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+            focus = float(read_mapping(scene_file, "scene description")["focus_distance"])
+        except (KeyError, TypeError, ValueError):
             raise InputFileError(
                 scene_file, "expected JSON with a number 'focus_distance'"
             ) from None
@@ -271,12 +269,7 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
     descriptions = []
     for root in roots:
         path = root / "dataset.json"
-        if not path.is_file():
-            raise InputFileError(path, "not found (not a dataset folder of `synth --shard`)")
-        try:
-            description = json.loads(path.read_text())
-        except json.JSONDecodeError:
-            raise InputFileError(path, "is corrupt") from None
+        description = read_mapping(path, "dataset description of `synth --shard`")
         if "shard" not in description:
             raise InputFileError(path, "is not a shard (made without --shard)")
         if description.get("status") != "complete":
@@ -346,10 +339,7 @@ def _write_manifest(path: Path, records: list[dict]) -> None:
 def _check_or_write_description(root: Path, description: dict) -> None:
     path = root / "dataset.json"
     if path.is_file():
-        try:
-            existing = json.loads(path.read_text())
-        except json.JSONDecodeError:
-            raise InputFileError(path, "is corrupt; remove the output folder and rerun") from None
+        existing = read_mapping(path, "dataset description (remove the folder and rerun)")
         mine = {k: description.get(k) for k in ("config", "input", "format", "shard")}
         theirs = {k: existing.get(k) for k in mine}
         # A run that finished no frame holds nothing to protect: new settings may take over.

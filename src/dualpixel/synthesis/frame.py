@@ -14,7 +14,13 @@ import torch
 from dualpixel.errors import ParameterError
 from dualpixel.optics.crosstalk import apply_crosstalk, check_disparity_ratio
 from dualpixel.optics.distortion import DISTORTION_PRESETS, DivisionDistortion, distort_image
-from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, add_noise, sample_noise_sigma
+from dualpixel.optics.noise import (
+    PAPER_NOISE_SIGMAS,
+    NoiseModel,
+    add_noise,
+    check_noise_sigmas,
+    sample_noise_sigma,
+)
 from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
 from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
 from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
@@ -96,7 +102,7 @@ def draw_recipe(
         camera = CAMERA_PRESETS[camera]
     rng = np.random.default_rng(seed)
     psf = bank.sample(rng)
-    sigma = sample_noise_sigma(rng, noise_sigmas)
+    sigma = sample_noise_sigma(rng, check_noise_sigmas(noise_sigmas))
     warp = DISTORTION_PRESETS.get(camera.name)
     if warp is None:
         presets = list(DISTORTION_PRESETS.values())

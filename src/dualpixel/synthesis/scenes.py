@@ -260,13 +260,11 @@ def _check_or_write_description(root: Path, settings: dict) -> None:
     """Refuse a folder holding scenes made with other settings (kept frames would not match)."""
     from dualpixel.errors import InputFileError
     from dualpixel.io.atomic import atomic_path
+    from dualpixel.io.documents import read_mapping
 
     path = root / SCENES_DESCRIPTION
     if path.is_file():
-        try:
-            existing = json.loads(path.read_text())
-        except json.JSONDecodeError:
-            raise InputFileError(path, "is corrupt; remove the folder and rerun") from None
+        existing = read_mapping(path, "scenes description (remove the folder and rerun)")
         if existing != settings:
             mine, theirs = settings["config"], existing.get("config", {})
             differ = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from dualpixel.errors import InputFileError, ParameterError, check_range
+from dualpixel.errors import ParameterError, check_range
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.paths import check_plain_name
 from dualpixel.models.registry import model_spec
@@ -196,16 +196,10 @@ def load_config(
     """Read a YAML/JSON config file (optional) and apply ``overrides`` (key -> value or string)."""
     values: dict[str, Any] = {}
     if path is not None:
-        path = Path(path)
-        if not path.is_file():
-            raise InputFileError(path, "config file not found")
-        try:
-            loaded = yaml.safe_load(path.read_text()) or {}
-        except yaml.YAMLError as error:
-            raise InputFileError(path, f"not valid YAML/JSON: {error}") from None
-        if not isinstance(loaded, dict):
-            raise InputFileError(path, "expected a mapping of config keys")
-        values.update(loaded)
+        from dualpixel.io.documents import read_mapping
+
+        path = Path(path)  # JSON is YAML too
+        values.update(read_mapping(path, "training config", syntax="yaml"))
     known = {f.name: f for f in dataclasses.fields(TrainConfig)}
     for source, keys in ((f" in {path}", set(values)), (" in the overrides (--set)",
                                                         set(overrides or {}))):

@@ -34,9 +34,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.documents import read_mapping
 
 __all__ = ["Phase", "Recipe", "load_recipe", "plan_text", "reproduce"]
 
@@ -99,13 +98,7 @@ def _mapping(path: Path, where: str, value: Any) -> dict[str, Any]:
 def load_recipe(path: str | Path) -> Recipe:
     """Read and check a recipe's structure (the settings are checked by :func:`check_recipe`)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputFileError(path, "recipe not found")
-    try:
-        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as error:
-        raise InputFileError(path, f"not valid YAML: {error}") from None
-    raw = _mapping(path, "recipe", raw)
+    raw = read_mapping(path, "recipe", syntax="yaml")
     unknown = sorted(set(raw) - _TOP_KEYS)
     if unknown:
         raise _fail(path, "recipe", f"unknown key(s) {', '.join(unknown)}; known: "

@@ -19,6 +19,7 @@ process takes its share of every global batch and ``DistributedDataParallel`` av
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -538,8 +539,10 @@ def _save_state(output: Path, net: DeblurNet, ema: AveragedModel | None, optimiz
              "optimizer": optimizer.state_dict(), "scheduler": scheduler.state_dict(),
              "epoch": epoch, "step": step, "best_psnr": best, "history": history,
              "rng": _rng_state()}
+    buffer = io.BytesIO()  # serialised in memory: a full disk is then a plain OSError
+    torch.save(state, buffer)
     with atomic_path(output / "last_state.pt") as tmp:
-        torch.save(state, tmp)
+        tmp.write_bytes(buffer.getbuffer())
 
 
 def _write_derived(output: Path, net: DeblurNet, epoch: int, step: int,
