@@ -3,7 +3,7 @@ command line can list them without importing torch (``dualpixel --help`` stays f
 
 from __future__ import annotations
 
-__all__ = ["PSF_BANK_NAMES", "PSF_MODELS", "SCENE_LAYOUTS"]
+__all__ = ["PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "SCENE_LAYOUTS"]
 
 #: DP PSF models: ours (Eq. 2-4) and the ablation's baselines.
 PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
@@ -11,3 +11,5 @@ PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
 PSF_BANK_NAMES: tuple[str, ...] = ("paper", "pixel4")
 #: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`).
 SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo")
+#: Inference precisions (:mod:`dualpixel.inference.precision`).
+PRECISIONS: tuple[str, ...] = ("auto", "fp32", "bf16", "fp16")

@@ -1,3 +1,5 @@
+import itertools
+
 import cv2
 import numpy as np
 import pytest
@@ -8,6 +10,9 @@ from dualpixel.inference import Deblurrer, TileGrid, deblur_sequence
 from dualpixel.inference.multiscale import fuse_scales, half_resolution
 from dualpixel.io.images import read_rgb
 from dualpixel.models import build_model
+
+#: Exact comparisons run in float32 (the default picks bf16 on CPUs that have it).
+FP32 = {"precision": "fp32"}
 
 
 @pytest.fixture(scope="module")
@@ -35,8 +40,8 @@ def canon_views(shared_dir):
 def test_tiled_inference_matches_whole_image(name, canon_views, request):
     tiny_model = request.getfixturevalue(name)
     left, right = (v[:400, :600] for v in canon_views)
-    whole = Deblurrer(tiny_model)
-    tiled = Deblurrer(tiny_model, tile=384, overlap=192)
+    whole = Deblurrer(tiny_model, precision="fp32")
+    tiled = Deblurrer(tiny_model, precision="fp32", tile=384, overlap=192)
     for _ in range(2):  # second frame: per-tile recurrent states
         a, b = whole(left, right), tiled(left, right)
         assert np.abs(a - b).max() < 1e-3
@@ -44,8 +49,15 @@ def test_tiled_inference_matches_whole_image(name, canon_views, request):
 
 def test_tile_grid_covers_and_validates():
     grid = TileGrid(128, 32)
-    starts = grid.starts(400)
-    assert starts[0] == 0 and starts[-1] + 128 == 400 and all(s % 16 == 0 for s in starts[:-1])
+    span, starts = grid.layout(400)
+    assert span <= 128 and span % 16 == 0 and starts[0] == 0 and starts[-1] + span == 400
+    assert all(s % 16 == 0 for s in starts)
+    assert all(b - a <= span - 32 for a, b in itertools.pairwise(starts))
+    # tiles of one size that just cover: at 1680x1120 and tile 512, 1.3x the pixels at most
+    # (fixed 512-px tiles would be 12 x 512^2 = 1.67x)
+    grid = TileGrid(512, 64)
+    (h_span, tops), (w_span, lefts) = grid.layout(1120), grid.layout(1680)
+    assert len(tops) * h_span * len(lefts) * w_span <= 1.3 * 1680 * 1120
     with pytest.raises(ValueError, match="multiple of 16"):
         TileGrid(100, 10)
 
@@ -54,7 +66,7 @@ def test_sequence_inference_equals_forward_with_state(tiny_model):
     rng = np.random.default_rng(1)
     frames = [{"left": rng.random((30, 44, 3), dtype=np.float32),
                "right": rng.random((30, 44, 3), dtype=np.float32)} for _ in range(3)]
-    outputs = deblur_sequence(tiny_model, frames)
+    outputs = deblur_sequence(tiny_model, frames, precision="fp32")
     from dualpixel.inference.deblur import frame_tensor
 
     x = torch.stack([frame_tensor(tiny_model, f["left"], f["right"])[0] for f in frames])[None]
@@ -63,7 +75,7 @@ def test_sequence_inference_equals_forward_with_state(tiny_model):
     for t, output in enumerate(outputs):
         np.testing.assert_allclose(output, expected[0, t].permute(1, 2, 0).numpy(), atol=1e-6)
     # A fresh Deblurrer per frame (no carried state) gives something else for later frames.
-    fresh = Deblurrer(tiny_model)(frames[2]["left"], frames[2]["right"])
+    fresh = Deblurrer(tiny_model, precision="fp32")(frames[2]["left"], frames[2]["right"])
     assert not np.allclose(fresh, outputs[2], atol=1e-7)
 
 
@@ -81,8 +93,8 @@ def test_frame_trained_model_starts_every_frame_afresh(tiny_synthetic_dataset, t
     rng = np.random.default_rng(2)
     frames = [{"left": rng.random((30, 44, 3), dtype=np.float32),
                "right": rng.random((30, 44, 3), dtype=np.float32)} for _ in range(2)]
-    outputs = deblur_sequence(model, frames)
-    np.testing.assert_array_equal(outputs[1], Deblurrer(model)(frames[1]["left"],
+    outputs = deblur_sequence(model, frames, precision="fp32")
+    np.testing.assert_array_equal(outputs[1], Deblurrer(model, precision="fp32")(frames[1]["left"],
                                                                 frames[1]["right"]))
     save_model(tmp_path / "copy.safetensors", model)  # the flag survives export
     assert load_model(tmp_path / "copy.safetensors").temporal is False
@@ -127,7 +139,7 @@ def test_flip_ensemble_is_equivariant_to_the_dp_flips(tiny_model):
     # upside down, and left-right with the views swapped. A single pass does not.
     rng = np.random.default_rng(3)
     left, right = (rng.random((48, 64, 3), dtype=np.float32) for _ in range(2))
-    ensemble, single = Deblurrer(tiny_model, flips=True), Deblurrer(tiny_model)
+    ensemble, single = Deblurrer(tiny_model, **FP32, flips=True), Deblurrer(tiny_model, **FP32)
 
     def first_frame(deblurrer, *views):  # a recurrent model: each call a new sequence
         deblurrer.reset()
@@ -150,16 +162,18 @@ def test_flip_ensemble_of_a_single_view_model_flips_upside_down_only():
     model = build_model("rspd", width=0.125).eval()
     rng = np.random.default_rng(4)
     left = rng.random((32, 48, 3), dtype=np.float32)
-    out = Deblurrer(model, flips=True)(left)
-    np.testing.assert_allclose(Deblurrer(model, flips=True)(left[::-1]), out[::-1], atol=1e-6)
-    manual = (Deblurrer(model)(left) + Deblurrer(model)(left[::-1].copy())[::-1]) / 2
+    out = Deblurrer(model, precision="fp32", flips=True)(left)
+    flipped = Deblurrer(model, **FP32, flips=True)(left[::-1])
+    np.testing.assert_allclose(flipped, out[::-1], atol=1e-6)
+    manual = (Deblurrer(model, **FP32)(left)
+              + Deblurrer(model, **FP32)(left[::-1].copy())[::-1]) / 2
     np.testing.assert_allclose(out, manual, atol=1e-6)
 
 
 def test_flip_ensemble_members_carry_their_own_state(tiny_model):
     rng = np.random.default_rng(5)
     frames = [[rng.random((32, 48, 3), dtype=np.float32) for _ in range(2)] for _ in range(2)]
-    ensemble = Deblurrer(tiny_model, flips=True)
+    ensemble = Deblurrer(tiny_model, precision="fp32", flips=True)
     got = [ensemble(left, right) for left, right in frames]
     members = [  # each member: the whole sequence flipped, through its own plain Deblurrer
         (lambda a, b: (a, b), lambda o: o),
@@ -169,7 +183,7 @@ def test_flip_ensemble_members_carry_their_own_state(tiny_model):
     ]
     expected = np.zeros((2, 32, 48, 3), np.float32)
     for flip, unflip in members:
-        plain = Deblurrer(tiny_model)
+        plain = Deblurrer(tiny_model, precision="fp32")
         for index, (left, right) in enumerate(frames):
             expected[index] += unflip(plain(*flip(left, right))) / 4
     np.testing.assert_allclose(np.stack(got), expected, atol=1e-6)
@@ -197,15 +211,16 @@ def test_fuse_scales_takes_fine_detail_from_one_and_coarse_structure_from_the_ot
 def test_multiscale_fuses_a_half_resolution_pass_with_its_own_state(tiny_model):
     rng = np.random.default_rng(6)
     frames = [[rng.random((64, 96, 3), dtype=np.float32) for _ in range(2)] for _ in range(2)]
-    two_scale = Deblurrer(tiny_model, multiscale=True)
-    fine, coarse = Deblurrer(tiny_model), Deblurrer(tiny_model)  # one sequence per scale
+    two_scale = Deblurrer(tiny_model, precision="fp32", multiscale=True)
+    # one sequence per scale
+    fine, coarse = Deblurrer(tiny_model, **FP32), Deblurrer(tiny_model, **FP32)
     for left, right in frames:  # the second frame uses the states carried from the first
         expected = fuse_scales(fine(left, right),
                                coarse(half_resolution(left), half_resolution(right)))
         np.testing.assert_allclose(two_scale(left, right), expected, atol=1e-6)
     assert np.abs(expected - fine(*frames[0])).max() > 1e-3  # the fusion changed something
     # With the flips, the output still flips with the input (the scales commute with them).
-    both = Deblurrer(tiny_model, flips=True, multiscale=True)
+    both = Deblurrer(tiny_model, precision="fp32", flips=True, multiscale=True)
     out = both(*frames[0])
     both.reset()
     mirrored = both(frames[0][1][:, ::-1], frames[0][0][:, ::-1])
@@ -214,4 +229,4 @@ def test_multiscale_fuses_a_half_resolution_pass_with_its_own_state(tiny_model):
     with pytest.raises(ParameterError, match="at least 32x32 px, got 40x20"):
         two_scale(np.zeros((20, 40, 3), np.float32), np.zeros((20, 40, 3), np.float32))
     with pytest.raises(ParameterError, match="sigma must be > 0"):
-        Deblurrer(tiny_model, multiscale=True, fusion_sigma=-1.0)
+        Deblurrer(tiny_model, precision="fp32", multiscale=True, fusion_sigma=-1.0)

@@ -7,11 +7,16 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
+from dualpixel.names import PRECISIONS
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
 # Options that deblur and eval share.
 _OVERLAP_OPTION = click.option("--overlap", type=click.IntRange(0), default=None,
-                               help="Tile overlap in pixels  [default: min(192, tile/2)].")
+                               help="Tile overlap in pixels  [default: min(64, tile/2)].")
+_PRECISION_OPTION = click.option(
+    "--precision", type=click.Choice(PRECISIONS), default="auto", show_default=True,
+    help="Number format: auto takes bf16 on CPUs that compute it natively and on recent GPUs, "
+         "fp16 on older GPUs, else fp32.")
 _FLIPS_OPTION = click.option(
     "--flips", is_flag=True,
     help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
@@ -45,12 +50,13 @@ def _load(checkpoint: str, device: str):
               help="Tile size (multiple of 16) for bounded memory; default: whole frames.")
 @_OVERLAP_OPTION
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
-@click.option("--half", is_flag=True, help="float16 on CUDA.")
+@_PRECISION_OPTION
+@click.option("--half", is_flag=True, hidden=True, help="Same as --precision fp16.")
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: str, output: Path,
            checkpoint: str, tile: int | None, overlap: int | None, device: str,
-           half: bool, flips: bool, multiscale: bool) -> None:
+           precision: str, half: bool, flips: bool, multiscale: bool) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder."""
     from tqdm import tqdm
 
@@ -60,8 +66,9 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: s
     model, resolved = _load(checkpoint, device)
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=model.spec.views == 2)
-    deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, half=half,
-                          flips=flips, multiscale=multiscale)
+    deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
+                          precision="fp16" if half else precision, flips=flips,
+                          multiscale=multiscale)
     total = sum(len(sequence) for sequence in jobs)
     for _ in tqdm(run_deblur_jobs(deblurrer, jobs), total=total, desc="deblurring", unit="frame"):
         pass
@@ -106,11 +113,12 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
 @_OVERLAP_OPTION
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
+@_PRECISION_OPTION
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
-                     device, flips, multiscale) -> None:
+                     device, precision, flips, multiscale) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 
@@ -123,13 +131,14 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         from dualpixel.inference import Deblurrer
 
         model, resolved = _load(checkpoint, device)
-        deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap, flips=flips,
-                              multiscale=multiscale)
+        deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
+                              precision=precision, flips=flips, multiscale=multiscale)
         is_path = Path(checkpoint).suffix == ".safetensors" or "/" in str(checkpoint)
         method = (Path(checkpoint).stem if is_path else str(checkpoint)) + (
             "+flips" if flips else "") + (
             "+multiscale" if multiscale else "")
-        meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale}
+        meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale,
+                "precision": deblurrer.numerics.name}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
     click.echo(f"reports in {output}")
