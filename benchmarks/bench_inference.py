@@ -1,11 +1,17 @@
-"""Time RDPD and DPDNet (full width) on one 1680x1120 DP frame, in one run, and print the ratio.
+"""Deblurring speed on one 1680x1120 DP frame, every case in one run, printed as ratios.
 
-The paper reports 0.3 s (RDPD) against 0.5 s (DPDNet) per image on a GPU. Each model runs in its
-own subprocess so the peak resident memory it reports is its own; on CUDA the peak allocated GPU
-memory is printed too. A tiled RDPD run (512-pixel tiles) shows the memory bound of tiling, and a
-two-scale one (``--multiscale``: a second pass at half resolution) its cost.
+Default mode (issue #36): the shipped ``rdpd-light`` on the default path (``--precision auto``:
+bf16 autocast and channels-last where the CPU computes bf16 natively) against ``--precision fp32``
+(channels-last) and against the path before issue #36 (fp32, contiguous memory); tiled at 512
+against whole frames; the flips ensemble (one batch) against four plain passes; and the PSNR the
+default precision gives against fp32 on the 7 Canon scenes at both resolutions.
 
-    .venv/bin/python benchmarks/bench_inference.py [--device cuda] [--half] [--repeats 2]
+``--paper``: the paper's full-width RDPD against DPDNet (the paper: 0.3 s against 0.5 s on a
+GPU), tiled and two-scale RDPD.
+
+Each case runs in its own process (its peak memory is its own), best of ``--repeats``.
+
+    .venv/bin/python benchmarks/bench_inference.py [--device cuda] [--repeats 2] [--paper]
 """
 
 from __future__ import annotations
@@ -16,22 +22,35 @@ import resource
 import subprocess
 import sys
 import time
+from pathlib import Path
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
-def measure(model_name: str, device: str, repeats: int, tile: int | None, half: bool,
-            multiscale: bool = False) -> dict:
+def measure(case: dict, device: str, repeats: int) -> dict:
+    """Seconds (best of ``repeats``, after a warm-up) and peak memory of one case."""
     import numpy as np
     import torch
 
     from dualpixel.inference import Deblurrer
-    from dualpixel.models import build_model
+    from dualpixel.inference.precision import Precision
+    from dualpixel.models import build_model, load_model
+    from dualpixel.weights import resolve_checkpoint
 
     torch.manual_seed(0)
-    model = build_model(model_name)
+    if case["model"] == "rdpd-light":
+        model = load_model(resolve_checkpoint("rdpd-light"))
+    else:
+        model = build_model(case["model"])
+    deblurrer = Deblurrer(model, device=device, tile=case.get("tile"),
+                          precision=case.get("precision", "auto"), flips=case.get("flips", False),
+                          multiscale=case.get("multiscale", False))
+    if case.get("legacy"):  # before issue #36: float32 in contiguous memory
+        deblurrer.numerics = Precision("fp32", None, channels_last=False)
+        deblurrer.model.to(memory_format=torch.contiguous_format)
     rng = np.random.default_rng(0)
     left = rng.random((1120, 1680, 3), dtype=np.float32)
     right = rng.random((1120, 1680, 3), dtype=np.float32)
-    deblurrer = Deblurrer(model, device=device, tile=tile, half=half, multiscale=multiscale)
     deblurrer(left, right)  # warm-up
     times = []
     for _ in range(repeats):
@@ -43,41 +62,96 @@ def measure(model_name: str, device: str, repeats: int, tile: int | None, half: 
         if device.startswith("cuda"):
             torch.cuda.synchronize()
         times.append(time.perf_counter() - started)
-    result = {"model": model_name, "tile": tile, "multiscale": multiscale, "seconds": min(times),
+    result = {"seconds": min(times), "precision": deblurrer.numerics.name,
               "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
     if device.startswith("cuda"):
         result["peak_gpu_gib"] = torch.cuda.max_memory_allocated() / 2**30
     return result
 
 
+def canon_psnr_difference(device: str) -> dict[str, float]:
+    """Mean PSNR (dB) of the default precision minus fp32, on the 7 Canon scenes per set."""
+    from dualpixel.evaluation.metrics import psnr
+    from dualpixel.inference import Deblurrer
+    from dualpixel.io.images import read_rgb
+    from dualpixel.models import load_model
+    from dualpixel.weights import resolve_checkpoint
+
+    model = load_model(resolve_checkpoint("rdpd-light"))
+    default = Deblurrer(model, device=device)
+    exact = Deblurrer(model, device=device, precision="fp32")
+    differences = {}
+    for name in ("canon-dp-real", "canon-dp-real-hd"):
+        scenes = sorted((SHARED / name).glob("scene_*"))
+        if not scenes:
+            continue
+        gaps = []
+        for scene in scenes:
+            left, right, target = (read_rgb(scene / f"{n}.png")
+                                   for n in ("view0", "view1", "target"))
+            gaps.append(psnr(default(left, right), target) - psnr(exact(left, right), target))
+        differences[name] = (float(sum(gaps) / len(gaps)), max(abs(g) for g in gaps),
+                             default.numerics.name)
+    return differences
+
+
+CASES = {
+    "default": {"model": "rdpd-light"},
+    "fp32": {"model": "rdpd-light", "precision": "fp32"},
+    "legacy": {"model": "rdpd-light", "precision": "fp32", "legacy": True},
+    "tiled": {"model": "rdpd-light", "tile": 512},
+    "flips": {"model": "rdpd-light", "flips": True},
+}
+PAPER_CASES = {
+    "rdpd": {"model": "rdpd", "precision": "fp32"},
+    "dpdnet": {"model": "dpdnet", "precision": "fp32"},
+    "rdpd-tiled": {"model": "rdpd", "precision": "fp32", "tile": 512},
+    "rdpd-two-scales": {"model": "rdpd", "precision": "fp32", "multiscale": True},
+}
+
+
+def run_cases(cases: dict, device: str, repeats: int) -> dict:
+    results = {}
+    for name, case in cases.items():
+        command = [sys.executable, __file__, "--one", json.dumps(case), "--device", device,
+                   "--repeats", str(repeats)]
+        output = subprocess.run(command, check=True, capture_output=True, text=True).stdout
+        results[name] = r = json.loads(output.strip().splitlines()[-1])
+        extra = f", peak GPU {r['peak_gpu_gib']:.2f} GiB" if "peak_gpu_gib" in r else ""
+        print(f"{name:<16} {r['precision']:<5} {r['seconds']:7.2f} s   "
+              f"peak RSS {r['peak_rss_gib']:.2f} GiB{extra}", flush=True)
+    return results
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--repeats", type=int, default=2)
-    parser.add_argument("--half", action="store_true", help="float16 autocast (CUDA)")
+    parser.add_argument("--paper", action="store_true", help="full-width RDPD against DPDNet")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one case as JSON
     args = parser.parse_args()
     if args.one:
-        name, tile, scales = args.one.split(":")
-        print(json.dumps(measure(name, args.device, args.repeats, int(tile) or None, args.half,
-                                 multiscale=scales == "2")))
+        print(json.dumps(measure(json.loads(args.one), args.device, args.repeats)))
         return
-    results = {}
-    for case in ("rdpd:0:1", "dpdnet:0:1", "rdpd:512:1", "rdpd:0:2"):
-        command = [sys.executable, __file__, "--one", case, "--device", args.device,
-                   "--repeats", str(args.repeats)] + (["--half"] if args.half else [])
-        output = subprocess.run(command, check=True, capture_output=True, text=True).stdout
-        results[case] = json.loads(output.strip().splitlines()[-1])
-        r = results[case]
-        extra = f", peak GPU {r['peak_gpu_gib']:.2f} GiB" if "peak_gpu_gib" in r else ""
-        scales = "two scales" if r["multiscale"] else "one scale "
-        print(f"{r['model']:<7} tile {r['tile'] or 'none':<5} {scales} {r['seconds']:7.2f} s   "
-              f"peak RSS {r['peak_rss_gib']:.2f} GiB{extra}")
-    ratio = results["rdpd:0:1"]["seconds"] / results["dpdnet:0:1"]["seconds"]
-    print(f"ratio RDPD / DPDNet (whole 1680x1120 frame, {args.device}): {ratio:.2f} "
-          f"(paper, GPU: 0.3 / 0.5 = 0.60)")
-    ratio = results["rdpd:0:2"]["seconds"] / results["rdpd:0:1"]["seconds"]
-    print(f"ratio RDPD two scales / one scale: {ratio:.2f} (the network's arithmetic: 1.25)")
+    if args.paper:
+        r = run_cases(PAPER_CASES, args.device, args.repeats)
+        print(f"ratio RDPD / DPDNet (whole frame, {args.device}): "
+              f"{r['rdpd']['seconds'] / r['dpdnet']['seconds']:.2f} (paper, GPU: 0.60)")
+        print(f"ratio RDPD two scales / one scale: "
+              f"{r['rdpd-two-scales']['seconds'] / r['rdpd']['seconds']:.2f} (arithmetic: 1.25)")
+        return
+    r = run_cases(CASES, args.device, args.repeats)
+    seconds = {name: result["seconds"] for name, result in r.items()}
+    print(f"ratio default / --precision fp32: {seconds['default'] / seconds['fp32']:.2f}")
+    print(f"ratio default / fp32 before #36 (contiguous): "
+          f"{seconds['default'] / seconds['legacy']:.2f} (target <= 0.35)")
+    print(f"default per 1680x1120 image: {seconds['default']:.2f} s (target <= 3 s, idle machine)")
+    print(f"ratio tiled 512 / whole: {seconds['tiled'] / seconds['default']:.2f} (target <= 1.3)")
+    print(f"ratio flips (4 members, one batch) / plain: "
+          f"{seconds['flips'] / seconds['default']:.2f} (arithmetic: 4)")
+    for name, (mean, worst, chosen) in canon_psnr_difference(args.device).items():
+        print(f"PSNR {chosen} - fp32 on {name} (7 scenes): mean {mean:+.4f} dB, "
+              f"worst scene {worst:.4f} dB (target <= 0.02)")
 
 
 if __name__ == "__main__":

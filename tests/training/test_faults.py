@@ -18,22 +18,21 @@ from tests.training.test_trainer import tiny_config
 # Runs the tiny training in a child process that kills itself (SIGKILL: no cleanup, no finally)
 # at the chosen moment of the second epoch's checkpoint.
 _CHILD = textwrap.dedent("""
-    import os, signal, sys
-    import torch
+    import os, pathlib, signal, sys
     from dualpixel.training import load_config, train
     from dualpixel.training import trainer
 
     moment, data, output = sys.argv[1], sys.argv[2], sys.argv[3]
     calls = {"state": 0, "weights": 0}
-    real_save, real_save_model = torch.save, trainer.save_model
+    real_write_bytes, real_save_model = pathlib.Path.write_bytes, trainer.save_model
 
-    def save(obj, path, *args, **kwargs):  # last_state.pt
-        calls["state"] += 1
-        if moment == "state" and calls["state"] == 2:
-            with open(path, "wb") as handle:  # half a file under the temporary name
-                handle.write(b"PK" * 1000)
-            os.kill(os.getpid(), signal.SIGKILL)
-        return real_save(obj, path, *args, **kwargs)
+    def write_bytes(self, data):  # last_state.pt's temporary file
+        if self.name.startswith(".last_state."):
+            calls["state"] += 1
+            if moment == "state" and calls["state"] == 2:
+                real_write_bytes(self, bytes(data)[: len(data) // 2])  # half a file
+                os.kill(os.getpid(), signal.SIGKILL)
+        return real_write_bytes(self, data)
 
     def save_model(path, *args, **kwargs):  # last.safetensors, after the state file
         calls["weights"] += 1
@@ -41,7 +40,7 @@ _CHILD = textwrap.dedent("""
             os.kill(os.getpid(), signal.SIGKILL)
         return real_save_model(path, *args, **kwargs)
 
-    torch.save, trainer.save_model = save, save_model
+    pathlib.Path.write_bytes, trainer.save_model = write_bytes, save_model
     values = dict(model="rdpd", width=0.125, synthetic_data=data, patch_size=32,
                   sequence_batch=2, sequence_frames=2, epochs=2, iterations_per_epoch=3,
                   workers=0, learning_rate=1e-3, tensorboard=False, lr_halve_every=1)

@@ -127,7 +127,8 @@ def _iterations_per_epoch(config: TrainConfig, kinds: list[DataKind]) -> int:
 def validate(
     model: DeblurNet, sequences: list[DPSequence], device: torch.device
 ) -> tuple[float, dict[str, torch.Tensor] | None]:
-    """Mean PSNR over whole frames of ``sequences`` (state carried through each sequence)."""
+    """Mean PSNR over whole frames of ``sequences`` (state carried through each sequence), in
+    float32 whatever the machine, so that selection does not depend on it."""
     # Imported here: inference imports the training-free model code only.
     from dualpixel.inference.deblur import deblur_sequence, load_sequence_frames
 
@@ -136,7 +137,7 @@ def validate(
     scores, sample = [], None
     for sequence in sequences:
         frames = load_sequence_frames(sequence)
-        outputs = deblur_sequence(model, frames, device=device)
+        outputs = deblur_sequence(model, frames, device=device, precision="fp32")
         for frame, output in zip(frames, outputs):
             scores.append(psnr(output, frame["target"]))
         if sample is None:
@@ -146,6 +147,7 @@ def validate(
                 "target": torch.from_numpy(frames[0]["target"]).permute(2, 0, 1),
             }
     model.train(was_training)
+    model.to(memory_format=torch.contiguous_format)  # as training left it (inference may not)
     return float(np.mean(scores)), sample
 
 
