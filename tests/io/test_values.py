@@ -103,7 +103,8 @@ def test_declared_giant_images_are_refused_with_the_numbers(tmp_path, size, monk
     for view in ("l", "r"):
         (folder / f"test_{view}" / "source").mkdir(parents=True)
         _png_header(folder / f"test_{view}" / "source" / "a.png", *size)
-    result = CliRunner().invoke(cli, ["eval", "--dataset", str(folder), "--no-niqe"])
+    result = CliRunner().invoke(cli, ["eval", "--dataset", str(folder), "--no-niqe", "-o",
+                                      str(tmp_path / "report")])
     assert result.exit_code != 0 and "Traceback" not in result.output, result.output
     assert "a.png" in result.output
 
