@@ -23,6 +23,8 @@ configuration is refused.
 
 from __future__ import annotations
 
+import concurrent.futures
+import functools
 import json
 import os
 from dataclasses import asdict, dataclass, field
@@ -205,6 +207,16 @@ def plan_jobs(
     return jobs
 
 
+@functools.cache
+def _writer_pool_of(pid: int) -> concurrent.futures.ThreadPoolExecutor:
+    return concurrent.futures.ThreadPoolExecutor(max_workers=4, thread_name_prefix="png")
+
+
+def _writer_pool() -> concurrent.futures.ThreadPoolExecutor:
+    """This process's image writer threads (a forked worker makes its own)."""
+    return _writer_pool_of(os.getpid())
+
+
 def _quantise(image: torch.Tensor, bit_depth: int) -> np.ndarray:
     return quantise(image.permute(1, 2, 0).cpu().numpy(), bit_depth)
 
@@ -219,11 +231,15 @@ def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
     left = _quantise(result.left, config.bit_depth)
     right = _quantise(result.right, config.bit_depth)
     combined = (left + right + 1) // 2  # (left + right) / 2 of the stored integers, rounded up
-    for name, data in (("left", left), ("right", right), ("combined", combined)):
-        write_png(paths[name], data, bit_depth=config.bit_depth)
-    write_png(paths["target"], _quantise(result.target, config.bit_depth),
-              bit_depth=config.bit_depth)
+    target = _quantise(result.target, config.bit_depth)
+    # The encoders release the GIL: the frame's files are written side by side, and all of them
+    # are in place before its manifest line (the frame's commit) is returned.
+    writes = [_writer_pool().submit(write_png, paths[name], data, bit_depth=config.bit_depth)
+              for name, data in (("left", left), ("right", right), ("combined", combined),
+                                 ("target", target))]
     save_npy(paths["defocus"], result.defocus.cpu().numpy().astype(np.float32))
+    for write in writes:
+        write.result()  # re-raises a failed write here
     return {
         "key": job.key,
         "input": {"rgb": str(job.frame.rgb), "depth": str(job.frame.depth)},
