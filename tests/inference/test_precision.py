@@ -28,7 +28,7 @@ def test_auto_takes_bf16_only_where_the_cpu_computes_it(native_bf16):
     assert chosen.dtype == torch.bfloat16 and chosen.channels_last
     native_bf16(False)
     assert precision.resolve_precision("auto", "cpu").dtype is None  # plain float32
-    with pytest.raises(ParameterError, match="no native bfloat16.*use fp32 or auto"):
+    with pytest.raises(ParameterError, match=r"no native bfloat16.*use fp32 or auto"):
         precision.resolve_precision("bf16", "cpu")
     with pytest.raises(ParameterError, match="fp16 runs on CUDA only"):
         precision.resolve_precision("fp16", "cpu")

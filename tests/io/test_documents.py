@@ -54,3 +54,16 @@ def test_commands_refuse_malformed_documents(tmp_path, tiny_synthetic_dataset):
                                  str(tmp_path / "s"), "--camera", str(tmp_path / "camera.json")])
     assert result.exit_code != 0 and "camera.json" in result.output, result.output
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("line", ['[1, 2]', '{"key": 5, "outputs": {}}', '{"key": "a"}'])
+def test_manifest_lines_that_are_not_frame_records_are_refused(tmp_path, line):
+    from dualpixel.io.dpdd import read_manifest
+
+    manifest = tmp_path / "manifest.jsonl"
+    good = '{"key": "train/seq_000/frame_0000", "outputs": {"left": "x.png"}}'
+    manifest.write_text(f"{good}\n{line}\n" + '{"key": "tr')  # and a torn last append
+    with pytest.raises(InputFileError, match=r"manifest\.jsonl: line 2 is not a frame record"):
+        read_manifest(manifest)
+    manifest.write_text(f"{good}\n" + '{"key": "tr')
+    assert list(read_manifest(manifest)) == ["train/seq_000/frame_0000"]

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from dualpixel.errors import InputFileError
 from dualpixel.io.images import IMAGE_SUFFIXES
 
 __all__ = ["ROLES", "frame_paths", "list_files", "read_manifest", "role_folder"]
@@ -56,14 +57,20 @@ def list_files(folder: str | Path, suffixes: tuple[str, ...] = IMAGE_SUFFIXES) -
 
 
 def read_manifest(path: str | Path) -> dict[str, dict]:
-    """Records of finished frames by key; a torn last line (interrupted append) is ignored."""
+    """Records of finished frames by key. A torn line (an append a kill interrupted) is
+    ignored; a whole line that is not a frame record (a mapping with a string ``key`` and a
+    mapping of ``outputs``) is refused, naming the file and line."""
     records: dict[str, dict] = {}
     path = Path(path)
     if path.is_file():
-        for line in path.read_text().splitlines():
+        for number, line in enumerate(path.read_text().splitlines(), start=1):
             try:
                 record = json.loads(line)
             except json.JSONDecodeError:
                 continue
+            if not (isinstance(record, dict) and isinstance(record.get("key"), str)
+                    and isinstance(record.get("outputs"), dict)):
+                raise InputFileError(path, f"line {number} is not a frame record (a mapping "
+                                           "with a string 'key' and 'outputs')")
             records[record["key"]] = record
     return records
