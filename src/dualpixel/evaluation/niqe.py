@@ -86,13 +86,8 @@ class NIQEModel:
 
 
 def _luminance(image: np.ndarray) -> np.ndarray:
-    """BT.601 luma in [0, 255] of a float RGB image in [0, 1] (grey images pass through)."""
-    image = np.asarray(image, dtype=np.float64)
-    if image.ndim == 3 and image.shape[2] == 1:
-        image = image[..., 0]
-    elif image.ndim == 3:
-        image = image[..., :3] @ np.array([0.299, 0.587, 0.114])
-    return image * 255.0
+    """BT.601 luma in [0, 255] of a float RGB image ``(H, W, 3)`` in [0, 1]."""
+    return image @ np.array([0.299, 0.587, 0.114]) * 255.0
 
 
 def _mscn(grey: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -153,7 +148,12 @@ def niqe_features(image: np.ndarray, *, overlap: bool = False) -> tuple[np.ndarr
     images, _ = as_image_batch(image, "NIQE image", np.float64)
     if len(images) != 1:
         raise ParameterError(f"NIQE image: expected one image, got a batch of {len(images)}")
-    grey = _luminance(images[0])
+    return _rgb_features(images[0], overlap)
+
+
+def _rgb_features(rgb: np.ndarray, overlap: bool) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`niqe_features` of a float64 RGB image ``(H, W, 3)`` already in [0, 1]."""
+    grey = _luminance(rgb)
     if min(grey.shape) < BLOCK:
         raise ParameterError(f"NIQE needs images of at least {BLOCK}x{BLOCK}, got {grey.shape}")
     rows, cols = grey.shape[0] // BLOCK * BLOCK, grey.shape[1] // BLOCK * BLOCK
@@ -190,8 +190,8 @@ def niqe(image, model: NIQEModel | None = None) -> float:
     over its images) under ``model`` (the built-in one by default). Lower is more natural."""
     model = model if model is not None else load_builtin_model()
     images, _ = as_image_batch(image, "NIQE image", np.float64)
-    return float(np.mean([_niqe_one(features, model)
-                          for features, _ in map(niqe_features, images)]))
+    return float(np.mean([_niqe_one(_rgb_features(rgb, overlap=False)[0], model)
+                          for rgb in images]))
 
 
 def _niqe_one(features: np.ndarray, model: NIQEModel) -> float:

@@ -4,7 +4,7 @@ The image is reflect-padded to a multiple of 16 exactly as the whole-image path 
 into the fewest tiles of one size (at most ``tile``, a multiple of 16, at positions that are
 multiples of 16, so every tile's pooling grid matches the whole image's) that overlap their
 neighbours by at least ``overlap`` pixels: a 1680x1120 image at ``tile=512`` is 4x3 tiles of
-432x384, 1.2x the image's pixels, where fixed 512-px tiles would be 1.7x. Tiles go through the
+480x416, 1.27x the image's pixels, where fixed 512-px tiles would be 1.7x. Tiles go through the
 network in batches (``max_batch`` tiles at once, each ensemble member counting as one), and are
 blended once with weights that are ~0 over the outer quarter of the overlap and ramp linearly to 1
 across its middle half (1 at the image border), so the pixels kept from a tile lie away from its
@@ -52,8 +52,8 @@ class TileGrid:
         step = SIZE_MULTIPLE
         count = 2
         while True:
-            span = min(self.size, -(-math.ceil((length + (count - 1) * self.overlap) / count)
-                                     // step) * step)
+            span = min(self.size,
+                       math.ceil((length + (count - 1) * self.overlap) / (count * step)) * step)
             starts = [int(i * (length - span) / (count - 1)) // step * step
                       for i in range(count - 1)] + [length - span]
             if all(b - a <= span - self.overlap for a, b in itertools.pairwise(starts)):
