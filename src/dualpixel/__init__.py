@@ -24,6 +24,7 @@ from typing import Any
 __version__ = "0.1.0"
 
 _EXPORTS = {
+    "check_views": "dualpixel.api",
     "deblur": "dualpixel.api",
     "synthesize": "dualpixel.api",
     "load_model": "dualpixel.api",
@@ -34,8 +35,8 @@ _EXPORTS = {
     "niqe": "dualpixel.evaluation.niqe",
 }
 
-__all__ = ["__version__", "deblur", "list_models", "load_model", "mae", "niqe", "psnr", "ssim",
-           "synthesize"]
+__all__ = ["__version__", "check_views", "deblur", "list_models", "load_model", "mae", "niqe",
+           "psnr", "ssim", "synthesize"]
 
 
 def __getattr__(name: str) -> Any:

@@ -17,7 +17,7 @@ import torch
 from dualpixel.errors import ParameterError
 from dualpixel.io.arrays import as_image_batch, restore_layout
 
-__all__ = ["deblur", "list_models", "load_model", "synthesize"]
+__all__ = ["check_views", "deblur", "list_models", "load_model", "synthesize"]
 
 
 def list_models() -> dict[str, dict[str, Any]]:
@@ -36,11 +36,38 @@ def load_model(name_or_path: str | Path = "rdpd-light", *, device: str = "cpu"):
     return load_checkpoint(resolve_checkpoint(name_or_path), device=resolve_device(device))
 
 
+def check_views(left: Any, right: Any, combined: Any = None) -> list:
+    """Likely mistakes in one DP pair (views swapped, at half brightness, from different
+    captures, ...) as :class:`~dualpixel.inference.view_checks.ViewFinding` s, most serious
+    first; empty when none is seen (:mod:`dualpixel.inference.view_checks`).
+
+    >>> grey = np.full((32, 48, 3), 0.5, np.float32)
+    >>> [f.code for f in check_views(grey, grey, combined=2 * grey)]
+    ['half-bright']
+    """
+    from dualpixel.inference.view_checks import check_views as check
+
+    images = {}
+    for name, image in (("left", left), ("right", right), ("combined", combined)):
+        if image is not None:
+            batch, _ = as_image_batch(image, name)
+            if len(batch) != 1:
+                raise ParameterError(f"{name}: check_views takes one pair, got {len(batch)}")
+            images[name] = batch[0]
+    for name in ("right", "combined"):
+        if name in images and images[name].shape != images["left"].shape:
+            raise ParameterError(f"{name} {images[name].shape[:2]} and left "
+                                 f"{images['left'].shape[:2]} differ in size")
+    return check(images["left"], images["right"], combined=images.get("combined"))
+
+
 def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: str = "auto",
            tile: int | None = None, flips: bool = False, multiscale: bool = False,
-           precision: str = "auto") -> np.ndarray | torch.Tensor:
+           precision: str = "auto", views_sum: bool = False) -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
-    brightness (DPDD). ``model``: a name, a checkpoint path or a loaded network. ``flips``:
+    brightness (DPDD), or ``views_sum=True`` for views that sum to it (a raw A/B split; they
+    are doubled). :func:`check_views` tells the usual mistakes. ``model``: a name, a checkpoint
+    path or a loaded network. ``flips``:
     average over the flips that keep DP geometry (self-ensemble, 4x the time; ``Deblurrer``).
     ``multiscale``: fuse with a pass at half resolution (at most 1.25x the time;
     :mod:`dualpixel.inference.multiscale`). ``precision``: ``auto`` (bf16 where the device
@@ -52,6 +79,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
     """
     from dualpixel.device import resolve_device
     from dualpixel.inference import Deblurrer
+    from dualpixel.inference.view_checks import views_from_sum
 
     lefts, layout = as_image_batch(left, "left")
     rights = None
@@ -66,6 +94,10 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
         raise ParameterError(f"this model ({net.spec.name}) needs both views; give right")
     deblurrer = Deblurrer(net, device=resolved, tile=tile, flips=flips,
                           multiscale=multiscale, precision=precision)
+    if views_sum:
+        if rights is None:
+            raise ParameterError("views_sum needs both views")
+        lefts, rights = views_from_sum(lefts, rights)
     outputs = []
     for index in range(len(lefts)):
         deblurrer.reset()  # a batch holds independent pairs

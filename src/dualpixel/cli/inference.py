@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import click
@@ -42,9 +43,19 @@ def _load(checkpoint: str, device: str):
               help="Right view, or a folder of right frames with the same names.")
 @click.option("--input", "dataset", type=click.Path(file_okay=False, exists=True, path_type=Path),
               default=None, help="A DPDD-layout folder instead (pairs or seq_NNN sequences).")
+@click.option("--combined", type=click.Path(exists=True, path_type=Path), default=None,
+              help="The combined image (or a folder of them), to check the views against "
+                   "(brightness, same capture); a DPDD --input has its own.")
 @click.option("--split", default="test", help="Split of --input.")
 @click.option("--output", "-o", type=click.Path(path_type=Path), required=True,
-              help="Output image (pair) or folder (sequence, dataset).")
+              help="Output image (pair) or folder (sequence, dataset); it keeps the left "
+                   "view's bit depth, ICC profile and EXIF.")
+@click.option("--views-sum", is_flag=True,
+              help="The views sum to the combined image (a raw A/B split): double them, as the "
+                   "models take each view at the combined image's brightness.")
+@click.option("--strict", is_flag=True,
+              help="Stop on a doubtful pair (views swapped, wrong brightness, ...) instead of "
+                   "warning.")
 @click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
 @click.option("--tile", type=int, default=None,
               help="Tile size (multiple of 16) for bounded memory; default: whole frames.")
@@ -54,10 +65,16 @@ def _load(checkpoint: str, device: str):
 @click.option("--half", is_flag=True, hidden=True, help="Same as --precision fp16.")
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
-def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: str, output: Path,
-           checkpoint: str, tile: int | None, overlap: int | None, device: str,
-           precision: str, half: bool, flips: bool, multiscale: bool) -> None:
-    """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder."""
+def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined: Path | None,
+           split: str, output: Path, views_sum: bool, strict: bool, checkpoint: str,
+           tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
+           flips: bool, multiscale: bool) -> None:
+    """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder.
+
+    The first pair of each sequence is checked for likely mistakes (views swapped, views at
+    half brightness, a combined image from another capture); each is a warning, or an error
+    with --strict.
+    """
     from tqdm import tqdm
 
     from dualpixel.inference import Deblurrer
@@ -65,12 +82,17 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, split: s
 
     model, resolved = _load(checkpoint, device)
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
-                            needs_right=model.spec.views == 2)
+                            needs_right=model.spec.views == 2, combined=combined)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                           precision="fp16" if half else precision, flips=flips,
                           multiscale=multiscale)
     total = sum(len(sequence) for sequence in jobs)
-    for _ in tqdm(run_deblur_jobs(deblurrer, jobs), total=total, desc="deblurring", unit="frame"):
+
+    def report(path: Path, finding) -> None:
+        tqdm.write(f"Warning: {path}: {finding.message}", file=sys.stderr)
+
+    run = run_deblur_jobs(deblurrer, jobs, views_sum=views_sum, strict=strict, report=report)
+    for _ in tqdm(run, total=total, desc="deblurring", unit="frame"):
         pass
     click.echo(f"wrote {total} frame(s) to {output}")
 

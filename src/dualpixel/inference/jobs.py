@@ -8,26 +8,32 @@ checked is checked before the first frame is deblurred.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from dualpixel.data.layout import discover_dp_dataset, image_files
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError
 from dualpixel.inference.deblur import Deblurrer
+from dualpixel.inference.view_checks import ViewFinding, check_views, views_from_sum
 from dualpixel.io.atomic import check_writable
 from dualpixel.io.images import check_image_path, read_rgb_with_depth, write_png
+from dualpixel.io.metadata import read_metadata
 
 __all__ = ["DeblurJob", "plan_deblur_jobs", "run_deblur_jobs"]
 
 
 @dataclass(frozen=True)
 class DeblurJob:
-    """One frame: its views and its output image."""
+    """One frame: its views, its combined image if known (for the input checks) and its
+    output image."""
 
     left: Path
     right: Path | None
     output: Path
+    combined: Path | None = None
 
 
 def _output_folder(output: Path) -> Path:
@@ -40,13 +46,19 @@ def _output_folder(output: Path) -> Path:
 def plan_deblur_jobs(
     output: str | Path, *, left: str | Path | None = None, right: str | Path | None = None,
     dataset: str | Path | None = None, split: str = "test", needs_right: bool = True,
+    combined: str | Path | None = None,
 ) -> list[list[DeblurJob]]:
     """Sequences of :class:`DeblurJob` (state is reset between sequences).
 
     Give ``left`` (and ``right`` when ``needs_right``) as two files or two folders, or
-    ``dataset`` (DPDD layout, ``split``).
+    ``dataset`` (DPDD layout, ``split``; its combined images are found there). ``combined``:
+    with ``left``, the combined image (or a folder of them, same names), read only to check
+    the views against it.
     """
     output = Path(output)
+    if combined is not None and dataset is not None:
+        raise ParameterError("--combined goes with --left/--right; a dataset's combined images "
+                             "are found in it")
     if (dataset is None) == (left is None):
         raise ParameterError("give left and right views (--left/--right) or a dataset (--input)")
     if dataset is not None:
@@ -59,7 +71,7 @@ def plan_deblur_jobs(
         for sequence in sequences:
             single = len(sequence.frames) == 1 and not own_folder
             folder = output if single else output / sequence.name
-            jobs.append([DeblurJob(f.left, f.right, folder / f"{f.left.stem}.png")
+            jobs.append([DeblurJob(f.left, f.right, folder / f"{f.left.stem}.png", f.combined)
                          for f in sequence.frames])
         _refuse_overwriting_inputs(jobs, output, folder=True)
         _output_folder(output)
@@ -75,8 +87,12 @@ def plan_deblur_jobs(
     if right is not None and left.is_dir() != right.is_dir():
         kind = "a folder" if left.is_dir() else "a file"
         raise InputFileError(right, f"must be {kind}, like --left {left}")
+    combined = None if combined is None else Path(combined)
+    if combined is not None and combined.is_dir() != left.is_dir():
+        kind = "a folder" if left.is_dir() else "a file"
+        raise InputFileError(combined, f"must be {kind}, like --left {left}")
     if not left.is_dir():
-        jobs = [[DeblurJob(left, right, output)]]
+        jobs = [[DeblurJob(left, right, output, combined)]]
         _refuse_overwriting_inputs(jobs, output, folder=False)
         check_writable(check_image_path(output))
         return jobs
@@ -88,7 +104,10 @@ def plan_deblur_jobs(
         other = right / path.name if right is not None else None
         if other is not None and not other.is_file():
             raise InputFileError(other, f"right frame for {path.name} is missing")
-        sequence.append(DeblurJob(path, other, output / path.name))
+        mean = combined / path.name if combined is not None else None
+        if mean is not None and not mean.is_file():
+            raise InputFileError(mean, f"combined frame for {path.name} is missing")
+        sequence.append(DeblurJob(path, other, output / path.name, mean))
     _refuse_overwriting_inputs([sequence], output, folder=True)
     _output_folder(output)
     return [sequence]
@@ -108,17 +127,51 @@ def _refuse_overwriting_inputs(jobs: list[list[DeblurJob]], output: Path, *, fol
         raise OutputFileError(output, f"{what} {clash}; choose an output apart from the views")
 
 
-def run_deblur_jobs(deblurrer: Deblurrer, jobs: list[list[DeblurJob]]) -> Iterator[Path]:
+def _same_size(path: Path, image: np.ndarray, reference: Path, shape: tuple[int, ...]) -> None:
+    if image.shape != shape:
+        raise InputFileError(path, f"size differs from {reference.name} ({image.shape[1]}x"
+                                   f"{image.shape[0]} vs {shape[1]}x{shape[0]})")
+
+
+def _check_first_frame(job: DeblurJob, left: np.ndarray, right: np.ndarray, bits: tuple[int, int],
+                       *, strict: bool, report: Callable[[Path, ViewFinding], None] | None
+                       ) -> None:
+    combined = None
+    if job.combined is not None:
+        combined = read_rgb_with_depth(job.combined)[0]
+        _same_size(job.combined, combined, job.left, left.shape)
+    for finding in check_views(left, right, combined=combined, bit_depths=bits):
+        if strict:
+            raise InputFileError(job.left, f"{finding.message} (--strict)")
+        if report is not None:
+            report(job.left, finding)
+
+
+def run_deblur_jobs(
+    deblurrer: Deblurrer, jobs: list[list[DeblurJob]], *, views_sum: bool = False,
+    strict: bool = False, report: Callable[[Path, ViewFinding], None] | None = None,
+) -> Iterator[Path]:
     """Deblur every job in order (state reset per sequence), writing each output at the input's
-    bit depth; yields each written path."""
+    bit depth with its ICC profile and EXIF (orientation included); yields each written path.
+
+    The first pair of each sequence is checked (:func:`~dualpixel.inference.view_checks.
+    check_views`): each finding goes to ``report(path, finding)``, or with ``strict`` stops the
+    run with an error. ``views_sum``: the views sum to the combined image (a raw A/B split) and
+    are doubled first (:func:`~dualpixel.inference.view_checks.views_from_sum`).
+    """
     for sequence in jobs:
         deblurrer.reset()
-        for job in sequence:
+        for index, job in enumerate(sequence):
             left, bits = read_rgb_with_depth(job.left)
-            right = read_rgb_with_depth(job.right)[0] if job.right is not None else None
-            if right is not None and right.shape != left.shape:
-                raise InputFileError(job.right, f"size differs from {job.left.name} "
-                                                f"({right.shape[1]}x{right.shape[0]} vs "
-                                                f"{left.shape[1]}x{left.shape[0]})")
-            write_png(job.output, deblurrer(left, right), bit_depth=bits)
+            right, right_bits = (read_rgb_with_depth(job.right) if job.right is not None
+                                 else (None, bits))
+            if right is not None:
+                _same_size(job.right, right, job.left, left.shape)
+                if views_sum:
+                    left, right = views_from_sum(left, right)
+                if index == 0:
+                    _check_first_frame(job, left, right, (bits, right_bits), strict=strict,
+                                       report=report)
+            write_png(job.output, deblurrer(left, right), bit_depth=bits,
+                      metadata=read_metadata(job.left))
             yield job.output

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import threading
 from pathlib import Path
@@ -14,6 +15,7 @@ import cv2
 
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError
 from dualpixel.io.atomic import atomic_path
+from dualpixel.io.metadata import ImageMetadata, embed_metadata, tiff_write_options
 
 __all__ = [
     "WRITE_FORMATS",
@@ -82,7 +84,10 @@ def _imread(path: Path, kind: str = "image") -> np.ndarray:
         raise InputFileError(path, "file not found")
     _check_decodable(path)
     try:
-        data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if path.suffix.lower() in (".tif", ".tiff"):
+            data = cv2.imdecode(_tiff_upright_bytes(path), cv2.IMREAD_UNCHANGED)
+        else:  # IMREAD_UNCHANGED ignores EXIF orientation: pixels stay in sensor order
+            data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     except cv2.error:
         data = None
     if data is None and path.suffix.lower() == ".exr" and not cv2.haveImageReader(str(path)):
@@ -95,6 +100,23 @@ def _imread(path: Path, kind: str = "image") -> np.ndarray:
         raise InputFileError(path, f"cannot be decoded as {article} {kind} "
                                    "(corrupt or unsupported format)")
     return data
+
+
+def _tiff_upright_bytes(path: Path) -> np.ndarray:
+    """The TIFF file's bytes with its first page's orientation tag set to 1 (OpenCV 5 fails to
+    decode a TIFF whose orientation is not 1; we want the stored, sensor-order pixels anyway)."""
+    import tifffile
+
+    data = bytearray(path.read_bytes())
+    try:
+        with tifffile.TiffFile(path) as tiff:
+            tag = tiff.pages.first.tags.get(274)
+            if tag is not None and tag.value != 1 and tag.count == 1 and tag.dtype == 3:
+                order = "<" if tiff.byteorder == "<" else ">"
+                data[tag.valueoffset : tag.valueoffset + 2] = np.array(1, order + "u2").tobytes()
+    except (tifffile.TiffFileError, OSError, ValueError, IndexError, KeyError):
+        pass  # not a TIFF tifffile can parse: OpenCV decides
+    return np.frombuffer(bytes(data), np.uint8)
 
 
 def _unit_range(path: Path, data: np.ndarray) -> np.ndarray:
@@ -203,10 +225,13 @@ def check_image_path(path: str | Path) -> Path:
     return path
 
 
-def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16) -> None:
+def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16,
+              metadata: ImageMetadata | None = None) -> None:
     """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer levels of ``bit_depth``)
     atomically, as PNG or the format of the suffix (TIFF keeps 16 bits; JPEG and BMP store 8, so
-    16-bit levels are rescaled, never clipped)."""
+    16-bit levels are rescaled, never clipped). ``metadata``: an ICC profile and EXIF to carry
+    (e.g. the input photograph's, :func:`~dualpixel.io.metadata.read_metadata`); what each format
+    keeps is listed in :mod:`dualpixel.io.metadata`."""
     path = check_image_path(path)
     if bit_depth not in (8, 16):
         raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
@@ -217,11 +242,23 @@ def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16) -> No
         image = np.rint(np.asarray(image, dtype=np.float64) / 257.0).astype(np.int64)
     data = np.clip(image, 0, 255 if stored == 8 else 65535).astype(
         np.uint8 if stored == 8 else np.uint16)
-    if data.ndim == 3:
-        data = cv2.cvtColor(data, cv2.COLOR_RGB2BGR)
-    with atomic_path(path) as tmp:
-        if not cv2.imwrite(str(tmp), data):
-            raise InputFileError(path, "could not be written")
+    metadata = metadata or ImageMetadata()
+    suffix = path.suffix.lower()
+    if suffix in (".tif", ".tiff"):
+        import tifffile
+
+        buffer = io.BytesIO()
+        tifffile.imwrite(buffer, data, photometric="rgb" if data.ndim == 3 else "minisblack",
+                         compression="zlib", **tiff_write_options(metadata))
+        encoded = buffer.getvalue()
+    else:
+        ok, array = cv2.imencode(suffix, cv2.cvtColor(data, cv2.COLOR_RGB2BGR)
+                                 if data.ndim == 3 else data)
+        if not ok:
+            raise OutputFileError(path, "could not be encoded")
+        encoded = embed_metadata(array.tobytes(), suffix, metadata)
+    with atomic_path(path) as tmp:  # encoded in memory: a full disk is an error naming path
+        tmp.write_bytes(encoded)
 
 
 def load_npy(path: str | Path) -> np.ndarray:

@@ -1,0 +1,91 @@
+"""Input checks name the likely mistake: views swapped, at half brightness, from two captures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import dualpixel
+from dualpixel.cli.main import cli
+from dualpixel.io.images import read_rgb, write_png
+
+
+@pytest.fixture(scope="module")
+def frame():
+    """A synthetic DP frame focused on a near plane (the left 40 %) with a textured background
+    2 m away, behind the focus plane (about 2 px blur)."""
+    import cv2
+
+    rng = np.random.default_rng(0)
+    noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 1.0)
+    rgb = np.clip(0.5 + 0.75 * noise, 0, 1)
+    depth = np.where(np.arange(320)[None, :] < 128, 1.0, 2.0).repeat(192, 0).astype(np.float32)
+    return dualpixel.synthesize(rgb, depth, camera="dslr-840", noise=False, distortion=False)
+
+
+def codes(findings) -> list[str]:
+    return [f.code for f in findings]
+
+
+def test_synthetic_pair_passes_and_swapped_is_named(frame):
+    left, right, combined = frame["left"], frame["right"], frame["combined"]
+    assert codes(dualpixel.check_views(left, right, combined)) == []
+    swapped = dualpixel.check_views(right, left, combined)
+    assert codes(swapped) == ["swapped"] and "left" in swapped[0].message
+
+
+def test_half_brightness_and_other_captures(frame):
+    left, right, combined = frame["left"], frame["right"], frame["combined"]
+    half = dualpixel.check_views(left / 2, right / 2, combined)
+    assert codes(half) == ["half-bright"] and "--views-sum" in half[0].message
+    assert codes(dualpixel.check_views(left / 2, right / 2)) == ["half-bright"]
+    assert codes(dualpixel.check_views(left * 0.7, right * 0.7, combined)) == ["brightness"]
+    other = np.ascontiguousarray(combined[:, ::-1])
+    assert codes(dualpixel.check_views(left, right, other)) == ["not-combined"]
+    assert "unbalanced" in codes(dualpixel.check_views(left, right * 0.5))
+
+
+def test_real_canon_pairs(shared_dir):
+    scene = shared_dir / "data" / "canon-dp-real-hd" / "scene_03"
+    left, right = read_rgb(scene / "view0.png"), read_rgb(scene / "view1.png")
+    combined = read_rgb(scene / "input.png")
+    assert codes(dualpixel.check_views(left, right, combined)) == []
+    assert codes(dualpixel.check_views(right, left, combined)) == ["swapped"]
+
+
+def test_views_sum_doubles_and_strict_stops(frame, tmp_path):
+    import torch
+
+    from dualpixel.models import build_model, save_model
+
+    torch.manual_seed(0)
+    save_model(tmp_path / "tiny.safetensors", build_model("rdpd", width=0.125, residual=True))
+    for name in ("left", "right", "combined"):
+        image = frame[name] / (2 if name != "combined" else 1)
+        write_png(tmp_path / f"{name}.png", image, bit_depth=16)
+    args = ["deblur", "--left", str(tmp_path / "left.png"), "--right",
+            str(tmp_path / "right.png"), "--combined", str(tmp_path / "combined.png"),
+            "--checkpoint", str(tmp_path / "tiny.safetensors"), "--device", "cpu"]
+    runner = CliRunner()
+    warned = runner.invoke(cli, [*args, "-o", str(tmp_path / "a.png")])
+    assert warned.exit_code == 0 and "Warning:" in warned.output and "--views-sum" in warned.output
+    strict = runner.invoke(cli, [*args, "-o", str(tmp_path / "b.png"), "--strict"])
+    assert strict.exit_code == 1 and "--strict" in strict.output
+    assert not (tmp_path / "b.png").exists() and "Traceback" not in strict.output
+    fixed = runner.invoke(cli, [*args, "-o", str(tmp_path / "c.png"), "--views-sum", "--strict"])
+    assert fixed.exit_code == 0 and "Warning:" not in fixed.output
+    api = dualpixel.deblur(frame["left"] / 2, frame["right"] / 2, views_sum=True,
+                           model=str(tmp_path / "tiny.safetensors"), device="cpu",
+                           precision="fp32")
+    direct = dualpixel.deblur(np.clip(frame["left"], 0, 1), np.clip(frame["right"], 0, 1),
+                              model=str(tmp_path / "tiny.safetensors"), device="cpu",
+                              precision="fp32")
+    assert np.abs(api - direct).max() < 1e-5
+
+
+def test_mixed_bit_depths_are_named(frame, tmp_path):
+    from dualpixel.inference.view_checks import check_views
+
+    found = check_views(frame["left"], frame["right"], bit_depths=(16, 8))
+    assert codes(found) == ["bit-depth"] and "16-bit" in found[0].message
