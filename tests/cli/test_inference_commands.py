@@ -136,8 +136,14 @@ def test_eval_prediction_folders_and_niqe_commands(shared_dir, tmp_path):
     for k in range(2):
         (pred / f"s{k}.png").write_bytes((canon / f"scene_0{k}" / "dpdnet.png").read_bytes())
         (target / f"s{k}.png").write_bytes((canon / f"scene_0{k}" / "target.png").read_bytes())
+    too_few = run("niqe", "fit", "--images", target, "--output", tmp_path / "niqe.npz")
+    assert too_few.exit_code == 2 and "at least 37 sharp" in too_few.output  # 18 blocks
+    for k in range(2, 7):
+        (target / f"s{k}.png").write_bytes((canon / f"scene_0{k}" / "target.png").read_bytes())
     result = run("niqe", "fit", "--images", target, "--output", tmp_path / "niqe.npz")
     assert result.exit_code == 0, result.output
+    for k in range(2, 7):
+        (target / f"s{k}.png").unlink()
     result = run("eval", "--pred", pred, "--target", target, "--niqe-model", tmp_path / "niqe.npz",
                  "--output", tmp_path / "r")
     assert result.exit_code == 0, result.output

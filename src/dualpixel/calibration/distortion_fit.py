@@ -60,6 +60,7 @@ def fit_distortion(
     c1_range: tuple[float, float] = (-0.1, 0.1),
     levels: int = 6,
     initial_step: float = 0.01,
+    progress: bool = False,
 ) -> DistortionFit:
     """Estimate division-model coefficients from an in-focus capture of ``pattern``.
 
@@ -71,7 +72,10 @@ def fit_distortion(
         c1_range: range of the initial 1-D ``c1`` scan (41 values).
         levels: refinement levels of the local 3-D search (steps halve each level).
         initial_step: step of the first local level.
+        progress: show a progress bar (one step per search level, with the correlation).
     """
+    from tqdm import tqdm
+
     check_range("working_width", working_width, 16)
     check_range("blur", blur, 0.0)
     if abs(capture.shape[0] / capture.shape[1] - pattern.shape[0] / pattern.shape[1]) > 0.01:
@@ -96,7 +100,9 @@ def fit_distortion(
                 cache[key] = float(_ncc(warped, target))
         return cache[key]
 
+    bar = tqdm(total=levels + 1, desc="fitting distortion", unit="level", disable=not progress)
     best = max(((c1, 0.0, 0.0) for c1 in np.linspace(*c1_range, 41)), key=score)
+    bar.update()
     step = initial_step
     for _ in range(levels):
         moved = True
@@ -107,6 +113,9 @@ def fit_distortion(
             moved = score(new_best) > score(best) + 1e-12
             best = new_best if moved else best
         step /= 2
+        bar.set_postfix(correlation=f"{score(best):.4f}", evaluations=len(cache))
+        bar.update()
+    bar.close()
     if not np.isfinite(score(best)) or score(best) < MIN_CORRELATION:
         raise ParameterError(
             f"the capture does not match the pattern (best correlation {score(best):.3g} < "

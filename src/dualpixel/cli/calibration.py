@@ -121,7 +121,8 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
     from dualpixel.calibration.distortion_fit import fit_distortion
     from dualpixel.io.images import read_rgb
 
-    fit = fit_distortion(read_rgb(capture), read_rgb(pattern_path), working_width=working_width)
+    fit = fit_distortion(read_rgb(capture), read_rgb(pattern_path), working_width=working_width,
+                         progress=True)
     c1, c2, c3 = fit.distortion.coefficients
     click.echo(json.dumps({"c1": c1, "c2": c2, "c3": c3, "correlation": fit.correlation,
                            "evaluations": fit.evaluations}))

@@ -252,4 +252,28 @@ def import_keras(weights: Path, model: str, output: Path) -> None:
     click.echo(f"wrote {output} ({model}, from {weights})")
 
 
-COMMANDS = (deblur, evaluate_command, niqe, export, import_keras)
+@click.command("import-dpraw", cls=DPCommand, context_settings=CONTEXT)
+@click.argument("raws", nargs=-1, required=True,
+                type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="DPDD-layout folder: SPLIT_l/source, SPLIT_r/source, SPLIT_c/source.")
+@click.option("--split", default="test", help="Split name of the folders written.")
+@click.option("--a-view", type=click.Choice(["auto", "left", "right"]), default="auto",
+              help="Which view the A sub-pixels give; auto decides per file by the direction "
+                   "in which defocused regions shift.")
+@click.option("--format", "fmt", type=click.Choice(["png", "tif"]), default="png",
+              help="16-bit PNG or TIFF.")
+def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, fmt: str) -> None:
+    """Develop Canon Dual Pixel RAW files (.CR2) into left, right and combined views (needs:
+    pip install 'dualpixel[raw]'), ready for 'dualpixel deblur --input OUTPUT'."""
+    from dualpixel.io.dpraw import import_dual_pixel_raws
+
+    results = import_dual_pixel_raws(list(raws), output, split=split, a_view=a_view,
+                                     suffix=f".{fmt}", progress=True)
+    for path, views in results:
+        click.echo(f"{path.name}: A is the {views.a_view} view ({views.evidence})")
+    click.echo(f"wrote {len(results)} capture(s) to {output}; deblur them with: dualpixel "
+               f"deblur --input {output} --split {split} -o OUTPUT_FOLDER")
+
+
+COMMANDS = (deblur, evaluate_command, niqe, export, import_keras, import_dpraw)

@@ -35,6 +35,7 @@ __all__ = [
     "FrameStatistics",
     "block_sums",
     "dataset_statistics",
+    "defocus_shift_counts",
     "frame_statistics",
 ]
 
@@ -133,6 +134,28 @@ def block_disparity(
     shift = inner - max_shift + np.clip(offset, -0.5, 0.5)
     textured = _textured(_grey(left)[:, core], patch, min_texture)
     return shift[textured].astype(np.float32)
+
+
+#: A block counts as defocused when its views shift by more than this (px).
+DEFOCUSED_SHIFT = 0.75
+#: At least this many defocused blocks before the direction of their shift is read.
+MIN_DEFOCUSED_BLOCKS = 12
+
+
+def defocus_shift_counts(left: np.ndarray, right: np.ndarray) -> tuple[int, int] | None:
+    """How many defocused blocks of a DP pair shift as content behind the focus plane does
+    (``right`` shifted right of ``left``) and how many as content in front of it, or ``None``
+    when the pair is too small or has too few defocused blocks to tell (64-px blocks from
+    1280 px wide, 32-px below)."""
+    patch = 64 if left.shape[1] >= 1280 else 32
+    if left.shape[0] < 2 * patch or left.shape[1] < 4 * patch:
+        return None
+    shifts = block_disparity(left, right, patch=patch, max_shift=min(12, patch // 4))
+    defocused = shifts[np.abs(shifts) > DEFOCUSED_SHIFT]
+    if defocused.size < MIN_DEFOCUSED_BLOCKS:
+        return None
+    behind = int((defocused > 0).sum())
+    return behind, int(defocused.size) - behind
 
 
 def block_blur(

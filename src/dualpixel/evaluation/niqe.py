@@ -47,6 +47,10 @@ __all__ = [
 ]
 
 BLOCK = 96
+FEATURES = 36
+#: Fewest sharp blocks a model is fitted from: one more than the features, so that the
+#: covariance has full rank (the built-in model has 2,766).
+MIN_FIT_BLOCKS = FEATURES + 1
 SHARPNESS_FRACTION = 0.75
 _SHAPES = np.arange(0.2, 10.001, 0.001)
 _RATIO = gamma_fn(2 / _SHAPES) ** 2 / (gamma_fn(1 / _SHAPES) * gamma_fn(3 / _SHAPES))
@@ -180,8 +184,11 @@ def fit_niqe_model(images, *, source: str = "", overlap: bool = False) -> NIQEMo
     if not selected:
         raise ParameterError("no images to fit a NIQE model")
     stacked = np.concatenate(selected)
-    if len(stacked) < 2:
-        raise ParameterError("too few sharp blocks to fit a NIQE model; give more/larger images")
+    if len(stacked) < MIN_FIT_BLOCKS:
+        raise ParameterError(
+            f"a NIQE model needs at least {MIN_FIT_BLOCKS} sharp {BLOCK}x{BLOCK} blocks (more "
+            f"than its {FEATURES} features, for a full-rank covariance); these images give "
+            f"{len(stacked)}: add more or larger sharp images")
     return NIQEModel(stacked.mean(0), np.cov(stacked, rowvar=False), source, len(stacked))
 
 

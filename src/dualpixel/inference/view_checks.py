@@ -19,14 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dualpixel.data.statistics import block_disparity
+from dualpixel.data.statistics import defocus_shift_counts
 
 __all__ = ["ViewFinding", "check_views", "views_from_sum"]
 
-#: A block counts as defocused when its views shift by more than this (px).
-DEFOCUSED_SHIFT = 0.75
-#: At least this many defocused blocks before the direction of their shift is read.
-MIN_DEFOCUSED_BLOCKS = 12
 #: Share of defocused blocks shifting the front-of-focus way that reads as "swapped".
 SWAPPED_SHARE = 0.7
 #: Lowest PSNR (dB) between the views' mean and the combined image for one capture.
@@ -48,18 +44,14 @@ def views_from_sum(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def _swapped(left: np.ndarray, right: np.ndarray) -> ViewFinding | None:
-    patch = 64 if left.shape[1] >= 1280 else 32
-    if left.shape[0] < 2 * patch or left.shape[1] < 4 * patch:
-        return None  # too small to read a direction from
-    shifts = block_disparity(left, right, patch=patch, max_shift=min(12, patch // 4))
-    defocused = shifts[np.abs(shifts) > DEFOCUSED_SHIFT]
-    if defocused.size < MIN_DEFOCUSED_BLOCKS:
+    counts = defocus_shift_counts(left, right)
+    if counts is None:
         return None
-    backward = int((defocused < 0).sum())
-    if backward < SWAPPED_SHARE * defocused.size:
+    backward, total = counts[1], sum(counts)
+    if backward < SWAPPED_SHARE * total:
         return None
     return ViewFinding("swapped", (
-        f"views look swapped: {backward} of {defocused.size} defocused regions shift the way "
+        f"views look swapped: {backward} of {total} defocused regions shift the way "
         "content in front of the focus plane does, which in most photographs means left and "
         "right are exchanged; pass the other view as the left"))
 

@@ -41,6 +41,15 @@ class ImageMetadata:
     icc_profile: bytes | None = None
     exif: bytes | None = None
 
+    @classmethod
+    def from_orientation(cls, orientation: int) -> ImageMetadata:
+        """Metadata that says only how to display the image (EXIF orientation 1-8)."""
+        from PIL import Image
+
+        exif = Image.Exif()
+        exif[ORIENTATION_TAG] = int(orientation)
+        return cls(exif=exif.tobytes())
+
     def __bool__(self) -> bool:
         return bool(self.icc_profile or self.exif)
 

@@ -1,0 +1,218 @@
+"""Canon Dual Pixel RAW (.CR2) files to left, right and combined views.
+
+A DPRAW file holds two raw frames: the first is the whole pixel (A+B, the photograph), the second
+the A sub-pixels alone; LibRaw reaches the second with ``shot_select=1`` (rawpy >= 0.28, the
+``raw`` extra: ``pip install 'dualpixel[raw]'``). After the black level, B = (A+B) - A.
+
+The development is deliberately simple and documented, the same for all three images:
+
+1. black level subtracted, scaled by the white level to [0, 1] (linear);
+2. the views doubled, so that each is as bright as the combined image (the DPDD convention the
+   models are trained on: the combined image is the views' mean);
+3. the camera's white balance (as shot) per colour site, clipped to [0, 1];
+4. demosaicing (OpenCV, edge-aware bilinear), no colour matrix;
+5. the sRGB transfer curve, the encoding of the photographs the training data is made from.
+
+Which of A and B is the left view is decided by measurement (``a_view="auto"``): in most
+photographs the defocused content lies behind the focus plane, where the right view shows it
+shifted to the right of the left view's (the convention of the Canon DPDD pairs and of our
+synthetic data; :func:`~dualpixel.data.statistics.defocus_shift_counts` counts it and
+:mod:`dualpixel.inference.view_checks` warns on pairs that break it). The assignment under
+which most defocused regions shift that way is taken; when too few regions are defocused to
+tell, A is the left view, and the result says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from dualpixel.data.statistics import defocus_shift_counts
+from dualpixel.errors import InputFileError, ParameterError
+
+__all__ = [
+    "DualPixelRaw",
+    "DualPixelViews",
+    "develop_mosaic",
+    "develop_views",
+    "import_dual_pixel_raws",
+    "read_dual_pixel_raw",
+    "split_dual_pixel",
+]
+
+A_VIEWS = ("auto", "left", "right")
+_LIBRAW_FLIP_TO_EXIF = {0: 1, 3: 3, 5: 8, 6: 6}
+#: OpenCV's demosaicing code for each 2x2 pattern (OpenCV names it from the second row).
+_DEMOSAIC = {"RGGB": cv2.COLOR_BayerBG2RGB_EA, "BGGR": cv2.COLOR_BayerRG2RGB_EA,
+             "GRBG": cv2.COLOR_BayerGB2RGB_EA, "GBRG": cv2.COLOR_BayerGR2RGB_EA}
+
+
+@dataclass(frozen=True)
+class DualPixelRaw:
+    """The two raw frames of a DPRAW file and what developing them needs.
+
+    ``combined`` (A+B) and ``a_only`` are ``(H, W)`` raw mosaics (sensor counts); ``pattern`` the
+    2x2 colour filter layout as letters (``"RGGB"`` ...); ``black_level`` per site ``(2, 2)``;
+    ``white_balance`` the as-shot multipliers (R, G, B), green 1.
+    """
+
+    combined: np.ndarray
+    a_only: np.ndarray
+    pattern: str
+    black_level: np.ndarray
+    white_level: float
+    white_balance: tuple[float, float, float]
+    orientation: int = 1  # EXIF orientation of the photograph (the pixels stay as stored)
+
+
+@dataclass(frozen=True)
+class DualPixelViews:
+    """Developed ``(H, W, 3)`` float32 images in [0, 1] and how the views were assigned."""
+
+    left: np.ndarray
+    right: np.ndarray
+    combined: np.ndarray
+    a_view: str  # "left" or "right": which view the A sub-pixels gave
+    evidence: str  # how a_view was decided
+
+
+def _rawpy():
+    try:
+        import rawpy
+    except ImportError:
+        raise ParameterError("reading camera raw files needs rawpy: pip install "
+                             "'dualpixel[raw]'") from None
+    return rawpy
+
+
+def read_dual_pixel_raw(path: str | Path) -> DualPixelRaw:
+    """Both frames of a Canon Dual Pixel RAW file (rawpy/LibRaw)."""
+    rawpy = _rawpy()
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "file not found")
+    try:
+        with rawpy.imread(str(path)) as raw:
+            combined = raw.raw_image_visible.copy()
+            colors = raw.color_desc.decode("ascii")
+            indices = np.asarray(raw.raw_pattern)
+            black = np.asarray(raw.black_level_per_channel, np.float64)
+            white = float(raw.white_level)
+            balance = [float(v) for v in raw.camera_whitebalance]
+            orientation = _LIBRAW_FLIP_TO_EXIF.get(int(raw.sizes.flip), 1)
+    except rawpy.LibRawError as error:
+        raise InputFileError(path, f"cannot be read as a camera raw file ({error})") from None
+    try:
+        with rawpy.imread(str(path), shot_select=1) as raw:
+            a_only = raw.raw_image_visible.copy()
+    except rawpy.LibRawError:
+        a_only = None
+    if a_only is None or a_only.shape != combined.shape or np.array_equal(a_only, combined):
+        raise InputFileError(path, "holds one raw frame, not a Dual Pixel RAW's two (A+B and "
+                                   "A); shoot with Dual Pixel RAW on")
+    if indices.shape != (2, 2) or len(colors) < 3:
+        raise InputFileError(path, f"colour filter layout {indices.tolist()} ({colors}) is not "
+                                   "a 2x2 Bayer pattern")
+    pattern = "".join(colors[i] for i in indices.ravel())
+    green = balance[1] if balance[1] > 0 else 1.0
+    white_balance = tuple(v / green if v > 0 else 1.0 for v in balance[:3])
+    return DualPixelRaw(combined, a_only, pattern, black[indices], white, white_balance,
+                        orientation)
+
+
+def split_dual_pixel(raw: DualPixelRaw) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Linear ``(H, W)`` mosaics ``(A, B, A+B)`` in units of the white level, black removed,
+    the views doubled to the combined image's brightness (steps 1-2 of the module docstring)."""
+    height, width = raw.combined.shape
+    black = np.tile(raw.black_level, (height // 2 + 1, width // 2 + 1))[:height, :width]
+    scale = raw.white_level - black
+    if np.any(scale <= 0):
+        raise ParameterError(f"white level {raw.white_level} is not above the black level")
+    combined = np.clip((raw.combined - black) / scale, 0.0, None)
+    a_only = np.clip((raw.a_only - black) / scale, 0.0, None)
+    b_only = np.clip(combined - a_only, 0.0, None)
+    return (2.0 * a_only).astype(np.float32), (2.0 * b_only).astype(np.float32), \
+        combined.astype(np.float32)
+
+
+def _srgb(linear: np.ndarray) -> np.ndarray:
+    """The sRGB transfer curve (IEC 61966-2-1) on values in [0, 1]."""
+    return np.where(linear <= 0.0031308, 12.92 * linear,
+                    1.055 * np.power(np.maximum(linear, 0.0031308), 1 / 2.4) - 0.055)
+
+
+def develop_mosaic(mosaic: np.ndarray, pattern: str,
+                   white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> np.ndarray:
+    """A linear ``(H, W)`` mosaic in [0, 1] to an sRGB-encoded ``(H, W, 3)`` float32 image
+    (steps 3-5 of the module docstring)."""
+    if pattern not in _DEMOSAIC:
+        raise ParameterError(f"Bayer pattern must be one of {', '.join(_DEMOSAIC)}, "
+                             f"got {pattern!r}")
+    gains = {"R": white_balance[0], "G": white_balance[1], "B": white_balance[2]}
+    site_gain = np.array([[gains[pattern[0]], gains[pattern[1]]],
+                          [gains[pattern[2]], gains[pattern[3]]]], np.float32)
+    height, width = mosaic.shape
+    balanced = mosaic * np.tile(site_gain, (height // 2 + 1, width // 2 + 1))[:height, :width]
+    levels = np.rint(np.clip(balanced, 0.0, 1.0) * 65535).astype(np.uint16)
+    rgb = cv2.cvtColor(levels, _DEMOSAIC[pattern]).astype(np.float32) / 65535.0
+    return _srgb(rgb).astype(np.float32)
+
+
+def develop_views(raw: DualPixelRaw, *, a_view: str = "auto") -> DualPixelViews:
+    """Left, right and combined images of a DPRAW capture; ``a_view``: ``"left"``, ``"right"``
+    or ``"auto"`` (by measurement, see the module docstring)."""
+    if a_view not in A_VIEWS:
+        raise ParameterError(f"a_view must be one of {', '.join(A_VIEWS)}, got {a_view!r}")
+    a_mosaic, b_mosaic, combined_mosaic = split_dual_pixel(raw)
+    a_image, b_image, combined = (develop_mosaic(m, raw.pattern, raw.white_balance)
+                                  for m in (a_mosaic, b_mosaic, combined_mosaic))
+    if a_view == "auto":
+        counts = defocus_shift_counts(a_image, b_image)
+        if counts is None or counts[0] == counts[1]:
+            a_view, evidence = "left", "too few defocused regions to tell; A taken as left"
+        else:
+            behind, front = counts
+            a_view = "left" if behind > front else "right"
+            evidence = (f"{max(counts)} of {sum(counts)} defocused regions shift as content "
+                        f"behind the focus plane does with A as the {a_view} view")
+    else:
+        evidence = f"A as the {a_view} view, as asked"
+    left, right = (a_image, b_image) if a_view == "left" else (b_image, a_image)
+    return DualPixelViews(left, right, combined, a_view, evidence)
+
+
+def import_dual_pixel_raws(
+    paths: list[Path], output: str | Path, *, split: str = "test", a_view: str = "auto",
+    suffix: str = ".png", progress: bool = False,
+) -> list[tuple[Path, DualPixelViews]]:
+    """Develop DPRAW files into a DPDD-layout folder (``{split}_l/source``, ``{split}_r/source``,
+    ``{split}_c/source``; 16-bit, the file's orientation in EXIF), ready for ``dualpixel deblur
+    --input``. Each file's three images are written atomically once it is developed; a bad file
+    stops the import with an error naming it. Returns each source with its views."""
+    from tqdm import tqdm
+
+    from dualpixel.io.atomic import check_writable
+    from dualpixel.io.images import check_image_path, write_png
+    from dualpixel.io.metadata import ImageMetadata
+
+    output = Path(output)
+    names = [Path(p).stem for p in paths]
+    if len(set(names)) < len(names):
+        raise ParameterError("two raw files share a name; import them into separate folders")
+    folders = {role: output / f"{split}_{role}" / "source" for role in ("l", "r", "c")}
+    check_image_path(folders["l"] / f"probe{suffix}")
+    for folder in folders.values():
+        check_writable(folder / f"probe{suffix}")
+    results = []
+    for path in tqdm(paths, desc="developing", unit="file", disable=not progress):
+        raw = read_dual_pixel_raw(path)  # one at a time: 30 MP frames are large
+        views = develop_views(raw, a_view=a_view)
+        metadata = ImageMetadata.from_orientation(raw.orientation)
+        for role, image in (("l", views.left), ("r", views.right), ("c", views.combined)):
+            write_png(folders[role] / f"{Path(path).stem}{suffix}", image, bit_depth=16,
+                      metadata=metadata)
+        results.append((Path(path), views))
+    return results

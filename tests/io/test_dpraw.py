@@ -1,0 +1,140 @@
+"""Dual Pixel RAW import: the A/B arithmetic recovers known views, the left view is told by
+measurement, and files that are not DPRAW are refused by name."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+import tifffile
+from click.testing import CliRunner
+
+import dualpixel
+from dualpixel.cli.main import cli
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.dpraw import DualPixelRaw, develop_views, split_dual_pixel
+
+BLACK, WHITE = 512.0, 15000.0
+
+
+def _linear(srgb: np.ndarray) -> np.ndarray:
+    return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+
+
+def _mosaic(rgb: np.ndarray) -> np.ndarray:
+    """RGGB samples of an ``(H, W, 3)`` image."""
+    out = rgb[..., 1].copy()
+    out[0::2, 0::2], out[1::2, 1::2] = rgb[0::2, 0::2, 0], rgb[1::2, 1::2, 2]
+    return out
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """Known left/right views (synthetic; a background 3 m away, behind the focus plane)."""
+    import cv2
+
+    rng = np.random.default_rng(4)
+    noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 2.0)
+    rgb = np.clip(0.45 + 1.2 * noise, 0.02, 0.9)
+    depth = np.where(np.arange(320)[None, :] < 128, 1.0, 3.0).repeat(192, 0).astype(np.float32)
+    return dualpixel.synthesize(rgb, depth, camera="dslr-840", noise=False, distortion=False)
+
+
+def _raw_of(left: np.ndarray, right: np.ndarray) -> DualPixelRaw:
+    """What a DPRAW stores for views ``left`` (= A) and ``right`` (= B): sensor counts of A+B and
+    of A, each view half the light, under a white balance of (2, 1, 1.5)."""
+    balance = np.array([2.0, 1.0, 1.5])
+    a_only = _mosaic(_linear(left) / balance) / 2
+    b_only = _mosaic(_linear(right) / balance) / 2
+    counts = lambda x: np.rint(BLACK + x * (WHITE - BLACK)).astype(np.uint16)  # noqa: E731
+    return DualPixelRaw(counts(a_only + b_only), counts(a_only), "RGGB",
+                        np.full((2, 2), BLACK), WHITE, (2.0, 1.0, 1.5))
+
+
+def _psnr(a: np.ndarray, b: np.ndarray) -> float:
+    return float(10 * np.log10(1 / np.mean((a[4:-4, 4:-4] - b[4:-4, 4:-4]) ** 2)))
+
+
+def test_split_recovers_each_views_light(scene):
+    raw = _raw_of(scene["left"], scene["right"])
+    a_view, b_view, combined = split_dual_pixel(raw)
+    balance = np.array([2.0, 1.0, 1.5])
+    for view, known in ((a_view, scene["left"]), (b_view, scene["right"])):
+        assert np.abs(view - _mosaic(_linear(known) / balance)).max() < 3 / (WHITE - BLACK)
+    assert np.allclose(combined, (a_view + b_view) / 2, atol=2 / (WHITE - BLACK))
+
+
+@pytest.mark.parametrize("a_is", ["left", "right"])
+def test_develop_tells_the_left_view_by_measurement(scene, a_is):
+    left, right = scene["left"], scene["right"]
+    raw = _raw_of(left, right) if a_is == "left" else _raw_of(right, left)
+    views = develop_views(raw)
+    assert views.a_view == a_is and "defocused regions" in views.evidence
+    assert _psnr(views.left, left) > 30 and _psnr(views.right, right) > 30  # demosaicing
+    assert _psnr(views.combined, scene["combined"]) > 30
+    forced = develop_views(raw, a_view="left")
+    assert forced.a_view == "left" and np.array_equal(forced.left, views.left if a_is == "left"
+                                                      else views.right)
+
+
+def _dng(path, frames: int, orientation: int = 6) -> None:
+    """A minimal DNG LibRaw reads (one raw frame; LibRaw offers no second frame of a DNG)."""
+    cfa = np.random.default_rng(0).integers(600, 14000, (64, 96)).astype(np.uint16)
+    colour = (10000, 10000, 0, 10000, 0, 10000, 0, 10000, 10000, 10000, 0, 10000, 0, 10000, 0,
+              10000, 10000, 10000)
+    with tifffile.TiffWriter(path) as tiff:
+        tiff.write(np.zeros((8, 12, 3), np.uint8), photometric="rgb", subfiletype=1,
+                   subifds=frames, metadata=None, extratags=[
+                       (50706, "B", 4, (1, 4, 0, 0), True), (50708, "s", 0, "Test DP", True),
+                       (50721, "2i", 9, colour, True), (50728, "2I", 3, (1, 2, 1, 1, 1, 2), True),
+                       (274, "H", 1, orientation, True)])
+        for _ in range(frames):
+            tiff.write(cfa, photometric=32803, subfiletype=0, metadata=None, extratags=[
+                (33421, "H", 2, (2, 2), True), (33422, "B", 4, (0, 1, 1, 2), True),
+                (50714, "H", 1, int(BLACK), True), (50717, "H", 1, int(WHITE), True)])
+
+
+def test_one_frame_raw_and_junk_are_refused(tmp_path):
+    pytest.importorskip("rawpy")
+    from dualpixel.io.dpraw import read_dual_pixel_raw
+
+    _dng(tmp_path / "single.dng", 1)
+    with pytest.raises(InputFileError, match=r"single\.dng.*one raw frame"):
+        read_dual_pixel_raw(tmp_path / "single.dng")
+    _dng(tmp_path / "same.dng", 2)  # LibRaw gives the first frame twice: still one frame
+    with pytest.raises(InputFileError, match="one raw frame"):
+        read_dual_pixel_raw(tmp_path / "same.dng")
+    (tmp_path / "junk.CR2").write_bytes(b"II*\x00 not really a raw file")
+    result = CliRunner().invoke(cli, ["import-dpraw", str(tmp_path / "junk.CR2"),
+                                      "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1 and "junk.CR2" in result.output
+    assert "camera raw" in result.output and "Traceback" not in result.output
+
+
+def test_missing_rawpy_names_the_extra(tmp_path, monkeypatch):
+    from dualpixel.io.dpraw import read_dual_pixel_raw
+
+    monkeypatch.setitem(sys.modules, "rawpy", None)
+    with pytest.raises(ParameterError, match=r"dualpixel\[raw\]"):
+        read_dual_pixel_raw(tmp_path / "x.CR2")
+
+
+def test_import_writes_a_dpdd_folder_deblur_reads(scene, tmp_path, monkeypatch):
+    import dualpixel.io.dpraw as dpraw
+    from dualpixel.io.metadata import read_metadata
+
+    raws = {"one": _raw_of(scene["left"], scene["right"])}
+    raws["two"] = DualPixelRaw(**{**vars(raws["one"]), "orientation": 8})
+    monkeypatch.setattr(dpraw, "read_dual_pixel_raw", lambda path: raws[path.stem])
+    results = dpraw.import_dual_pixel_raws([tmp_path / "one.CR2", tmp_path / "two.CR2"],
+                                           tmp_path / "dp")
+    assert [views.a_view for _, views in results] == ["left", "left"]
+    for role in ("l", "r", "c"):
+        assert sorted(p.name for p in (tmp_path / "dp" / f"test_{role}" / "source").iterdir()) \
+            == ["one.png", "two.png"]
+    assert read_metadata(tmp_path / "dp" / "test_l" / "source" / "two.png").orientation == 8
+    from dualpixel.data.layout import discover_dp_dataset
+
+    pairs = discover_dp_dataset(tmp_path / "dp", "test", require_target=False)
+    assert len(pairs) == 2 and all(p.frames[0].combined is not None for p in pairs)
