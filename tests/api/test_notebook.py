@@ -78,6 +78,7 @@ def test_every_function_takes_every_layout_alike():
                 (("psnr", dualpixel.psnr), ("ssim", dualpixel.ssim), ("mae", dualpixel.mae))}
     expected["niqe"] = dualpixel.niqe(np.tile(left8, (2, 2, 1)))
     sharp = dualpixel.deblur(left8, right8, device="cpu", precision="fp32")
+    findings = dualpixel.check_views(left8, right8, target8)
     for name, (left, right, target) in layouts.items():
         for metric, value in expected.items():
             if metric == "niqe":
@@ -90,6 +91,7 @@ def test_every_function_takes_every_layout_alike():
         out = dualpixel.deblur(left, right, device="cpu", precision="fp32")
         as_hwc = out.permute(1, 2, 0).numpy() if isinstance(out, torch.Tensor) else out
         np.testing.assert_allclose(as_hwc, sharp, atol=1e-5, err_msg=name)
+        assert dualpixel.check_views(left, right, target) == findings, name
     grey = left8[..., 1]
     assert dualpixel.psnr(grey, target8[..., 1]) == pytest.approx(
         dualpixel.psnr(np.dstack([grey] * 3), np.dstack([target8[..., 1]] * 3)))

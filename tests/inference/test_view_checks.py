@@ -54,19 +54,45 @@ def test_real_canon_pairs(shared_dir):
     assert codes(dualpixel.check_views(right, left, combined)) == ["swapped"]
 
 
-def test_views_sum_doubles_and_strict_stops(frame, tmp_path):
+def test_deblur_warns_on_a_canon_scene_and_strict_stops(shared_dir, tiny_checkpoint, tmp_path):
+    scene = shared_dir / "data" / "canon-dp-real" / "scene_01"
+    for name in ("view0", "view1"):  # a raw A/B split's views: half the light each
+        write_png(tmp_path / f"{name}-half.png", read_rgb(scene / f"{name}.png") / 2, bit_depth=16)
+    cases = {
+        "swapped": ["--left", scene / "view1.png", "--right", scene / "view0.png"],
+        "--views-sum": ["--left", tmp_path / "view0-half.png", "--right",
+                           tmp_path / "view1-half.png", "--combined", scene / "input.png"],
+    }
+    runner = CliRunner()
+    for words, views in cases.items():
+        args = ["deblur", *views, "--checkpoint", tiny_checkpoint, "--device", "cpu"]
+        warned = runner.invoke(cli, [str(a) for a in [*args, "-o", tmp_path / "w.png"]])
+        assert warned.exit_code == 0 and "Warning:" in warned.output and words in warned.output
+        strict = runner.invoke(cli, [str(a) for a in [*args, "-o", tmp_path / "s.png",
+                                                      "--strict"]])
+        assert strict.exit_code == 1 and words in strict.output, strict.output
+        assert not (tmp_path / "s.png").exists() and "Traceback" not in strict.output
+
+
+@pytest.fixture(scope="module")
+def tiny_checkpoint(tmp_path_factory):
     import torch
 
     from dualpixel.models import build_model, save_model
 
     torch.manual_seed(0)
-    save_model(tmp_path / "tiny.safetensors", build_model("rdpd", width=0.125, residual=True))
+    path = tmp_path_factory.mktemp("ckpt") / "tiny.safetensors"
+    save_model(path, build_model("rdpd", width=0.125, residual=True))
+    return path
+
+
+def test_views_sum_doubles_and_strict_stops(frame, tiny_checkpoint, tmp_path):
     for name in ("left", "right", "combined"):
         image = frame[name] / (2 if name != "combined" else 1)
         write_png(tmp_path / f"{name}.png", image, bit_depth=16)
     args = ["deblur", "--left", str(tmp_path / "left.png"), "--right",
             str(tmp_path / "right.png"), "--combined", str(tmp_path / "combined.png"),
-            "--checkpoint", str(tmp_path / "tiny.safetensors"), "--device", "cpu"]
+            "--checkpoint", str(tiny_checkpoint), "--device", "cpu"]
     runner = CliRunner()
     warned = runner.invoke(cli, [*args, "-o", str(tmp_path / "a.png")])
     assert warned.exit_code == 0 and "Warning:" in warned.output and "--views-sum" in warned.output
@@ -76,10 +102,10 @@ def test_views_sum_doubles_and_strict_stops(frame, tmp_path):
     fixed = runner.invoke(cli, [*args, "-o", str(tmp_path / "c.png"), "--views-sum", "--strict"])
     assert fixed.exit_code == 0 and "Warning:" not in fixed.output
     api = dualpixel.deblur(frame["left"] / 2, frame["right"] / 2, views_sum=True,
-                           model=str(tmp_path / "tiny.safetensors"), device="cpu",
+                           model=str(tiny_checkpoint), device="cpu",
                            precision="fp32")
     direct = dualpixel.deblur(np.clip(frame["left"], 0, 1), np.clip(frame["right"], 0, 1),
-                              model=str(tmp_path / "tiny.safetensors"), device="cpu",
+                              model=str(tiny_checkpoint), device="cpu",
                               precision="fp32")
     assert np.abs(api - direct).max() < 1e-5
 

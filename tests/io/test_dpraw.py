@@ -112,6 +112,57 @@ def test_one_frame_raw_and_junk_are_refused(tmp_path):
     assert "camera raw" in result.output and "Traceback" not in result.output
 
 
+class _FakeRaw:
+    """What rawpy.imread gives for one frame of a Canon DPRAW (the attributes we read)."""
+
+    def __init__(self, frame: np.ndarray) -> None:
+        self.raw_image_visible = frame
+        self.color_desc = b"RGBG"
+        self.raw_pattern = np.array([[0, 1], [3, 2]])
+        self.black_level_per_channel = [int(BLACK)] * 4
+        self.white_level = int(WHITE)
+        self.camera_whitebalance = [4.0, 2.0, 3.0, 2.0]
+        self.sizes = type("Sizes", (), {"flip": 6})()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *_):
+        return False
+
+
+def test_two_frame_raw_through_the_import_path(scene, tmp_path, monkeypatch):
+    """A raw-like two-frame file (A+B first, A second, as LibRaw's shot_select gives them) is
+    read, split and developed back into the known views."""
+    import types
+
+    from dualpixel.io import dpraw
+
+    stored = _raw_of(scene["left"], scene["right"])
+    frames = {0: stored.combined, 1: stored.a_only}
+
+    class LibRawError(Exception):
+        pass
+
+    fake = types.SimpleNamespace(
+        LibRawError=LibRawError,
+        imread=lambda path, shot_select=0: _FakeRaw(frames[shot_select]))
+    monkeypatch.setitem(sys.modules, "rawpy", fake)
+    (tmp_path / "IMG_0001.CR2").write_bytes(b"raw")
+    raw = dpraw.read_dual_pixel_raw(tmp_path / "IMG_0001.CR2")
+    assert raw.pattern == "RGGB" and raw.white_balance == (2.0, 1.0, 1.5)
+    assert raw.orientation == 6
+    a_view, b_view, _ = split_dual_pixel(raw)
+    known_a, known_b, _ = split_dual_pixel(stored)
+    assert np.array_equal(a_view, known_a) and np.array_equal(b_view, known_b)
+    [(_, views)] = dpraw.import_dual_pixel_raws([tmp_path / "IMG_0001.CR2"], tmp_path / "dp")
+    assert views.a_view == "left"
+    assert _psnr(views.left, scene["left"]) > 30 and _psnr(views.right, scene["right"]) > 30
+    frames[1] = stored.combined  # a camera file whose second frame is the first again
+    with pytest.raises(InputFileError, match="one raw frame"):
+        dpraw.read_dual_pixel_raw(tmp_path / "IMG_0001.CR2")
+
+
 def test_missing_rawpy_names_the_extra(tmp_path, monkeypatch):
     from dualpixel.io.dpraw import read_dual_pixel_raw
 

@@ -76,15 +76,16 @@ def test_deblur_command_keeps_the_left_views_metadata(tmp_path):
 
     torch.manual_seed(0)
     save_model(tmp_path / "tiny.safetensors", build_model("rdpd", width=0.125, residual=True))
-    pixels = np.random.default_rng(2).integers(0, 256, (32, 48, 3), np.uint8)
-    _photo(tmp_path / "left.jpg", pixels, orientation=8)
-    _photo(tmp_path / "right.jpg", pixels, orientation=8)
-    result = CliRunner().invoke(cli, [
-        "deblur", "--left", str(tmp_path / "left.jpg"), "--right", str(tmp_path / "right.jpg"),
-        "-o", str(tmp_path / "out.png"), "--checkpoint", str(tmp_path / "tiny.safetensors"),
-        "--device", "cpu"])
-    assert result.exit_code == 0, result.output
-    out = read_metadata(tmp_path / "out.png")
-    assert out.orientation == 8 and out.icc_profile == ICC
-    with Image.open(tmp_path / "out.png") as written:
-        assert written.size == (48, 32)  # stored as the sensor saw it; viewers rotate by EXIF
+    pixels = np.random.default_rng(2).integers(0, 65536, (32, 48, 3), np.uint16)
+    _photo(tmp_path / "left.tif", pixels, orientation=6)  # 16-bit, ICC, a portrait by EXIF
+    _photo(tmp_path / "right.tif", pixels, orientation=6)
+    for output in ("out.tif", "out.png"):
+        result = CliRunner().invoke(cli, [
+            "deblur", "--left", str(tmp_path / "left.tif"), "--right",
+            str(tmp_path / "right.tif"), "-o", str(tmp_path / output), "--checkpoint",
+            str(tmp_path / "tiny.safetensors"), "--device", "cpu"])
+        assert result.exit_code == 0, result.output
+        out = read_metadata(tmp_path / output)
+        assert out.orientation == 6 and out.icc_profile == ICC and out.tags()[271] == "Canon"
+        image, bits = read_rgb_with_depth(tmp_path / output)
+        assert bits == 16 and image.shape == (32, 48, 3)  # as the sensor saw it
