@@ -8,7 +8,7 @@ from dualpixel.models.refiner import Refiner
 TINY = 0.125
 
 
-def test_a_fresh_refiner_is_the_identity_on_the_first_stage():
+def test_a_fresh_refiner_is_the_identity_on_the_base():
     torch.manual_seed(0)
     plain = build_model("rdpd", width=TINY, residual=True).eval()
     refined = build_model("rdpd", width=TINY, residual=True, refiner=(8, 16)).eval()
@@ -16,7 +16,7 @@ def test_a_fresh_refiner_is_the_identity_on_the_first_stage():
     x = torch.rand(2, 1, 7, 37, 50)  # not a multiple of 8: padded and cropped back
     with torch.no_grad():
         torch.testing.assert_close(refined(x)[0], plain(x)[0])
-    assert len(refined.first_stage_parameters()) == len(list(plain.parameters()))
+    assert len(refined.base_parameters()) == len(list(plain.parameters()))
 
 
 def test_refiner_corrects_with_a_large_receptive_field_and_keeps_the_range():
@@ -38,7 +38,7 @@ def test_refiner_corrects_with_a_large_receptive_field_and_keeps_the_range():
         Refiner(7, ())
 
 
-def test_refined_checkpoints_round_trip_and_load_a_first_stage(tmp_path):
+def test_refined_checkpoints_round_trip_and_load_a_base(tmp_path):
     torch.manual_seed(2)
     refined = build_model("rdpd", width=TINY, residual=True, refiner=(8, 16)).eval()
     torch.nn.init.normal_(refined.refiner.head.weight, std=0.1)
@@ -48,13 +48,13 @@ def test_refined_checkpoints_round_trip_and_load_a_first_stage(tmp_path):
     x = torch.rand(1, 1, 7, 32, 32)
     with torch.no_grad():
         torch.testing.assert_close(loaded(x)[0], refined(x)[0])
-    # A network without a refiner loads only as the first stage, and only when asked to.
+    # A network without a refiner loads only as the base network, and only when asked to.
     plain = build_model("rdpd", width=TINY, residual=True)
     save_model(tmp_path / "plain.safetensors", plain)
     with pytest.raises(InputFileError, match="checkpoint is for"):
         load_weights(refined, tmp_path / "plain.safetensors")
     head = refined.refiner.head.weight.clone()
-    load_weights(refined, tmp_path / "plain.safetensors", first_stage_only=True)
+    load_weights(refined, tmp_path / "plain.safetensors", base_only=True)
     torch.testing.assert_close(refined.encoders[0][0].weight, plain.encoders[0][0].weight)
     torch.testing.assert_close(refined.refiner.head.weight, head)
     with pytest.raises(InputFileError, match="checkpoint is for"):

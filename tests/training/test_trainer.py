@@ -135,9 +135,9 @@ def test_coarsest_level_learns_at_its_own_rate(tiny_synthetic_dataset, tmp_path)
         load_config(None, {"synthetic_data": "x", "coarsest_lr_scale": 0})
 
 
-def test_first_stage_learns_at_its_own_rate_beside_the_refiner(tiny_synthetic_dataset,
+def test_base_learns_at_its_own_rate_beside_the_refiner(tiny_synthetic_dataset,
                                                                tmp_path):
-    """first_stage_lr_scale: the first stage of a refined network in an Adam group of its own;
+    """base_lr_scale: the base network of a refined network in an Adam group of its own;
     Adam's first step moves a weight by its group's rate, and with coarsest_lr_scale too the
     coarsest level gets both multiples."""
     from dualpixel.models import save_model
@@ -150,7 +150,7 @@ def test_first_stage_learns_at_its_own_rate_beside_the_refiner(tiny_synthetic_da
     save_model(tmp_path / "start.safetensors", start)
     config = tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=1,
                          residual=True, lstm_dropout=0.0, refiner=[8, 16],
-                         first_stage_lr_scale=0.25, coarsest_lr_scale=2.0,
+                         base_lr_scale=0.25, coarsest_lr_scale=2.0,
                          init_weights=str(tmp_path / "start.safetensors"))
     trainer = Trainer(config, tmp_path / "run", progress=False)
     trainer.run()
@@ -161,12 +161,12 @@ def test_first_stage_learns_at_its_own_rate_beside_the_refiner(tiny_synthetic_da
         {"refiner.head.weight": 1e-3, "encoders.0.0.weight": 2.5e-4,
          "decoders.0.0.weight": 2.5e-4, "bottleneck.0.weight": 5e-4,
          "upconvs.0.conv.weight": 5e-4}, rel=5e-2)
-    for wrong in ({"first_stage_lr_scale": 0.5},  # no refiner
-                  {"first_stage_lr_scale": 0.5, "refiner": [8], "freeze_first_stage": True}):
-        with pytest.raises(ParameterError, match="first_stage_lr_scale needs a refiner"):
+    for wrong in ({"base_lr_scale": 0.5},  # no refiner
+                  {"base_lr_scale": 0.5, "refiner": [8], "freeze_base": True}):
+        with pytest.raises(ParameterError, match="base_lr_scale needs a refiner"):
             load_config(None, {"synthetic_data": "x", **wrong})
-    with pytest.raises(ParameterError, match="first_stage_lr_scale must be > 0"):
-        load_config(None, {"synthetic_data": "x", "refiner": [8], "first_stage_lr_scale": 0})
+    with pytest.raises(ParameterError, match="base_lr_scale must be > 0"):
+        load_config(None, {"synthetic_data": "x", "refiner": [8], "base_lr_scale": 0})
 
 
 def test_weight_average_is_what_a_run_saves(tiny_synthetic_dataset, tmp_path):
@@ -212,34 +212,34 @@ def test_reinit_bottleneck_applies_to_the_initial_weights(tiny_synthetic_dataset
     torch.testing.assert_close(after["encoders.3.0.weight"], before["encoders.3.0.weight"])
 
 
-def test_refiner_trains_on_top_of_a_frozen_first_stage(tiny_synthetic_dataset, tmp_path):
+def test_refiner_trains_on_top_of_a_frozen_base(tiny_synthetic_dataset, tmp_path):
     from dualpixel.models import save_model
 
     torch.manual_seed(4)
     start = build_model("rdpd", width=0.125, residual=True)
     save_model(tmp_path / "start.safetensors", start)
     train(tiny_config(tiny_synthetic_dataset, epochs=1, residual=True, refiner=[8, 16],
-                      freeze_first_stage=True, init_weights=str(tmp_path / "start.safetensors")),
+                      freeze_base=True, init_weights=str(tmp_path / "start.safetensors")),
           tmp_path / "run", progress=False)
     after = load_model(tmp_path / "run" / "last.safetensors")
     assert after.shape.refiner == (8, 16)
     state = after.state_dict()
-    for key, value in start.state_dict().items():  # the first stage stayed as it was
+    for key, value in start.state_dict().items():  # the base network stayed as it was
         torch.testing.assert_close(state[key], value, rtol=0, atol=0)
     assert state["refiner.head.weight"].abs().max() > 0  # the refiner learned (it starts at 0)
     # The starting checkpoint renamed since (a new default shipped): the run still resumes, from
     # its own state; only the first epoch read init_weights.
     (tmp_path / "start.safetensors").rename(tmp_path / "renamed.safetensors")
     resumed = train(tiny_config(tiny_synthetic_dataset, epochs=2, residual=True, refiner=[8, 16],
-                                freeze_first_stage=True,
+                                freeze_base=True,
                                 init_weights=str(tmp_path / "renamed.safetensors")),
                     tmp_path / "run", resume=True, progress=False)
     assert [r["epoch"] for r in resumed.history] == [1, 2]
     # The run folder records the length it now has and the weights it started from.
     saved = load_config(tmp_path / "run" / "config.yaml")
     assert (saved.epochs, saved.init_weights) == (2, str(tmp_path / "start.safetensors"))
-    with pytest.raises(ParameterError, match="freeze_first_stage needs a refiner"):
-        load_config(None, {"synthetic_data": "x", "freeze_first_stage": True})
+    with pytest.raises(ParameterError, match="freeze_base needs a refiner"):
+        load_config(None, {"synthetic_data": "x", "freeze_base": True})
     with pytest.raises(ParameterError, match="refiner must list channel widths"):
         load_config(None, {"synthetic_data": "x", "refiner": [0]})
 
@@ -365,3 +365,17 @@ def test_config_values_are_checked_up_front(tiny_synthetic_dataset, key, value, 
     name before any work."""
     with pytest.raises(ParameterError, match=message):
         load_config(None, {"synthetic_data": str(tiny_synthetic_dataset), key: value})
+
+
+def test_old_key_names_read_as_the_new_ones(tmp_path):
+    """freeze_first_stage / first_stage_lr_scale (configs written before the rename) still load."""
+    from dualpixel.training.config import load_config
+
+    (tmp_path / "old.yaml").write_text("synthetic_data: d\nrefiner: [8]\n"
+                                       "first_stage_lr_scale: 0.5\n")
+    assert load_config(tmp_path / "old.yaml").base_lr_scale == 0.5
+    assert load_config(None, {"synthetic_data": "d", "refiner": "[8]",
+                              "freeze_first_stage": "true"}).freeze_base
+    with pytest.raises(ParameterError, match="old name of base_lr_scale"):
+        load_config(None, {"synthetic_data": "d", "refiner": "[8]",
+                           "first_stage_lr_scale": "0.5", "base_lr_scale": "0.5"})

@@ -117,18 +117,18 @@ def build_from_metadata(meta: dict[str, Any], *,
 
 
 def load_weights(model: torch.nn.Module, path: str | Path, *,
-                 first_stage_only: bool = False) -> None:
+                 base_only: bool = False) -> None:
     """Load a checkpoint into an existing model, refusing one written for another architecture.
 
-    ``first_stage_only``: the checkpoint is a network without a refiner, loaded into the first
-    stage of ``model`` (whose refiner keeps its weights): how a refiner is trained on top of it.
+    ``base_only``: the checkpoint is a network without a refiner, loaded into the base network
+    of ``model`` (whose refiner keeps its weights): how a refiner is trained on top of it.
     """
     path = Path(path)
     meta = read_metadata(path)
     net = _unwrap(model)
     mine = {"model": net.spec.name, "width": float(net.width),
             "peepholes": net.shape.peepholes, "residual": net.shape.residual,
-            "refiner": () if first_stage_only else net.shape.refiner}
+            "refiner": () if base_only else net.shape.refiner}
     theirs = {key: meta[key] for key in mine}
     if mine != theirs:
         raise InputFileError(path, f"checkpoint is for {theirs}, but the model is {mine}")
@@ -142,7 +142,7 @@ def load_weights(model: torch.nn.Module, path: str | Path, *,
     for key, value in tensors.items():
         if key in state:
             tensors[key] = value.to(state[key].dtype)
-    if first_stage_only:
+    if base_only:
         tensors.update({k: v for k, v in state.items() if k.startswith("refiner.")})
     try:
         net.load_state_dict(tensors)

@@ -1,19 +1,20 @@
-"""A second stage that corrects the first network's output (ours, not in the paper).
+"""A refiner that corrects the base network's output (ours, not in the paper).
 
 The light RDPD leaves most of its error where the blur is largest (8-16 px CoC radius on the
 held-out synthetic frames), and its own coarsest level, the one with the receptive field for such
 blur, went dormant in training (``MODEL_CARD.md``, "What limits the light model"). The refiner is a
 small U-Net with a large receptive field at little cost: it reads the network's input and the
-first stage's output (stacked as the views, that output, then the radial channel where the
+base network's output (stacked as the views, that output, then the radial channel where the
 network reads one), works at half resolution without losing information (``pixel_unshuffle``: a
 2x2 block becomes 4 channels), and adds a correction::
 
-    out = clamp(first + shuffle(U(unshuffle([views, first, radial]))), 0, 1)
+    out = clamp(base + shuffle(U(unshuffle([views, base, radial]))), 0, 1)
 
 Levels: per width two 3x3 convolutions with LeakyReLU(0.1), then 2x2 max-pooling; a middle block
 of the last width; per level back up, bilinear 2x upsampling, a 3x3 convolution, concatenation with
 the skip and two 3x3 convolutions. Its last convolution starts at zero, so a fresh refiner is the
-identity and training it on top of a trained (frozen) first stage starts from that stage's result.
+identity and training it on top of a trained (frozen) base network starts from that network's
+result.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from dualpixel.models.padding import pad_to_multiple
 
 __all__ = ["Refiner"]
 
-#: Slope of the LeakyReLU (a leaky unit cannot die, as the first stage's ReLUs did).
+#: Slope of the LeakyReLU (a leaky unit cannot die, as the base network's ReLUs did).
 NEGATIVE_SLOPE = 0.1
 
 
@@ -38,7 +39,7 @@ def _double_conv(cin: int, cout: int) -> nn.Sequential:
 
 
 class Refiner(nn.Module):
-    """Correct a first stage's output ``(B, 3, H, W)`` given its input ``(B, C_in, H, W)``.
+    """Correct a base network's output ``(B, 3, H, W)`` given its input ``(B, C_in, H, W)``.
 
     Args:
         in_channels: channels of the network input ``x``: 3 per view, then 1 if it ends with the
@@ -72,16 +73,16 @@ class Refiner(nn.Module):
         """Input sides must be multiples of this (the unshuffle and one pooling per level)."""
         return 2 ** (len(self.widths) + 1)
 
-    def forward(self, x: torch.Tensor, first: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, base: torch.Tensor) -> torch.Tensor:
         """The corrected image ``(B, 3, H, W)`` in [0, 1] from the input ``x`` ``(B, C_in, H, W)``
-        and the first stage's output ``first`` ``(B, 3, H, W)``; any H, W (reflect-padded)."""
-        if x.ndim != 4 or x.shape[1] != self.in_channels or first.shape != (
+        and the base network's output ``base`` ``(B, 3, H, W)``; any H, W (reflect-padded)."""
+        if x.ndim != 4 or x.shape[1] != self.in_channels or base.shape != (
                 x.shape[0], 3, *x.shape[2:]):
-            raise ValueError(f"expected input (B, {self.in_channels}, H, W) and first stage "
-                             f"output (B, 3, H, W), got {tuple(x.shape)} and {tuple(first.shape)}")
+            raise ValueError(f"expected input (B, {self.in_channels}, H, W) and base network "
+                             f"output (B, 3, H, W), got {tuple(x.shape)} and {tuple(base.shape)}")
         radial = self.in_channels % 3  # 1: the last channel is the radial distance
         views = x[:, : self.in_channels - radial]
-        y = torch.cat([views, first, x[:, self.in_channels - radial :]], dim=1)
+        y = torch.cat([views, base, x[:, self.in_channels - radial :]], dim=1)
         y, height, width = pad_to_multiple(y, self.size_multiple)
         y = F.pixel_unshuffle(y, 2)
         skips = []
@@ -95,4 +96,4 @@ class Refiner(nn.Module):
             y = F.leaky_relu(upconv(y), NEGATIVE_SLOPE, inplace=True)
             y = decoder(torch.cat([skip, y], dim=1))
         correction = F.pixel_shuffle(self.head(y), 2)[..., :height, :width]
-        return (first + correction).clamp(0.0, 1.0)
+        return (base + correction).clamp(0.0, 1.0)

@@ -11,7 +11,7 @@ the head's output before clamping, with the last layer initialised to zero so tr
 the identity, and drops the ReLU of the 3-channel layer (a correction needs both signs). It adds
 no parameters and makes short CPU training converge much faster.
 
-Option (ours, off by default): ``refiner=(w1, w2, ...)`` appends a second stage,
+Option (ours, off by default): ``refiner=(w1, w2, ...)`` appends a refiner,
 :class:`~dualpixel.models.refiner.Refiner`, that corrects the clamped output from the input and
 that output; it starts as the identity, so it can be trained on top of a trained (frozen) network.
 
@@ -46,7 +46,7 @@ class NetworkShape:
     lstm_dropout: float = 0.4
     peepholes: bool = True
     residual: bool = False  # output = input image + network output (not in the paper)
-    # Widths of a second stage that corrects the output (ours; dualpixel.models.refiner); () none.
+    # Widths of a refiner that corrects the base output (ours; dualpixel.models.refiner); () none.
     refiner: tuple[int, ...] = ()
 
 
@@ -136,7 +136,7 @@ class DeblurNet(nn.Module):
             nn.init.kaiming_normal_(self.lstm.input_conv.weight, nonlinearity="relu")
 
     def reinit_bottleneck(self) -> None:
-        """Give the first stage's coarsest level fresh weights without changing what the network
+        """Give the base network's coarsest level fresh weights without changing what the network
         computes from it onwards (ours, after ReDo, Sokar et al. 2023, "The Dormant Neuron
         Phenomenon").
 
@@ -155,7 +155,7 @@ class DeblurNet(nn.Module):
             first = self.decoders[0][0]
             first.weight[:, self.shape.encoder[-1]:].zero_()  # input: [skip, upconv(x)]
 
-    def first_stage_parameters(self) -> list[nn.Parameter]:
+    def base_parameters(self) -> list[nn.Parameter]:
         """Every parameter but the refiner's (all of them for a network without one)."""
         return [p for name, p in self.named_parameters() if not name.startswith("refiner.")]
 

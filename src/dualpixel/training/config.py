@@ -38,12 +38,12 @@ class TrainConfig:
     residual: bool = False  # ours, not the paper's: output = blurred input + network output
     # Ours: channel widths of a second stage that corrects the output (dualpixel.models.refiner),
     # e.g. [32, 64, 128]; null: none. With init_weights of a network without one, those weights
-    # go into the first stage and the refiner starts as the identity.
+    # go into the base network and the refiner starts as the identity.
     refiner: list[int] | None = None
-    freeze_first_stage: bool = False  # ours: train only the refiner
-    # Ours: with a refiner, the first stage learns at this multiple of learning_rate (on the same
-    # schedule), e.g. 0.25 to fine-tune both stages together with a slower first stage.
-    first_stage_lr_scale: float = 1.0
+    freeze_base: bool = False  # ours: train only the refiner
+    # Ours: with a refiner, the base network learns at this multiple of learning_rate (on the same
+    # schedule), e.g. 0.25 to fine-tune both stages together with a slower base network.
+    base_lr_scale: float = 1.0
     # Data (DPDD layout). Real data: single images; synthetic data: seq_NNN sequences.
     real_data: str | None = None
     real_split: str = "train"
@@ -134,17 +134,17 @@ class TrainConfig:
                                  "everywhere already)")
         if self.refiner is not None and (not self.refiner or min(self.refiner) < 1):
             raise ParameterError(f"refiner must list channel widths >= 1, got {self.refiner}")
-        if self.freeze_first_stage and not self.refiner:
-            raise ParameterError("freeze_first_stage needs a refiner (nothing else would train)")
-        if self.freeze_first_stage and self.coarsest_lr_scale != 1.0:
-            raise ParameterError("coarsest_lr_scale has nothing to scale with freeze_first_stage "
+        if self.freeze_base and not self.refiner:
+            raise ParameterError("freeze_base needs a refiner (nothing else would train)")
+        if self.freeze_base and self.coarsest_lr_scale != 1.0:
+            raise ParameterError("coarsest_lr_scale has nothing to scale with freeze_base "
                                  "(the coarsest level is frozen)")
-        if self.first_stage_lr_scale <= 0:
-            raise ParameterError("first_stage_lr_scale must be > 0 (freeze_first_stage: true "
-                                 f"freezes it), got {self.first_stage_lr_scale}")
-        if self.first_stage_lr_scale != 1.0 and (self.freeze_first_stage or not self.refiner):
-            raise ParameterError("first_stage_lr_scale needs a refiner whose first stage trains "
-                                 "(refiner set, freeze_first_stage false); without one, set "
+        if self.base_lr_scale <= 0:
+            raise ParameterError("base_lr_scale must be > 0 (freeze_base: true "
+                                 f"freezes it), got {self.base_lr_scale}")
+        if self.base_lr_scale != 1.0 and (self.freeze_base or not self.refiner):
+            raise ParameterError("base_lr_scale needs a refiner whose base network trains "
+                                 "(refiner set, freeze_base false); without one, set "
                                  "learning_rate")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ParameterError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
@@ -190,16 +190,32 @@ def _coerce(name: str, annotation: Any, value: Any) -> Any:
     raise ParameterError(f"config key {name!r}: {value!r} is not a {hint}")
 
 
+#: Keys renamed since configs were first written: old name -> new name (the network's parts are
+#: the base and the refiner). Old names are read as the new ones.
+RENAMED_KEYS = {"freeze_first_stage": "freeze_base", "first_stage_lr_scale": "base_lr_scale"}
+
+
+def _renamed(values: dict[str, Any], source: str) -> dict[str, Any]:
+    both = [old for old, new in RENAMED_KEYS.items() if old in values and new in values]
+    if both:
+        raise ParameterError(f"config{source}: {both[0]} is the old name of "
+                             f"{RENAMED_KEYS[both[0]]}; give only {RENAMED_KEYS[both[0]]}")
+    return {RENAMED_KEYS.get(key, key): value for key, value in values.items()}
+
+
 def load_config(
     path: str | Path | None = None, overrides: dict[str, Any] | None = None
 ) -> TrainConfig:
-    """Read a YAML/JSON config file (optional) and apply ``overrides`` (key -> value or string)."""
+    """Read a YAML/JSON config file (optional) and apply ``overrides`` (key -> value or string);
+    old key names (:data:`RENAMED_KEYS`) are read as their new ones."""
     values: dict[str, Any] = {}
     if path is not None:
         from dualpixel.io.documents import read_mapping
 
         path = Path(path)  # JSON is YAML too
-        values.update(read_mapping(path, "training config", syntax="yaml"))
+        values.update(_renamed(read_mapping(path, "training config", syntax="yaml"),
+                               f" {path}"))
+    overrides = _renamed(dict(overrides or {}), " overrides (--set)")
     known = {f.name: f for f in dataclasses.fields(TrainConfig)}
     for source, keys in ((f" in {path}", set(values)), (" in the overrides (--set)",
                                                         set(overrides or {}))):

@@ -311,8 +311,8 @@ class Trainer:
         model = build_model(config.model, width=config.width, peepholes=config.peepholes,
                             lstm_dropout=config.lstm_dropout, residual=config.residual,
                             refiner=tuple(config.refiner or ())).to(device)
-        if config.freeze_first_stage:
-            for parameter in model.first_stage_parameters():
+        if config.freeze_base:
+            for parameter in model.base_parameters():
                 parameter.requires_grad_(False)
         # Single frames only (sRDPD+, real pairs): inference must not carry state between frames.
         model.temporal = model.temporal and bool(config.synthetic_data) and not (
@@ -372,9 +372,9 @@ class Trainer:
             path = _resolve_weights(self.config.init_weights)
             # the start, by the name given (a tag or a path, never re-resolved) and its hash
             self.init_record = {"name": self.config.init_weights, "sha256": file_sha256(path)}
-            # A network without a refiner goes into the first stage of one with a refiner.
-            first_stage_only = bool(self.config.refiner) and not read_metadata(path)["refiner"]
-            load_weights(self.net, path, first_stage_only=first_stage_only)
+            # A network without a refiner goes into the base network of one with a refiner.
+            base_only = bool(self.config.refiner) and not read_metadata(path)["refiner"]
+            load_weights(self.net, path, base_only=base_only)
             if self.config.reinit_bottleneck:
                 self.net.reinit_bottleneck()
         if self.main:
@@ -469,19 +469,19 @@ class Trainer:
 
 def _parameter_groups(model: DeblurNet, config: TrainConfig) -> list[dict[str, Any]]:
     """Adam's parameter groups, one per learning rate, the base rate first (the schedule scales
-    all alike): with ``first_stage_lr_scale`` the first stage of a refined network and with
+    all alike): with ``base_lr_scale`` the base network of a refined network and with
     ``coarsest_lr_scale`` the coarsest level learn at those multiples of ``learning_rate`` (the
-    coarsest level is in the first stage: both apply). Frozen parameters
-    (``freeze_first_stage``) are left out."""
+    coarsest level is in the base network: both apply). Frozen parameters
+    (``freeze_base``) are left out."""
     first = set()
     if model.refiner is not None:
-        first = {id(p) for p in model.first_stage_parameters()}
+        first = {id(p) for p in model.base_parameters()}
     coarse = {id(p) for module in model.coarsest_level() for p in module.parameters()}
     by_scale: dict[float, list[torch.nn.Parameter]] = {1.0: []}
     for parameter in model.parameters():
         if not parameter.requires_grad:
             continue
-        scale = config.first_stage_lr_scale if id(parameter) in first else 1.0
+        scale = config.base_lr_scale if id(parameter) in first else 1.0
         if id(parameter) in coarse:
             scale *= config.coarsest_lr_scale
         by_scale.setdefault(scale, []).append(parameter)
