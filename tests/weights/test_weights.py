@@ -7,7 +7,7 @@ import pytest
 
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.models import load_model, read_metadata
-from dualpixel.models.registry import count_parameters
+from dualpixel.models.registry import build_architecture, count_parameters
 from dualpixel.training.recipe import load_recipe
 from dualpixel.weights import (
     ALIASES,
@@ -41,6 +41,10 @@ def test_schema_meta_validation(tag):
     # the start is recorded by tag (or run folder) and hash, never by alias
     assert extra["init"]["name"] not in ALIASES
     assert re.fullmatch(r"[0-9a-f]{64}", extra["init"]["sha256"])
+    # its architecture has a name, and builds the network the file holds
+    named = build_architecture(weights.architecture)
+    assert count_parameters(named) == weights.num_params
+    assert named.state_dict().keys() == load_model(weights.path).state_dict().keys()
     # the recipe and phase that made it exist
     recipe = load_recipe(RECIPES / weights.recipe)
     recipe.phase_index(weights.phase)

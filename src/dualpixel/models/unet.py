@@ -29,6 +29,7 @@ from torch import nn
 from dualpixel.models.convlstm import ConvLSTMCell, LSTMState
 from dualpixel.models.padding import SIZE_MULTIPLE, pad_to_multiple
 from dualpixel.models.refiner import Refiner
+from dualpixel.models.spec import ModelSpec
 
 __all__ = ["SIZE_MULTIPLE", "DeblurNet", "NetworkShape", "pad_to_multiple"]
 
@@ -78,9 +79,11 @@ class DeblurNet(nn.Module):
     ``(B, T, 3, H, W)`` with the final state (``None`` for a non-recurrent network).
     """
 
-    def __init__(self, shape: NetworkShape) -> None:
+    def __init__(self, shape: NetworkShape, *, spec: ModelSpec, width: float = 1.0) -> None:
         super().__init__()
         self.shape = shape
+        self.spec = spec  # the named network this is (dualpixel.models.spec.MODELS)
+        self.width = width  # the multiplier of the spec's layer widths
         #: Whether inference carries the ConvLSTM state from frame to frame. False for a model
         #: trained on single frames only (sRDPD+ and real pairs): its state was always zero in
         #: training, so carrying one across frames would feed it inputs it never saw.
@@ -148,7 +151,7 @@ class DeblurNet(nn.Module):
         training can bring the revived units back in: their activations are alive, so the zeroed
         weights get gradients.
         """
-        fresh = DeblurNet(self.shape)
+        fresh = DeblurNet(self.shape, spec=self.spec, width=self.width)
         with torch.no_grad():
             for mine, new in zip(self.coarsest_level(), fresh.coarsest_level(), strict=True):
                 mine.load_state_dict(new.state_dict())

@@ -34,6 +34,7 @@ class Weights:
 
     tag: str
     file: str
+    architecture: str  # a name of dualpixel.models.spec.ARCHITECTURES
     sha256: str
     recipe: str
     phase: str
@@ -131,7 +132,8 @@ def model_info() -> dict[str, dict]:
             meta = handle.metadata()
         info[tag] = {
             "description": weights.doc, "aliases": [a for a, t in ALIASES.items() if t == tag],
-            "recipe": weights.recipe, "phase": weights.phase, "model": meta["model"],
+            "recipe": weights.recipe, "phase": weights.phase,
+            "architecture": weights.architecture, "model": meta["model"],
             "width": float(meta["width"]), "residual": json.loads(meta["residual"]),
             "refiner": json.loads(meta.get("refiner", "[]")),
             "temporal": json.loads(meta.get("temporal", "true")),
