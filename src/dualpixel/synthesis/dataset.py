@@ -43,6 +43,7 @@ from dualpixel.io.dpdd import frame_paths, read_manifest
 from dualpixel.io.images import quantise, save_npy, write_png
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
+from dualpixel.io.run_folder import differing_settings
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
@@ -357,13 +358,9 @@ def _check_or_write_description(root: Path, description: dict) -> None:
     if path.is_file():
         existing = read_mapping(path, "dataset description (remove the folder and rerun)")
         mine = {k: description.get(k) for k in ("config", "input", "format", "shard")}
-        theirs = {k: existing.get(k) for k in mine}
+        differ = differing_settings(mine, {k: existing.get(k) for k in mine})
         # A run that finished no frame holds nothing to protect: new settings may take over.
-        if mine != theirs and read_manifest(root / "manifest.jsonl"):
-            differ = sorted(
-                key for key in set(mine["config"]) | set(theirs["config"] or {})
-                if mine["config"].get(key) != (theirs["config"] or {}).get(key)
-            ) + [k for k in ("input", "format", "shard") if mine[k] != theirs[k]]
+        if differ and read_manifest(root / "manifest.jsonl"):
             raise InputFileError(
                 root, "holds a dataset made with a different configuration (differs in "
                 f"{', '.join(differ)}); choose another output folder"

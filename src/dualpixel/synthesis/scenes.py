@@ -261,14 +261,13 @@ def _check_or_write_description(root: Path, settings: dict) -> None:
     from dualpixel.errors import InputFileError
     from dualpixel.io.atomic import atomic_path
     from dualpixel.io.documents import read_mapping
+    from dualpixel.io.run_folder import differing_settings
 
     path = root / SCENES_DESCRIPTION
     if path.is_file():
         existing = read_mapping(path, "scenes description (remove the folder and rerun)")
-        if existing != settings:
-            mine, theirs = settings["config"], existing.get("config", {})
-            differ = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
-            differ += ["seed"] if existing.get("seed") != settings["seed"] else []
+        differ = differing_settings(settings, existing)
+        if differ:
             raise InputFileError(root, "holds scenes made with other settings (differs in "
                                        f"{', '.join(differ)}); choose another output folder")
         return

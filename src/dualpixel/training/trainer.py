@@ -44,6 +44,7 @@ from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.io.atomic import atomic_path, remove_partials
+from dualpixel.io.run_folder import differing_settings
 from dualpixel.models.checkpoint import load_weights, read_metadata, save_model
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
@@ -191,10 +192,8 @@ def _check_resumable(output: Path, config: TrainConfig) -> TrainConfig:
     """The saved run's config with what this resume may change taken from ``config``; raises
     when anything else differs."""
     saved = load_config(output / "config.yaml")
-    mine, theirs = config.to_dict(), saved.to_dict()
-    for key in (*_RESUME_MAY_CHANGE, "init_weights"):
-        mine.pop(key), theirs.pop(key)
-    changed = sorted(k for k in mine if mine[k] != theirs[k])
+    changed = differing_settings(config.to_dict(), saved.to_dict(),
+                                 ignore=(*_RESUME_MAY_CHANGE, "init_weights"))
     if changed:
         raise ParameterError(
             f"cannot resume {output}: config differs from the saved run in {', '.join(changed)}"
