@@ -34,6 +34,35 @@ def tiny_synthetic_dataset(tmp_path_factory) -> Path:
     return root
 
 
+@pytest.fixture(scope="session")
+def tiny_checkpoint(tmp_path_factory) -> Path:
+    """An untrained light RDPD (width 0.125, residual) as a .safetensors file, for commands."""
+    import torch
+
+    from dualpixel.models import build_model, save_model
+
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "tiny.safetensors"
+    save_model(path, build_model("rdpd", width=0.125, residual=True))
+    return path
+
+
+@pytest.fixture(scope="session")
+def behind_focus_frame() -> dict:
+    """A synthetic DP frame (192x320, no noise or distortion) focused on a near plane (the left
+    40 %) with a textured background 3 m away, behind the focus plane (about 2.5 px blur)."""
+    import cv2
+    import numpy as np
+
+    import dualpixel
+
+    rng = np.random.default_rng(4)
+    noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 2.0)
+    rgb = np.clip(0.45 + 1.2 * noise, 0.02, 0.9)
+    depth = np.where(np.arange(320)[None, :] < 128, 1.0, 3.0).repeat(192, 0).astype(np.float32)
+    return dualpixel.synthesize(rgb, depth, camera="dslr-840", noise=False, distortion=False)
+
+
 def write_dpdd_pairs(root: Path, split: str, names: list[str], size=(40, 48), seed=0) -> None:
     """Random real-style DP pairs (8-bit PNG) in the DPDD layout, for data-loading tests."""
     import cv2

@@ -10,13 +10,8 @@ from dualpixel.models import build_model, save_model
 
 
 @pytest.fixture(scope="module")
-def checkpoint(tmp_path_factory):
-    import torch
-
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("ckpt") / "tiny.safetensors"
-    save_model(path, build_model("rdpd", width=0.125, residual=True))
-    return path
+def checkpoint(tiny_checkpoint):
+    return tiny_checkpoint
 
 
 def run(*args):

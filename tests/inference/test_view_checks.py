@@ -12,16 +12,8 @@ from dualpixel.io.images import read_rgb, write_png
 
 
 @pytest.fixture(scope="module")
-def frame():
-    """A synthetic DP frame focused on a near plane (the left 40 %) with a textured background
-    2 m away, behind the focus plane (about 2 px blur)."""
-    import cv2
-
-    rng = np.random.default_rng(0)
-    noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 1.0)
-    rgb = np.clip(0.5 + 0.75 * noise, 0, 1)
-    depth = np.where(np.arange(320)[None, :] < 128, 1.0, 2.0).repeat(192, 0).astype(np.float32)
-    return dualpixel.synthesize(rgb, depth, camera="dslr-840", noise=False, distortion=False)
+def frame(behind_focus_frame):
+    return behind_focus_frame
 
 
 def codes(findings) -> list[str]:
@@ -72,18 +64,6 @@ def test_deblur_warns_on_a_canon_scene_and_strict_stops(shared_dir, tiny_checkpo
                                                       "--strict"]])
         assert strict.exit_code == 1 and words in strict.output, strict.output
         assert not (tmp_path / "s.png").exists() and "Traceback" not in strict.output
-
-
-@pytest.fixture(scope="module")
-def tiny_checkpoint(tmp_path_factory):
-    import torch
-
-    from dualpixel.models import build_model, save_model
-
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("ckpt") / "tiny.safetensors"
-    save_model(path, build_model("rdpd", width=0.125, residual=True))
-    return path
 
 
 def test_views_sum_doubles_and_strict_stops(frame, tiny_checkpoint, tmp_path):

@@ -10,7 +10,6 @@ import pytest
 import tifffile
 from click.testing import CliRunner
 
-import dualpixel
 from dualpixel.cli.main import cli
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.dpraw import DualPixelRaw, develop_views, split_dual_pixel
@@ -30,15 +29,9 @@ def _mosaic(rgb: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def scene():
-    """Known left/right views (synthetic; a background 3 m away, behind the focus plane)."""
-    import cv2
-
-    rng = np.random.default_rng(4)
-    noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 2.0)
-    rgb = np.clip(0.45 + 1.2 * noise, 0.02, 0.9)
-    depth = np.where(np.arange(320)[None, :] < 128, 1.0, 3.0).repeat(192, 0).astype(np.float32)
-    return dualpixel.synthesize(rgb, depth, camera="dslr-840", noise=False, distortion=False)
+def scene(behind_focus_frame):
+    """Known left/right views (synthetic; background behind the focus plane)."""
+    return behind_focus_frame
 
 
 def _raw_of(left: np.ndarray, right: np.ndarray) -> DualPixelRaw:

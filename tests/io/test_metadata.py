@@ -69,13 +69,7 @@ def test_no_metadata_writes_none(tmp_path):
     assert read_metadata(tmp_path / "junk.png") == ImageMetadata()
 
 
-def test_deblur_command_keeps_the_left_views_metadata(tmp_path):
-    import torch
-
-    from dualpixel.models import build_model, save_model
-
-    torch.manual_seed(0)
-    save_model(tmp_path / "tiny.safetensors", build_model("rdpd", width=0.125, residual=True))
+def test_deblur_command_keeps_the_left_views_metadata(tiny_checkpoint, tmp_path):
     pixels = np.random.default_rng(2).integers(0, 65536, (32, 48, 3), np.uint16)
     _photo(tmp_path / "left.tif", pixels, orientation=6)  # 16-bit, ICC, a portrait by EXIF
     _photo(tmp_path / "right.tif", pixels, orientation=6)
@@ -83,7 +77,7 @@ def test_deblur_command_keeps_the_left_views_metadata(tmp_path):
         result = CliRunner().invoke(cli, [
             "deblur", "--left", str(tmp_path / "left.tif"), "--right",
             str(tmp_path / "right.tif"), "-o", str(tmp_path / output), "--checkpoint",
-            str(tmp_path / "tiny.safetensors"), "--device", "cpu"])
+            str(tiny_checkpoint), "--device", "cpu"])
         assert result.exit_code == 0, result.output
         out = read_metadata(tmp_path / output)
         assert out.orientation == 6 and out.icc_profile == ICC and out.tags()[271] == "Canon"

@@ -369,8 +369,6 @@ def test_config_values_are_checked_up_front(tiny_synthetic_dataset, key, value, 
 
 def test_old_key_names_read_as_the_new_ones(tmp_path):
     """freeze_first_stage / first_stage_lr_scale (configs written before the rename) still load."""
-    from dualpixel.training.config import load_config
-
     (tmp_path / "old.yaml").write_text("synthetic_data: d\nrefiner: [8]\n"
                                        "first_stage_lr_scale: 0.5\n")
     assert load_config(tmp_path / "old.yaml").base_lr_scale == 0.5

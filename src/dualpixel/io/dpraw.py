@@ -123,11 +123,16 @@ def read_dual_pixel_raw(path: str | Path) -> DualPixelRaw:
                         orientation)
 
 
+def _per_site(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """A ``(2, 2)`` value per colour-filter site repeated over a mosaic of ``shape``."""
+    height, width = shape
+    return np.tile(values, (height // 2 + 1, width // 2 + 1))[:height, :width]
+
+
 def split_dual_pixel(raw: DualPixelRaw) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Linear ``(H, W)`` mosaics ``(A, B, A+B)`` in units of the white level, black removed,
     the views doubled to the combined image's brightness (steps 1-2 of the module docstring)."""
-    height, width = raw.combined.shape
-    black = np.tile(raw.black_level, (height // 2 + 1, width // 2 + 1))[:height, :width]
+    black = _per_site(raw.black_level, raw.combined.shape)
     scale = raw.white_level - black
     if np.any(scale <= 0):
         raise ParameterError(f"white level {raw.white_level} is not above the black level")
@@ -154,8 +159,7 @@ def develop_mosaic(mosaic: np.ndarray, pattern: str,
     gains = {"R": white_balance[0], "G": white_balance[1], "B": white_balance[2]}
     site_gain = np.array([[gains[pattern[0]], gains[pattern[1]]],
                           [gains[pattern[2]], gains[pattern[3]]]], np.float32)
-    height, width = mosaic.shape
-    balanced = mosaic * np.tile(site_gain, (height // 2 + 1, width // 2 + 1))[:height, :width]
+    balanced = mosaic * _per_site(site_gain, mosaic.shape)
     levels = np.rint(np.clip(balanced, 0.0, 1.0) * 65535).astype(np.uint16)
     rgb = cv2.cvtColor(levels, _DEMOSAIC[pattern]).astype(np.float32) / 65535.0
     return _srgb(rgb).astype(np.float32)
