@@ -13,15 +13,24 @@ PSNR is fast against exact on the 8-bit scale, for left, right and combined.
 
 ``--end-to-end`` (issue #36): the whole ``dualpixel synth`` command on a 3-frame sequence
 (``--no-noise --no-distortion``; start-up, reading, rendering and writing four PNGs and a defocus
-map per frame) against three frames of the baseline, per camera set, in one run.
+map per frame) against three frames of the baseline, per camera set, in one run. With
+``--authors-code DIR`` (a checkout of the authors' ``synthetic_dp_defocus_blur_code`` folder: their
+generator script, ``generate_bw_kernel.py`` and ``set_N.npy``; not shipped here) their generator
+itself also runs on the same three frames, stored as SYNTHIA-SF RGB and encoded depth: it renders
+all five camera sets one after another, and each set's time is read from the line it prints when
+it starts the set (their start-up is not counted). Their script imports ``wand`` (ImageMagick) for
+radial distortion, which is off; without it installed a stand-in module that refuses to be used
+is put on their path.
 
     .venv/bin/python benchmarks/bench_synthesis.py [--device cuda] [--sets set0,set4]
-    .venv/bin/python benchmarks/bench_synthesis.py --end-to-end --sets set0,set4
+    .venv/bin/python benchmarks/bench_synthesis.py --end-to-end --sets set0,set4 \
+        [--authors-code CHECKOUT/synthetic_dp_defocus_blur_code]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -96,8 +105,60 @@ def median_timed(fn, device: str, repeat: int):
     return runs[0][0], walls[repeat // 2], cpus[repeat // 2]
 
 
-def end_to_end(sets: list[str], width: int, height: int, repeat: int) -> None:
-    """The command against the baseline's computation for the same three frames."""
+AUTHORS_SCRIPT = "synthetic_dp_defocus_blur.py"
+AUTHORS_SETS = ("set0", "set1", "set2", "set3", "set4")  # the order their script renders them
+
+
+def _write_synthia_sequence(scenes: Path, folder: Path) -> None:
+    """Our procedural sequence as SYNTHIA-SF: ``RGBLeft/*.png`` and depth encoded in 8-bit RGB
+    (metres = 1000 * (R + 256 G + 65536 B) / (2**24 - 1)), which is what their script reads."""
+    for sub in ("RGBLeft", "DepthLeft"):
+        (folder / sub).mkdir(parents=True)
+    for rgb_path in sorted((scenes / "seq_000" / "rgb").glob("*.png")):
+        shutil.copy(rgb_path, folder / "RGBLeft" / rgb_path.name)
+        depth = np.load(scenes / "seq_000" / "depth" / f"{rgb_path.stem}.npy").astype(np.float64)
+        code = np.rint(np.clip(depth, 0, 1000) / 1000 * (2**24 - 1)).astype(np.int64)
+        bgr = np.stack((code >> 16, (code >> 8) & 255, code & 255), axis=-1).astype(np.uint8)
+        cv2.imwrite(str(folder / "DepthLeft" / rgb_path.name), bgr)
+
+
+def authors_generator(code: Path, scenes: Path, work: Path) -> dict[str, float]:
+    """Run the authors' generator on the scene folder's sequence; seconds per camera set."""
+    if not (code / AUTHORS_SCRIPT).is_file():
+        sys.exit(f"--authors-code {code}: no {AUTHORS_SCRIPT} there (give their "
+                 "synthetic_dp_defocus_blur_code folder)")
+    run = work / "authors"
+    shutil.copytree(code, run)
+    _write_synthia_sequence(scenes, work / "synthia" / "SEQ0")
+    env = dict(os.environ)
+    try:
+        import wand.image  # noqa: F401
+    except ImportError:  # only their radial distortion uses it, and it is off
+        stub = work / "stub" / "wand"
+        stub.mkdir(parents=True)
+        (stub / "__init__.py").write_text("")
+        (stub / "image.py").write_text(
+            "class Image:\n    def __init__(self, *a, **k):\n"
+            "        raise RuntimeError('ImageMagick (wand) is not installed')\n")
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(stub.parent),
+                                                          env.get("PYTHONPATH")]))
+    process = subprocess.Popen(
+        [sys.executable, "-u", AUTHORS_SCRIPT, "--data_dir", f"{work / 'synthia'}/"],
+        cwd=run, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    marks = []
+    for _ in process.stdout:  # one line as each camera set's sequence starts
+        marks.append(time.perf_counter())
+    _, errors = process.communicate()
+    marks.append(time.perf_counter())
+    if process.returncode or len(marks) != len(AUTHORS_SETS) + 1:
+        sys.exit(f"the authors' generator failed (exit {process.returncode}):\n{errors[-2000:]}")
+    return {name: marks[k + 1] - marks[k] for k, name in enumerate(AUTHORS_SETS)}
+
+
+def end_to_end(sets: list[str], width: int, height: int, repeat: int,
+               authors_code: Path | None = None) -> None:
+    """The command against the baseline's computation (and the authors' generator, when given)
+    for the same three frames."""
     from dualpixel.io.images import read_rgb
     from dualpixel.synthesis.scenes import write_scene_folder
 
@@ -112,10 +173,16 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int) -> None:
         first = scenes / "seq_000"
         rgb = read_rgb(first / "rgb" / "frame_0000.png")
         depth = np.load(first / "depth" / "frame_0000.npy")
+        authors = {}
+        if authors_code is not None:
+            print("running the authors' generator on the 3 frames (all five sets) ...", flush=True)
+            authors = authors_generator(authors_code, scenes, Path(folder))
         print(f"3 frames {width}x{height}: `dualpixel synth` (the command, I/O and start-up) "
-              "against 3 frames of the baseline's computation")
-        print("| set | command s | baseline s (3 frames) | command / baseline |")
-        print("|---|---|---|---|")
+              "against 3 frames of the baseline's computation"
+              + (" and the authors' generator (reading, rendering, writing)" if authors else ""))
+        extra = " authors' generator s | command / authors' |" if authors else ""
+        print(f"| set | command s | baseline s (3 frames) | command / baseline |{extra}")
+        print("|---|---|---|---|" + ("---|---|" if authors else ""))
         for name in sets:
             walls = []
             for _ in range(repeat):
@@ -130,8 +197,10 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int) -> None:
             _, per_frame, _ = median_timed(
                 lambda cam=camera: authors_algorithm(rgb, depth, cam, params), "cpu", 1)
             command_s, baseline_s = float(np.median(walls)), 3 * per_frame
+            theirs = (f" {authors[name]:.2f} | {command_s / authors[name]:.3f} |"
+                      if name in authors else "")
             print(f"| {name} | {command_s:.2f} | {baseline_s:.2f} | "
-                  f"{command_s / baseline_s:.3f} |", flush=True)
+                  f"{command_s / baseline_s:.3f} |{theirs}", flush=True)
 
 
 def main() -> None:
@@ -145,9 +214,12 @@ def main() -> None:
                         help="runs of the default and the baseline; medians are printed")
     parser.add_argument("--end-to-end", action="store_true",
                         help="the synth command on 3 frames against the baseline")
+    parser.add_argument("--authors-code", type=Path, default=None,
+                        help="with --end-to-end: the authors' synthetic_dp_defocus_blur_code "
+                             "folder, to time their generator on the same frames")
     args = parser.parse_args()
     if args.end_to_end:
-        end_to_end(args.sets.split(","), args.width, args.height, args.repeat)
+        end_to_end(args.sets.split(","), args.width, args.height, args.repeat, args.authors_code)
         return
 
     rgb, depth = render_scene_sequence(0, SceneConfig(width=args.width, height=args.height,

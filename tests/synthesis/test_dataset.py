@@ -256,3 +256,40 @@ def test_manifest_records_the_exact_render_mode_and_its_frames_differ(scene_dir,
 def test_unknown_render_mode_is_refused():
     with pytest.raises(ParameterError, match="render mode must be one of fast, exact"):
         SynthConfig(render_mode="quick")
+
+
+def test_png_compression_changes_sizes_not_pixels(scene_dir, tmp_path):
+    """Issue #36: the PNG level is not part of the content; a run may resume with another."""
+    config = SynthConfig(seed=6, noise=False, **FAST)
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "default", config, progress=False)
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "mixed", config, progress=False, limit=3,
+                       png_compression=0)
+    stored = set((tmp_path / "mixed").rglob("*.png"))
+    assert len(stored) == 3 * 4
+    done = synthesize_dataset(scene_dir, "rgbd", tmp_path / "mixed", config, progress=False,
+                              png_compression=9)
+    assert done["status"] == "complete"
+    files = sorted((tmp_path / "default").rglob("*.png"))
+    assert len(files) == 8 * 4
+    for path in files:
+        other = tmp_path / "mixed" / path.relative_to(tmp_path / "default")
+        assert np.array_equal(read16(path), read16(other))
+        if other in stored:  # level 0: stored, larger than the default's
+            assert other.stat().st_size > path.stat().st_size
+    with pytest.raises(ParameterError, match="png_compression must be an integer in 0-9"):
+        synthesize_dataset(scene_dir, "rgbd", tmp_path / "bad", config, progress=False,
+                           png_compression=10)
+    assert not (tmp_path / "bad").exists()
+
+
+def test_quantise_rounds_to_the_nearest_level():
+    from dualpixel.io.images import quantise
+
+    rng = np.random.default_rng(0)
+    values = rng.uniform(-0.2, 1.2, (64, 64, 3)).astype(np.float32)
+    for bits, peak, dtype in ((8, 255, np.uint8), (16, 65535, np.uint16)):
+        levels = quantise(values, bits)
+        exact = np.rint(np.clip(values.astype(np.float64), 0, 1) * peak)
+        assert levels.dtype == dtype
+        assert np.abs(levels - exact).max() <= (0 if bits == 8 else 1)
+        assert levels.min() == 0 and levels.max() == peak  # clipped, not wrapped

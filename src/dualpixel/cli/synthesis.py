@@ -103,6 +103,10 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--seed", type=int, default=0, help="Seed of PSF shapes, noise and its draws.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
+@click.option("--png-compression", type=click.IntRange(0, 9), default=None,
+              help="zlib level of the PNGs: 0 (stored, ~50 % larger) to 9 (smallest, ~10x "
+                   "slower to write)  [default: a fast run-length strategy, about level 1's "
+                   "size].")
 @click.option("--shard", default=None, callback=lambda _c, p, v: _shard(p, v), metavar="K/N",
               help="Render only the K-th of N interleaved parts of the frames (0-based), e.g. "
                    "K=$SLURM_ARRAY_TASK_ID; join the N folders with `dualpixel merge-shards`.")
@@ -111,7 +115,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
           noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
           psf_model: str, psf_bank: str, camera_file: Path | None, split: str, max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
-          shard: tuple[int, int] | None) -> None:
+          png_compression: int | None, shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
     from dualpixel.calibration.camera import load_camera
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
@@ -130,7 +134,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
         camera=None if camera_file is None else load_camera(camera_file).to_dict(),
     )
     summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device,
-                                 shard=shard)
+                                 shard=shard, png_compression=png_compression)
     click.echo(f"{summary['status']}: {summary['frames_done']}/{summary['frames_total']} frames "
                f"in {output}")
 

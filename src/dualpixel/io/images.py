@@ -20,6 +20,7 @@ from dualpixel.io.metadata import ImageMetadata, embed_metadata, tiff_write_opti
 __all__ = [
     "WRITE_FORMATS",
     "check_image_path",
+    "check_png_compression",
     "decode_synthia_depth",
     "image_size",
     "load_npy",
@@ -199,11 +200,17 @@ def read_depth(path: str | Path, *, png_scale: float = 0.001) -> np.ndarray:
 
 
 def quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
-    """Float values in [0, 1] (clipped) to the nearest integer level of ``bit_depth``, int64."""
+    """Float values in [0, 1] (clipped) to the nearest integer level of ``bit_depth``: uint8 for
+    8 bits, uint16 for 16 (in float32, so a value within 0.002 levels of a half level may round
+    either way)."""
     if bit_depth not in (8, 16):
         raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
     peak = 255 if bit_depth == 8 else 65535
-    return np.rint(np.clip(image.astype(np.float64), 0.0, 1.0) * peak).astype(np.int64)
+    scaled = np.multiply(image, np.float32(peak), dtype=np.float32)
+    np.minimum(scaled, peak, out=scaled)  # in place: np.clip is several times slower here
+    np.maximum(scaled, 0, out=scaled)
+    np.rint(scaled, out=scaled)
+    return scaled.astype(np.uint8 if bit_depth == 8 else np.uint16)
 
 
 #: Output formats by suffix, with the bit depths they store.
@@ -225,23 +232,34 @@ def check_image_path(path: str | Path) -> Path:
     return path
 
 
+def check_png_compression(level: int | None) -> int | None:
+    """Refuse a PNG compression level outside 0-9 (None: OpenCV's fast default)."""
+    if level is not None and (isinstance(level, bool) or level not in range(10)):
+        raise ParameterError(f"png_compression must be an integer in 0-9, got {level!r}")
+    return level
+
+
 def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16,
-              metadata: ImageMetadata | None = None) -> None:
+              metadata: ImageMetadata | None = None, compression: int | None = None) -> None:
     """Write an RGB float image in [0, 1] ``(H, W, 3)`` (or integer levels of ``bit_depth``)
     atomically, as PNG or the format of the suffix (TIFF keeps 16 bits; JPEG and BMP store 8, so
     16-bit levels are rescaled, never clipped). ``metadata``: an ICC profile and EXIF to carry
     (e.g. the input photograph's, :func:`~dualpixel.io.metadata.read_metadata`); what each format
-    keeps is listed in :mod:`dualpixel.io.metadata`."""
+    keeps is listed in :mod:`dualpixel.io.metadata`. ``compression``: PNG only, the zlib level
+    0 (stored, largest) to 9 (smallest, slowest); None keeps OpenCV's default, a run-length
+    strategy that encodes a 16-bit 1920x1080 frame in about 0.13 s, 2.5x faster than level 1,
+    at about the same size (level 0 is no faster: the time is then libpng's own)."""
     path = check_image_path(path)
     if bit_depth not in (8, 16):
         raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
+    check_png_compression(compression)
     if np.issubdtype(image.dtype, np.floating):
         image = quantise(image, bit_depth)
     stored = bit_depth if bit_depth in WRITE_FORMATS[path.suffix.lower()] else 8
     if stored != bit_depth:  # 16-bit levels into an 8-bit format
         image = np.rint(np.asarray(image, dtype=np.float64) / 257.0).astype(np.int64)
-    data = np.clip(image, 0, 255 if stored == 8 else 65535).astype(
-        np.uint8 if stored == 8 else np.uint16)
+    dtype = np.uint8 if stored == 8 else np.uint16
+    data = image if image.dtype == dtype else np.clip(image, 0, np.iinfo(dtype).max).astype(dtype)
     metadata = metadata or ImageMetadata()
     suffix = path.suffix.lower()
     if suffix in (".tif", ".tiff"):
@@ -252,8 +270,10 @@ def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16,
                          compression="zlib", **tiff_write_options(metadata))
         encoded = buffer.getvalue()
     else:
+        params = ([cv2.IMWRITE_PNG_COMPRESSION, compression]
+                  if suffix == ".png" and compression is not None else [])
         ok, array = cv2.imencode(suffix, cv2.cvtColor(data, cv2.COLOR_RGB2BGR)
-                                 if data.ndim == 3 else data)
+                                 if data.ndim == 3 else data, params)
         if not ok:
             raise OutputFileError(path, "could not be encoded")
         encoded = embed_metadata(array.tobytes(), suffix, metadata)

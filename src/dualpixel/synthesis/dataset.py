@@ -27,6 +27,7 @@ import concurrent.futures
 import functools
 import json
 import os
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -40,7 +41,7 @@ from dualpixel.errors import InputFileError, OutputFileError, ParameterError, ch
 from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.dpdd import frame_paths, read_manifest
-from dualpixel.io.images import quantise, save_npy, write_png
+from dualpixel.io.images import check_png_compression, quantise, save_npy, write_png
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
 from dualpixel.io.run_folder import differing_settings
@@ -223,25 +224,32 @@ def _quantise(image: torch.Tensor, bit_depth: int) -> np.ndarray:
 
 
 def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
-            device: str = "cpu") -> dict:
+            device: str = "cpu", png_compression: int | None = None) -> dict:
     """Synthesise and write one frame; return its manifest record."""
+    return _finish_job(*_start_job(job, root, fmt, config, device, png_compression))
+
+
+def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
+               device: str, png_compression: int | None
+               ) -> tuple[dict, list[concurrent.futures.Future]]:
+    """Render one frame and hand its files to the writer threads: (its record, the writes)."""
     rgb, depth = load_frame(job.frame, fmt, max_depth=config.max_depth,
                             depth_scale=config.depth_scale)
     result = synthesize_frame(rgb, depth, job.recipe, noise_seed=job.noise_seed, device=device)
     paths = job.paths(root)
     left = _quantise(result.left, config.bit_depth)
     right = _quantise(result.right, config.bit_depth)
-    combined = (left + right + 1) // 2  # (left + right) / 2 of the stored integers, rounded up
+    # (left + right) / 2 of the stored integers, rounded up
+    combined = ((left.astype(np.uint32) + right + 1) >> 1).astype(left.dtype)
     target = _quantise(result.target, config.bit_depth)
     # The encoders release the GIL: the frame's files are written side by side, and all of them
     # are in place before its manifest line (the frame's commit) is returned.
-    writes = [_writer_pool().submit(write_png, paths[name], data, bit_depth=config.bit_depth)
+    writes = [_writer_pool().submit(write_png, paths[name], data, bit_depth=config.bit_depth,
+                                    compression=png_compression)
               for name, data in (("left", left), ("right", right), ("combined", combined),
                                  ("target", target))]
     save_npy(paths["defocus"], result.defocus.cpu().numpy().astype(np.float32))
-    for write in writes:
-        write.result()  # re-raises a failed write here
-    return {
+    record = {
         "key": job.key,
         "input": {"rgb": str(job.frame.rgb), "depth": str(job.frame.depth)},
         "outputs": {name: str(path.relative_to(root)) for name, path in paths.items()},
@@ -253,6 +261,26 @@ def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
         **job.recipe.describe(),
         "version": __version__,
     }
+    return record, writes
+
+
+def _finish_job(record: dict, writes: list[concurrent.futures.Future]) -> dict:
+    """Wait for a frame's files: all are in place before its record (the frame's commit)."""
+    for write in writes:
+        write.result()  # re-raises a failed write here
+    return record
+
+
+def _pipelined(jobs_args: list[tuple]) -> Iterator[dict]:
+    """The jobs in order in this process, each frame's files encoded while the next renders."""
+    previous = None
+    for args in jobs_args:
+        started = _start_job(*args)
+        if previous is not None:
+            yield _finish_job(*previous)
+        previous = started
+    if previous is not None:
+        yield _finish_job(*previous)
 
 
 def _check_shard(shard: tuple[int, int]) -> tuple[int, int]:
@@ -384,6 +412,7 @@ def synthesize_dataset(
     progress: bool = True,
     limit: int | None = None,
     shard: tuple[int, int] | None = None,
+    png_compression: int | None = None,
 ) -> dict:
     """Synthesise a whole dataset (see the module docstring); resumes an interrupted run.
 
@@ -399,11 +428,14 @@ def synthesize_dataset(
         shard: ``(k, n)``: render only frames ``k, k + n, k + 2n, ...`` of the plan (0 <= k < n),
             e.g. one task of a scheduler's array job; :func:`merge_shards` joins the n folders
             into the dataset a single run writes, byte for byte.
+        png_compression: zlib level 0-9 of the PNGs (:func:`~dualpixel.io.images.write_png`);
+            None: the fast default. Not part of the content: a run may resume with another.
 
     Returns:
         The ``dataset.json`` description (with ``status`` and frame counts).
     """
     config = config or SynthConfig()
+    check_png_compression(png_compression)
     device = str(resolve_device(device))  # refuse an unknown or absent device before any work
     if device.startswith("cuda") and workers > 1:
         raise ParameterError("workers must be 1 on CUDA (one process drives the GPU); "
@@ -416,11 +448,12 @@ def synthesize_dataset(
         jobs = jobs[shard[0]::shard[1]]
     with folder_lock(root, "synth"):
         return _synthesize_locked(root, jobs, input_dir, fmt, config, shard, workers, device,
-                                  progress, limit)
+                                  progress, limit, png_compression)
 
 
 def _synthesize_locked(root: Path, jobs: list, input_dir, fmt, config: SynthConfig, shard,
-                       workers: int, device: str, progress: bool, limit: int | None) -> dict:
+                       workers: int, device: str, progress: bool, limit: int | None,
+                       png_compression: int | None) -> dict:
     """:func:`synthesize_dataset` once it holds the folder's lock."""
     description = _description(config, input_dir, fmt, len(jobs))
     if shard is not None:
@@ -436,8 +469,10 @@ def _synthesize_locked(root: Path, jobs: list, input_dir, fmt, config: SynthConf
     bar = tqdm(total=len(jobs), initial=already, desc="synthesising frames", unit="frame",
                disable=not progress)
     with open(manifest_path, "a", encoding="utf-8") as manifest:
-        jobs_args = [(job, root, fmt, config, device) for job in pending]
-        for record in completed(run_job, jobs_args, workers):
+        jobs_args = [(job, root, fmt, config, device, png_compression) for job in pending]
+        records = (completed(run_job, jobs_args, workers) if workers > 1
+                   else _pipelined(jobs_args))
+        for record in records:
             manifest.write(json.dumps(record, sort_keys=True) + "\n")
             manifest.flush()
             os.fsync(manifest.fileno())
