@@ -2,7 +2,9 @@
 
 Default mode (issue #36): the shipped ``rdpd-light`` on the default path (``--precision auto``:
 bf16 autocast and channels-last where the CPU computes bf16 natively) against ``--precision fp32``
-(channels-last) and against the path before issue #36 (fp32, contiguous memory); tiled at 512
+(channels-last), against the path before issue #36 (fp32, contiguous memory) and against
+``--backend onnxruntime`` (fp32; its one-off export, cached per checkpoint, timed apart and done
+in a temporary cache folder; skipped without the ``onnx`` extra); tiled at 512
 against whole frames; the flips ensemble (one batch) against four plain passes; and the PSNR the
 default precision gives against fp32 on the 7 Canon scenes at both resolutions.
 
@@ -17,10 +19,13 @@ Each case runs in its own process (its peak memory is its own), best of ``--repe
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
+import os
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -38,13 +43,16 @@ def measure(case: dict, device: str, repeats: int) -> dict:
     from dualpixel.weights import resolve_checkpoint
 
     torch.manual_seed(0)
+    setup = time.perf_counter()
     if case["model"] == "rdpd-light":
         model = load_model(resolve_checkpoint("rdpd-light"))
     else:
         model = build_model(case["model"])
     deblurrer = Deblurrer(model, device=device, tile=case.get("tile"),
                           precision=case.get("precision", "auto"), flips=case.get("flips", False),
-                          multiscale=case.get("multiscale", False))
+                          multiscale=case.get("multiscale", False),
+                          backend=case.get("backend", "torch"))
+    setup = time.perf_counter() - setup
     if case.get("legacy"):  # before issue #36: float32 in contiguous memory
         deblurrer.numerics = Precision("fp32", None, channels_last=False)
         deblurrer.model.to(memory_format=torch.contiguous_format)
@@ -62,7 +70,7 @@ def measure(case: dict, device: str, repeats: int) -> dict:
         if device.startswith("cuda"):
             torch.cuda.synchronize()
         times.append(time.perf_counter() - started)
-    result = {"seconds": min(times), "precision": deblurrer.numerics.name,
+    result = {"seconds": min(times), "precision": deblurrer.numerics.name, "setup": setup,
               "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
     if device.startswith("cuda"):
         result["peak_gpu_gib"] = torch.cuda.max_memory_allocated() / 2**30
@@ -99,6 +107,7 @@ CASES = {
     "default": {"model": "rdpd-light"},
     "fp32": {"model": "rdpd-light", "precision": "fp32"},
     "legacy": {"model": "rdpd-light", "precision": "fp32", "legacy": True},
+    "onnxruntime": {"model": "rdpd-light", "backend": "onnxruntime"},
     "tiled": {"model": "rdpd-light", "tile": 512},
     "flips": {"model": "rdpd-light", "flips": True},
 }
@@ -113,11 +122,19 @@ PAPER_CASES = {
 def run_cases(cases: dict, device: str, repeats: int) -> dict:
     results = {}
     for name, case in cases.items():
+        if case.get("backend") == "onnxruntime" and (
+                device != "cpu" or importlib.util.find_spec("onnxruntime") is None):
+            print(f"{name:<16} skipped (CPU only; needs pip install 'dualpixel[onnx]')")
+            continue
         command = [sys.executable, __file__, "--one", json.dumps(case), "--device", device,
                    "--repeats", str(repeats)]
-        output = subprocess.run(command, check=True, capture_output=True, text=True).stdout
+        with tempfile.TemporaryDirectory() as cache:  # a fresh ONNX cache: the export is timed
+            output = subprocess.run(command, check=True, capture_output=True, text=True,
+                                    env={**os.environ, "DUALPIXEL_CACHE_DIR": cache}).stdout
         results[name] = r = json.loads(output.strip().splitlines()[-1])
         extra = f", peak GPU {r['peak_gpu_gib']:.2f} GiB" if "peak_gpu_gib" in r else ""
+        if case.get("backend") == "onnxruntime":
+            extra += f", export once {r['setup']:.1f} s"
         print(f"{name:<16} {r['precision']:<5} {r['seconds']:7.2f} s   "
               f"peak RSS {r['peak_rss_gib']:.2f} GiB{extra}", flush=True)
     return results
@@ -146,6 +163,9 @@ def main() -> None:
     print(f"ratio default / fp32 before #36 (contiguous): "
           f"{seconds['default'] / seconds['legacy']:.2f} (target <= 0.35)")
     print(f"default per 1680x1120 image: {seconds['default']:.2f} s (target <= 3 s, idle machine)")
+    if "onnxruntime" in seconds:
+        print(f"ratio onnxruntime / --precision fp32: "
+              f"{seconds['onnxruntime'] / seconds['fp32']:.2f}")
     print(f"ratio tiled 512 / whole: {seconds['tiled'] / seconds['default']:.2f} (target <= 1.3)")
     print(f"ratio flips (4 members, one batch) / plain: "
           f"{seconds['flips'] / seconds['default']:.2f} (arithmetic: 4)")

@@ -64,7 +64,8 @@ def check_views(left: Any, right: Any, combined: Any = None) -> list:
 
 def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: str = "auto",
            tile: int | None = None, flips: bool = False, multiscale: bool = False,
-           precision: str = "auto", views_sum: bool = False) -> np.ndarray | torch.Tensor:
+           precision: str = "auto", views_sum: bool = False,
+           backend: str = "torch") -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD), or ``views_sum=True`` for views that sum to it (a raw A/B split; they
     are doubled). :func:`check_views` tells the usual mistakes. ``model``: a name, a checkpoint
@@ -73,6 +74,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
     ``multiscale``: fuse with a pass at half resolution (at most 1.25x the time;
     :mod:`dualpixel.inference.multiscale`). ``precision``: ``auto`` (bf16 where the device
     computes it natively), ``fp32``, ``bf16`` or ``fp16`` (:mod:`dualpixel.inference.precision`).
+    ``backend``: ``torch``, or ``onnxruntime`` (CPU, fp32; :mod:`dualpixel.inference.onnx_runtime`).
 
     >>> out = deblur(np.full((32, 48, 3), 0.5, np.float32), np.full((32, 48, 3), 0.5, np.float32))
     >>> out.shape, out.dtype
@@ -80,6 +82,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
     """
     from dualpixel.device import resolve_device
     from dualpixel.inference import Deblurrer
+    from dualpixel.inference.onnx_runtime import check_backend
     from dualpixel.inference.view_checks import views_from_sum
 
     lefts, layout = as_image_batch(left, "left")
@@ -89,12 +92,13 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
         if rights.shape != lefts.shape:
             raise ParameterError(f"left {lefts.shape[:3]} and right {rights.shape[:3]} views "
                                  "differ in size or count")
-    resolved = resolve_device(device)
+    check_backend(backend)
+    resolved = resolve_device("cpu" if backend == "onnxruntime" and device == "auto" else device)
     net = load_model(model, device=str(resolved)) if isinstance(model, (str, Path)) else model
     if right is None and net.spec.views == 2:
         raise ParameterError(f"this model ({net.spec.name}) needs both views; give right")
     deblurrer = Deblurrer(net, device=resolved, tile=tile, flips=flips,
-                          multiscale=multiscale, precision=precision)
+                          multiscale=multiscale, precision=precision, backend=backend)
     if views_sum:
         if rights is None:
             raise ParameterError("views_sum needs both views")

@@ -3,7 +3,7 @@ command line can list them without importing torch (``dualpixel --help`` stays f
 
 from __future__ import annotations
 
-__all__ = ["PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "SCENE_LAYOUTS"]
+__all__ = ["BACKENDS", "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "SCENE_LAYOUTS"]
 
 #: DP PSF models: ours (Eq. 2-4) and the ablation's baselines.
 PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
@@ -13,3 +13,6 @@ PSF_BANK_NAMES: tuple[str, ...] = ("paper", "pixel4")
 SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo")
 #: Inference precisions (:mod:`dualpixel.inference.precision`).
 PRECISIONS: tuple[str, ...] = ("auto", "fp32", "bf16", "fp16")
+#: Inference backends (:mod:`dualpixel.inference.onnx_runtime`): PyTorch (any device and
+#: precision) or ONNX Runtime (CPU, float32).
+BACKENDS: tuple[str, ...] = ("torch", "onnxruntime")

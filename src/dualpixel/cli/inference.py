@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
-from dualpixel.names import PRECISIONS
+from dualpixel.names import BACKENDS, PRECISIONS
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
 # Options that deblur and eval share.
@@ -18,6 +18,10 @@ _PRECISION_OPTION = click.option(
     "--precision", type=click.Choice(PRECISIONS), default="auto", show_default=True,
     help="Number format: auto takes bf16 on CPUs that compute it natively and on recent GPUs, "
          "fp16 on older GPUs, else fp32.")
+_BACKEND_OPTION = click.option(
+    "--backend", type=click.Choice(BACKENDS), default="torch", show_default=True,
+    help="Run the network with PyTorch, or with ONNX Runtime on the CPU in fp32 (exported once "
+         "per checkpoint and cached; needs: pip install 'dualpixel[onnx]').")
 _FLIPS_OPTION = click.option(
     "--flips", is_flag=True,
     help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
@@ -27,12 +31,14 @@ _MULTISCALE_OPTION = click.option(
          "1.25x the time).")
 
 
-def _load(checkpoint: str, device: str):
+def _load(checkpoint: str, device: str, backend: str = "torch"):
     from dualpixel.device import resolve_device
+    from dualpixel.inference.onnx_runtime import check_backend
     from dualpixel.models import load_model
     from dualpixel.weights import resolve_checkpoint
 
-    resolved = resolve_device(device)
+    check_backend(backend)  # names the missing extra before any loading
+    resolved = resolve_device("cpu" if backend == "onnxruntime" and device == "auto" else device)
     return load_model(resolve_checkpoint(checkpoint), device=resolved), resolved
 
 
@@ -63,12 +69,13 @@ def _load(checkpoint: str, device: str):
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @_PRECISION_OPTION
 @click.option("--half", is_flag=True, hidden=True, help="Same as --precision fp16.")
+@_BACKEND_OPTION
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined: Path | None,
            split: str, output: Path, views_sum: bool, strict: bool, checkpoint: str,
            tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
-           flips: bool, multiscale: bool) -> None:
+           backend: str, flips: bool, multiscale: bool) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder.
 
     The first pair of each sequence is checked for likely mistakes (views swapped, views at
@@ -80,12 +87,12 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     from dualpixel.inference import Deblurrer
     from dualpixel.inference.jobs import plan_deblur_jobs, run_deblur_jobs
 
-    model, resolved = _load(checkpoint, device)
+    model, resolved = _load(checkpoint, device, backend)
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=model.spec.views == 2, combined=combined)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                           precision="fp16" if half else precision, flips=flips,
-                          multiscale=multiscale)
+                          multiscale=multiscale, backend=backend)
     total = sum(len(sequence) for sequence in jobs)
 
     def report(path: Path, finding) -> None:
@@ -136,11 +143,12 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @_OVERLAP_OPTION
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
 @_PRECISION_OPTION
+@_BACKEND_OPTION
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
-                     device, precision, flips, multiscale) -> None:
+                     device, precision, backend, flips, multiscale) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 
@@ -152,15 +160,16 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
     if not no_model and pred is None and target is None:
         from dualpixel.inference import Deblurrer
 
-        model, resolved = _load(checkpoint, device)
+        model, resolved = _load(checkpoint, device, backend)
         deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
-                              precision=precision, flips=flips, multiscale=multiscale)
+                              precision=precision, flips=flips, multiscale=multiscale,
+                              backend=backend)
         is_path = Path(checkpoint).suffix == ".safetensors" or "/" in str(checkpoint)
         method = (Path(checkpoint).stem if is_path else str(checkpoint)) + (
             "+flips" if flips else "") + (
             "+multiscale" if multiscale else "")
         meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale,
-                "precision": deblurrer.numerics.name}
+                "precision": deblurrer.numerics.name, "backend": backend}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
     click.echo(f"reports in {output}")

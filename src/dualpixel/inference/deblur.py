@@ -16,6 +16,9 @@ right's). The flipped copies go through the network as one batch (whole frames w
 :data:`BATCH_PIXELS`, else in turn; tiles :data:`~dualpixel.inference.tiling.MAX_BATCH` at a
 time): 4x the arithmetic (2x for a single-view model, which has only the vertical flip).
 
+``backend="onnxruntime"`` runs the network with ONNX Runtime on the CPU in float32
+(:mod:`dualpixel.inference.onnx_runtime`); everything above works the same.
+
 ``multiscale=True`` (ours) also runs the network on the views at half resolution and takes the
 output's coarse structure from there (:mod:`dualpixel.inference.multiscale`): a second pass on a
 quarter of the pixels (at most 1.25x the time). Each scale (and each flip) carries its own
@@ -38,7 +41,8 @@ from dualpixel.inference.multiscale import (
     fuse_scales,
     half_resolution,
 )
-from dualpixel.inference.precision import resolve_precision
+from dualpixel.inference.onnx_runtime import OnnxRuntimeNet, check_backend
+from dualpixel.inference.precision import Precision, resolve_precision
 from dualpixel.inference.tiling import MAX_BATCH, TileGrid, deblur_tiled
 from dualpixel.models.unet import DeblurNet
 
@@ -100,6 +104,7 @@ class Deblurrer:
         multiscale: fuse with a pass at half resolution (module docstring).
         fusion_sigma: where the two scales are split (Gaussian std, px at full resolution).
         half: deprecated spelling of ``precision="fp16"``.
+        backend: ``torch``, or ``onnxruntime`` (CPU, float32; the ``onnx`` extra).
     """
 
     model: DeblurNet
@@ -111,6 +116,7 @@ class Deblurrer:
     multiscale: bool = False
     fusion_sigma: float = FUSION_SIGMA
     half: bool = False
+    backend: str = "torch"
 
     def __post_init__(self) -> None:
         if self.tile is not None:
@@ -118,9 +124,18 @@ class Deblurrer:
                 self.overlap = default_overlap(self.tile)
             TileGrid(self.tile, self.overlap)  # refuse a bad tile or overlap now
         self.device = torch.device(self.device)
-        self.numerics = resolve_precision("fp16" if self.half else self.precision, self.device)
-        memory = torch.channels_last if self.numerics.channels_last else torch.contiguous_format
-        self.model = self.model.to(self.device, memory_format=memory).eval()
+        precision = "fp16" if self.half else self.precision
+        check_backend(self.backend)
+        if self.backend == "onnxruntime":
+            self.numerics = _onnxruntime_precision(precision, self.device)
+            self.model = self.model.cpu().eval()
+            self._net = OnnxRuntimeNet(self.model)
+        else:
+            self.numerics = resolve_precision(precision, self.device)
+            memory = (torch.channels_last if self.numerics.channels_last
+                      else torch.contiguous_format)
+            self.model = self.model.to(self.device, memory_format=memory).eval()
+            self._net = self.model
         # (flip upside down, flip left-right with the views swapped) per ensemble member.
         self._flips = [(False, False)]
         if self.flips:
@@ -177,14 +192,25 @@ class Deblurrer:
             if self.tile is None:
                 if self.numerics.channels_last:
                     x = x.contiguous(memory_format=torch.channels_last)
-                out, state = self.model.step(x, state)
+                out, state = self._net.step(x, state)
             else:
                 out, state = deblur_tiled(
-                    self.model, x, tile=self.tile, overlap=self.overlap, states=state,
+                    self._net, x, tile=self.tile, overlap=self.overlap, states=state,
                     max_batch=MAX_BATCH, channels_last=self.numerics.channels_last,
                 )
         self._states[key] = state
         return out.float().cpu()
+
+
+def _onnxruntime_precision(precision: str, device: torch.device) -> Precision:
+    """ONNX Runtime runs float32 on the CPU: ``auto`` and ``fp32`` only."""
+    if device.type != "cpu":
+        raise ParameterError(f"backend onnxruntime runs on the CPU, got device {device}; use "
+                             "--device cpu, or the torch backend on the GPU")
+    if precision not in ("auto", "fp32"):
+        raise ParameterError(f"backend onnxruntime runs in fp32, got precision {precision}; "
+                             "use auto or fp32, or the torch backend")
+    return Precision("fp32", None, channels_last=False)
 
 
 def deblur_sequence(

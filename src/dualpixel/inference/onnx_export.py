@@ -52,19 +52,25 @@ def state_shape(model: DeblurNet, height: int, width: int) -> tuple[int, int, in
 
 def export_onnx(
     model: DeblurNet, path: str | Path, *, height: int, width: int, step: bool = False,
-    opset: int = 18, dynamic: bool = True,
+    opset: int = 18, dynamic: bool = True, batch: int = 1,
 ) -> Path:
-    """Write ``model`` as ONNX, traced at ``height x width`` (``step``: one recurrent step)."""
+    """Write ``model`` as ONNX, traced at ``height x width`` (``step``: one recurrent step).
+    ``batch`` > 1 traces that many frames at once and leaves the batch size dynamic too (a graph
+    traced at batch 1 keeps it at 1)."""
+    if batch < 1:
+        raise ParameterError(f"batch must be >= 1, got {batch}")
     model = model.cpu().eval()
-    x = torch.rand(1, model.shape.in_channels, height, width)
+    x = torch.rand(batch, model.shape.in_channels, height, width)
     if step:
-        zeros = torch.zeros(state_shape(model, height, width))
+        zeros = torch.zeros((batch, *state_shape(model, height, width)[1:]))
         wrapper, args = _Step(model), (x, zeros, zeros.clone())
         names_in, names_out = ["input", "hidden", "cell"], ["output", "next_hidden", "next_cell"]
     else:
         wrapper, args, names_in, names_out = _Frame(model), (x,), ["input"], ["output"]
     wrapper.eval()
     spatial = {2: torch.export.Dim.AUTO, 3: torch.export.Dim.AUTO}
+    if batch > 1:
+        spatial[0] = torch.export.Dim.AUTO
     dynamic_shapes = None
     if dynamic:
         dynamic_shapes = ({"x": spatial, "hidden": spatial, "cell": spatial} if step

@@ -17,12 +17,16 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.models.unet import SIZE_MULTIPLE, DeblurNet, pad_to_multiple
+
+if TYPE_CHECKING:
+    from dualpixel.inference.onnx_runtime import OnnxRuntimeNet
 
 __all__ = ["MAX_BATCH", "TileGrid", "deblur_tiled"]
 
@@ -80,7 +84,7 @@ class TileGrid:
 
 
 def deblur_tiled(
-    model: DeblurNet,
+    model: DeblurNet | OnnxRuntimeNet,
     x: torch.Tensor,
     *,
     tile: int,

@@ -1,0 +1,134 @@
+"""ONNX Runtime as an inference backend (issue #36: ``deblur --backend onnxruntime``).
+
+The network is exported once per checkpoint (:mod:`dualpixel.inference.onnx_export`: the
+recurrent step graph for a temporal model, the single-frame graph otherwise; batch, height and
+width dynamic) into a cache folder, keyed by a SHA-256 of the weights and architecture, the
+torch version and the opset, and run by ONNX Runtime on the CPU in float32. :class:`OnnxRuntimeNet`
+offers what :class:`~dualpixel.inference.deblur.Deblurrer` uses of a network (``step(x, state)``,
+``spec``, ``shape``, ``temporal``), so tiles, flips, two scales and the recurrent state work as
+with PyTorch. Where it wins: on CPUs without native bfloat16, where the PyTorch default runs in
+float32 (``docs/benchmarks.md`` has both on this project's CPU). Needs the ``onnx`` extra.
+
+The cache folder is ``$DUALPIXEL_CACHE_DIR/onnx`` if set, else ``$XDG_CACHE_HOME/dualpixel/onnx``
+or ``~/.cache/dualpixel/onnx``; files are written atomically, so an interrupted export leaves
+nothing that looks finished.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from dualpixel.errors import ParameterError
+from dualpixel.inference.onnx_export import export_onnx
+from dualpixel.models.unet import SIZE_MULTIPLE, DeblurNet
+from dualpixel.names import BACKENDS
+
+__all__ = ["BACKENDS", "OnnxRuntimeNet", "cache_dir", "check_backend"]
+
+#: The opset of cached graphs (part of the cache key).
+OPSET = 18
+
+#: Export size (a multiple of 16; batch 2 keeps the batch dimension dynamic).
+_EXPORT_SIZE = (2, 64, 64)
+
+
+def check_backend(backend: str) -> str:
+    """Refuse an unknown backend, and ``onnxruntime`` without its packages (naming the extra)."""
+    if backend not in BACKENDS:
+        raise ParameterError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    if backend == "onnxruntime":
+        missing = [name for name in ("onnxruntime", "onnx", "onnxscript")
+                   if not _importable(name)]
+        if missing:
+            raise ParameterError(
+                f"backend onnxruntime needs {', '.join(missing)}: pip install 'dualpixel[onnx]'"
+            )
+    return backend
+
+
+def _importable(name: str) -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec(name) is not None
+
+
+def cache_dir() -> Path:
+    """Where exported graphs are kept (module docstring)."""
+    if os.environ.get("DUALPIXEL_CACHE_DIR"):
+        return Path(os.environ["DUALPIXEL_CACHE_DIR"]) / "onnx"
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "dualpixel" / "onnx"
+
+
+def _fingerprint(model: DeblurNet, step: bool) -> str:
+    """SHA-256 of what the graph depends on: weights, architecture, torch version, opset."""
+    digest = hashlib.sha256()
+    digest.update(json.dumps({"spec": model.spec.name, "shape": repr(model.shape),
+                              "step": step, "torch": torch.__version__, "opset": OPSET},
+                             sort_keys=True).encode())
+    for name, tensor in sorted(model.state_dict().items()):
+        digest.update(name.encode())
+        digest.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+    return digest.hexdigest()
+
+
+class OnnxRuntimeNet:
+    """A :class:`~dualpixel.models.unet.DeblurNet` run by ONNX Runtime on the CPU.
+
+    Args:
+        model: the network to export (once; later runs find the graph in :func:`cache_dir`).
+        threads: ONNX Runtime's intra-op threads (default: torch's thread count).
+        cache: the folder for exported graphs (default: :func:`cache_dir`).
+    """
+
+    def __init__(self, model: DeblurNet, *, threads: int | None = None,
+                 cache: str | Path | None = None) -> None:
+        check_backend("onnxruntime")
+        import onnxruntime
+
+        self.spec, self.shape, self.temporal = model.spec, model.shape, model.temporal
+        self.hidden_channels = model.lstm.hidden_channels if self.temporal else 0
+        folder = Path(cache) if cache is not None else cache_dir()
+        path = folder / f"{_fingerprint(model, self.temporal)}.onnx"
+        if not path.is_file():
+            folder.mkdir(parents=True, exist_ok=True)
+            batch, height, width = _EXPORT_SIZE
+            export_onnx(model, path, height=height, width=width, step=self.temporal,
+                        opset=OPSET, batch=batch)
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = threads or torch.get_num_threads()
+        options.inter_op_num_threads = 1
+        self.path = path
+        self.session = onnxruntime.InferenceSession(str(path), options,
+                                                    providers=["CPUExecutionProvider"])
+
+    def step(self, x: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor] | None = None
+             ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor] | None]:
+        """Like :meth:`DeblurNet.step <dualpixel.models.unet.DeblurNet.step>`: ``(B, C_in, H,
+        W)`` to ``(B, 3, H, W)`` float32 and the next state (None for a single-frame model)."""
+        if x.ndim != 4 or x.shape[1] != self.shape.in_channels:
+            raise ValueError(
+                f"expected input (B, {self.shape.in_channels}, H, W), got {tuple(x.shape)}"
+            )
+        feeds = {"input": _numpy(x)}
+        if not self.temporal:
+            (out,) = self.session.run(None, feeds)
+            return torch.from_numpy(out), None
+        if state is None:
+            pad = lambda n: -(-n // SIZE_MULTIPLE)  # noqa: E731
+            zeros = np.zeros((x.shape[0], self.hidden_channels, pad(x.shape[2]),
+                              pad(x.shape[3])), np.float32)
+            state = (torch.from_numpy(zeros), torch.from_numpy(zeros))
+        feeds.update(hidden=_numpy(state[0]), cell=_numpy(state[1]))
+        out, hidden, cell = self.session.run(None, feeds)
+        return torch.from_numpy(out), (torch.from_numpy(hidden), torch.from_numpy(cell))
+
+
+def _numpy(tensor: torch.Tensor) -> np.ndarray:
+    return np.ascontiguousarray(tensor.detach().float().cpu().numpy())
