@@ -95,3 +95,24 @@ def test_mixed_bit_depths_are_named(frame, tmp_path):
 
     found = check_views(frame["left"], frame["right"], bit_depths=(16, 8))
     assert codes(found) == ["bit-depth"] and "16-bit" in found[0].message
+
+
+def test_views_sum_without_a_right_view_is_refused(frame, tmp_path):
+    """A single-view model reads only the left view, but --views-sum needs both to be doubled:
+    refused before any output, not silently ignored."""
+    import torch
+
+    from dualpixel.models import build_model, save_model
+
+    torch.manual_seed(0)
+    save_model(tmp_path / "single.safetensors", build_model("rspd", width=0.125))
+    write_png(tmp_path / "left.png", frame["left"] / 2, bit_depth=16)
+    write_png(tmp_path / "right.png", frame["right"] / 2, bit_depth=16)
+    args = ["deblur", "--left", str(tmp_path / "left.png"), "--checkpoint",
+            str(tmp_path / "single.safetensors"), "--device", "cpu", "--views-sum"]
+    refused = CliRunner().invoke(cli, [*args, "-o", str(tmp_path / "a.png")])
+    assert refused.exit_code == 2 and "--views-sum needs both views" in refused.output
+    assert not (tmp_path / "a.png").exists() and "Traceback" not in refused.output
+    done = CliRunner().invoke(cli, [*args, "--right", str(tmp_path / "right.png"),
+                                    "-o", str(tmp_path / "b.png")])
+    assert done.exit_code == 0, done.output

@@ -157,8 +157,12 @@ def run_deblur_jobs(
     The first pair of each sequence is checked (:func:`~dualpixel.inference.view_checks.
     check_views`): each finding goes to ``report(path, finding)``, or with ``strict`` stops the
     run with an error. ``views_sum``: the views sum to the combined image (a raw A/B split) and
-    are doubled first (:func:`~dualpixel.inference.view_checks.views_from_sum`).
+    are doubled first (:func:`~dualpixel.inference.view_checks.views_from_sum`); it needs the
+    right views too (refused before any work without them).
     """
+    if views_sum and any(job.right is None for sequence in jobs for job in sequence):
+        raise ParameterError("--views-sum needs both views (the combined image is their sum): "
+                             "give --right, also for a model that reads one view")
     for sequence in jobs:
         deblurrer.reset()
         for index, job in enumerate(sequence):
