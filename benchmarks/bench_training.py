@@ -12,7 +12,8 @@ One iteration = forward, Eq. 16 loss, backward and an Adam step on 8 random 128x
   the 2-D Sobel kernels (``conv2d``; same values), instead of the separable shifted sums on their
   difference that :class:`~dualpixel.training.EdgeLoss` uses.
 
-On CUDA (``--device cuda``, what ``dualpixel train`` does there) two more cases of ``skip``:
+On CUDA, and on CPUs that compute bfloat16 natively (where ``dualpixel train`` uses both), two
+more cases of ``skip``:
 
 - ``bf16``: bfloat16 autocast (config ``amp``);
 - ``bf16-cl``: bfloat16 autocast and channels-last weights (config ``channels_last``, as the
@@ -35,6 +36,7 @@ import torch.nn.functional as F
 
 from dualpixel.models import build_model
 from dualpixel.training import DeblurLoss, EdgeLoss, sobel_kernels, weight_average
+from dualpixel.training.trainer import fast_numerics
 
 
 class Conv2dEdgeLoss(EdgeLoss):
@@ -82,7 +84,7 @@ def seconds_per_iteration(
     times = []
     for index in range(iterations + 2):  # two warm-up iterations
         started = time.perf_counter()
-        with torch.autocast("cuda", dtype=torch.bfloat16, enabled=case.startswith("bf16")):
+        with torch.autocast(device.type, dtype=torch.bfloat16, enabled=case.startswith("bf16")):
             prediction, _ = model(frames, state)
         loss, _ = criterion(prediction.float(), target)
         optimizer.zero_grad(set_to_none=True)
@@ -103,14 +105,15 @@ def main() -> None:
     parser.add_argument("--patch", type=int, default=128)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--iterations", type=int, default=20)
-    parser.add_argument("--device", default="cpu", help="cpu or cuda (adds bf16, bf16-cl)")
+    parser.add_argument("--device", default="cpu",
+                        help="cpu or cuda (bf16 and bf16-cl on CUDA and native-bf16 CPUs)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     device = torch.device(args.device)
     print(f"rdpd width {args.width}, 8 x {args.patch}x{args.patch} frames, {args.device}, "
           f"{args.threads} threads, median of {args.iterations} iterations")
     cases = ["zero-state", "skip", "log-loss", "ema", "conv2d-edge"]
-    if device.type == "cuda":
+    if fast_numerics(device):
         cases += ["bf16", "bf16-cl"]
     results = {}
     for case in cases:

@@ -377,3 +377,19 @@ def test_old_key_names_read_as_the_new_ones(tmp_path):
     with pytest.raises(ParameterError, match="old name of base_lr_scale"):
         load_config(None, {"synthetic_data": "d", "refiner": "[8]",
                            "first_stage_lr_scale": "0.5", "base_lr_scale": "0.5"})
+
+
+@pytest.mark.parametrize("memory", [torch.channels_last, torch.contiguous_format])
+def test_validation_keeps_the_training_memory_format(tiny_synthetic_dataset, memory):
+    """Validation runs through inference (which converts the model to channels-last): training
+    continues in the layout it had, or a resumed run would not continue exactly (channels-last
+    training used to fall back to contiguous after the first validation)."""
+    from dualpixel.data.layout import discover_dp_dataset
+    from dualpixel.training.trainer import validate
+
+    model = build_model("rdpd", width=0.125).to(memory_format=memory).train()
+    sequences = discover_dp_dataset(tiny_synthetic_dataset, "train")[:1]
+    score, _ = validate(model, sequences, torch.device("cpu"))
+    assert score == score and model.training  # a number (not NaN), back in training mode
+    weight = next(p for p in model.parameters() if p.ndim == 4 and p.shape[-1] > 1)
+    assert weight.is_contiguous(memory_format=memory)

@@ -95,8 +95,8 @@ class TrainConfig:
     workers: int = 2
     threads: int | None = None  # torch CPU threads (None: torch's default)
     device: str = "auto"  # auto: cuda when available, else cpu
-    amp: bool = True  # bfloat16 autocast, CUDA only
-    channels_last: bool = True  # CUDA only
+    amp: bool = True  # bfloat16 autocast on CUDA and on CPUs with native bfloat16
+    channels_last: bool = True  # the same devices
     tensorboard: bool = True
     log_images: int = 2
 

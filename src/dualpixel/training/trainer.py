@@ -43,6 +43,7 @@ from dualpixel.data.layout import DPSequence, discover_dp_dataset
 from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
+from dualpixel.inference.precision import cpu_has_native_bf16
 from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.run_folder import differing_settings
 from dualpixel.models.checkpoint import load_weights, read_metadata, save_model
@@ -125,6 +126,14 @@ def _iterations_per_epoch(config: TrainConfig, kinds: list[DataKind]) -> int:
     return len(kinds) * max(math.ceil(len(k.dataset) / k.batch) for k in kinds)
 
 
+def fast_numerics(device: torch.device) -> bool:
+    """Whether training on ``device`` uses bfloat16 autocast and channels-last weights (config
+    ``amp`` and ``channels_last``): on CUDA, and on CPUs that compute bfloat16 natively, where
+    a step takes about half the time and the model learns as well (issue #36's A/B run,
+    ``docs/benchmarks.md``)."""
+    return device.type == "cuda" or (device.type == "cpu" and cpu_has_native_bf16())
+
+
 def validate(
     model: DeblurNet, sequences: list[DPSequence], device: torch.device
 ) -> tuple[float, dict[str, torch.Tensor] | None]:
@@ -134,6 +143,7 @@ def validate(
     from dualpixel.inference.deblur import deblur_sequence, load_sequence_frames
 
     was_training = model.training
+    memory = _memory_format(model)
     model.eval()
     scores, sample = [], None
     for sequence in sequences:
@@ -148,8 +158,19 @@ def validate(
                 "target": torch.from_numpy(frames[0]["target"]).permute(2, 0, 1),
             }
     model.train(was_training)
-    model.to(memory_format=torch.contiguous_format)  # as training left it (inference may not)
+    model.to(memory_format=memory)  # as training left it (inference converts it)
     return float(np.mean(scores)), sample
+
+
+def _memory_format(model: torch.nn.Module) -> torch.memory_format:
+    """Channels-last if the model's convolution weights are, else contiguous (judged by the
+    first weight whose two layouts differ: a 1x1 kernel can be both)."""
+    for weight in model.parameters():
+        if weight.ndim == 4 and weight.is_contiguous() != weight.is_contiguous(
+                memory_format=torch.channels_last):
+            return (torch.contiguous_format if weight.is_contiguous()
+                    else torch.channels_last)
+    return torch.contiguous_format
 
 
 def _real_validation(root: str | None) -> list[DPSequence] | None:
@@ -316,7 +337,7 @@ class Trainer:
         # Single frames only (sRDPD+, real pairs): inference must not carry state between frames.
         model.temporal = model.temporal and bool(config.synthetic_data) and not (
             config.synthetic_as_frames)
-        if device.type == "cuda" and config.channels_last:
+        if config.channels_last and fast_numerics(device):
             model = model.to(memory_format=torch.channels_last)
         self.net = self.model = model
         self.optimizer = torch.optim.Adam(_parameter_groups(model, config),
@@ -405,7 +426,8 @@ class Trainer:
             item = {k: v.to(device, non_blocking=True)
                     for k, v in next(loaders[iteration % len(kinds)]).items()}
             frames = self.net.spec.make_input(item["left"], item["right"], item["radial"])
-            with torch.autocast("cuda", dtype=torch.bfloat16, enabled=use_cuda and config.amp):
+            with torch.autocast(device.type, dtype=torch.bfloat16,
+                                enabled=config.amp and fast_numerics(device)):
                 prediction, _ = self.model(frames)
             loss, parts = self.criterion(prediction.float(), item["target"])
             self.optimizer.zero_grad(set_to_none=True)
