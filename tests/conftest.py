@@ -75,3 +75,17 @@ def write_dpdd_pairs(root: Path, split: str, names: list[str], size=(40, 48), se
             (root / folder).mkdir(parents=True, exist_ok=True)
             image = rng.integers(0, 256, size=(*size, 3), dtype=np.uint8)
             cv2.imwrite(str(root / folder / f"{name}.png"), image)
+
+
+@pytest.fixture(scope="module")
+def refined_model():
+    """A tiny recurrent network with a refiner whose correction is not zero (a fresh one adds
+    nothing), in eval mode."""
+    import torch
+
+    from dualpixel.models import build_model
+
+    torch.manual_seed(1)
+    model = build_model("rdpd", width=0.125, residual=True, refiner=(8, 16, 16)).eval()
+    torch.nn.init.normal_(model.refiner.head.weight, std=0.05)
+    return model

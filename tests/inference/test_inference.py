@@ -22,15 +22,6 @@ def tiny_model():
 
 
 @pytest.fixture(scope="module")
-def refined_model():
-    """A tiny network with a refiner whose correction is not zero (a fresh one adds nothing)."""
-    torch.manual_seed(1)
-    model = build_model("rdpd", width=0.125, residual=True, refiner=(8, 16, 16)).eval()
-    torch.nn.init.normal_(model.refiner.head.weight, std=0.05)
-    return model
-
-
-@pytest.fixture(scope="module")
 def canon_views(shared_dir):
     folder = shared_dir / "data" / "canon-dp-real" / "scene_02"
     return read_rgb(folder / "view0.png"), read_rgb(folder / "view1.png")

@@ -19,15 +19,6 @@ pytest.importorskip("onnxscript")
 
 
 @pytest.fixture(scope="module")
-def refined_model():
-    """A recurrent tiny network with a refiner that changes the output."""
-    torch.manual_seed(3)
-    model = build_model("rdpd", width=0.125, residual=True, refiner=(8, 16, 16)).eval()
-    torch.nn.init.normal_(model.refiner.head.weight, std=0.05)
-    return model
-
-
-@pytest.fixture(scope="module")
 def cache(tmp_path_factory):
     """One cache folder for the module (each export takes seconds)."""
     folder = tmp_path_factory.mktemp("cache")
