@@ -19,7 +19,6 @@ Each case runs in its own process (its peak memory is its own), best of ``--repe
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import os
 import resource
@@ -122,10 +121,18 @@ PAPER_CASES = {
 def run_cases(cases: dict, device: str, repeats: int) -> dict:
     results = {}
     for name, case in cases.items():
-        if case.get("backend") == "onnxruntime" and (
-                device != "cpu" or importlib.util.find_spec("onnxruntime") is None):
-            print(f"{name:<16} skipped (CPU only; needs pip install 'dualpixel[onnx]')")
-            continue
+        if case.get("backend") == "onnxruntime":
+            from dualpixel.errors import ParameterError
+            from dualpixel.inference.onnx_runtime import check_backend
+
+            try:  # the same check, and message, as deblur --backend onnxruntime
+                check_backend("onnxruntime")
+            except ParameterError as error:
+                print(f"{name:<16} skipped ({error})")
+                continue
+            if device != "cpu":
+                print(f"{name:<16} skipped (runs on the CPU only)")
+                continue
         command = [sys.executable, __file__, "--one", json.dumps(case), "--device", device,
                    "--repeats", str(repeats)]
         with tempfile.TemporaryDirectory() as cache:  # a fresh ONNX cache: the export is timed

@@ -80,9 +80,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
     >>> out.shape, out.dtype
     ((32, 48, 3), dtype('float32'))
     """
-    from dualpixel.device import resolve_device
     from dualpixel.inference import Deblurrer
-    from dualpixel.inference.onnx_runtime import check_backend
+    from dualpixel.inference.onnx_runtime import backend_device
     from dualpixel.inference.view_checks import views_from_sum
 
     lefts, layout = as_image_batch(left, "left")
@@ -92,8 +91,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: s
         if rights.shape != lefts.shape:
             raise ParameterError(f"left {lefts.shape[:3]} and right {rights.shape[:3]} views "
                                  "differ in size or count")
-    check_backend(backend)
-    resolved = resolve_device("cpu" if backend == "onnxruntime" and device == "auto" else device)
+    resolved = backend_device(backend, device)
     net = load_model(model, device=str(resolved)) if isinstance(model, (str, Path)) else model
     if right is None and net.spec.views == 2:
         raise ParameterError(f"this model ({net.spec.name}) needs both views; give right")

@@ -32,13 +32,11 @@ _MULTISCALE_OPTION = click.option(
 
 
 def _load(checkpoint: str, device: str, backend: str = "torch"):
-    from dualpixel.device import resolve_device
-    from dualpixel.inference.onnx_runtime import check_backend
+    from dualpixel.inference.onnx_runtime import backend_device
     from dualpixel.models import load_model
     from dualpixel.weights import resolve_checkpoint
 
-    check_backend(backend)  # names the missing extra before any loading
-    resolved = resolve_device("cpu" if backend == "onnxruntime" and device == "auto" else device)
+    resolved = backend_device(backend, device)  # names a missing extra before any loading
     return load_model(resolve_checkpoint(checkpoint), device=resolved), resolved
 
 

@@ -42,12 +42,13 @@ class _Step(nn.Module):
         return out, hidden, cell
 
 
-def state_shape(model: DeblurNet, height: int, width: int) -> tuple[int, int, int, int]:
-    """Shape of the ConvLSTM hidden and cell state for frames of ``height x width``."""
+def state_shape(model: DeblurNet, height: int, width: int, batch: int = 1
+                ) -> tuple[int, int, int, int]:
+    """Shape of the ConvLSTM hidden and cell state for ``batch`` frames of ``height x width``."""
     if model.lstm is None:
         raise ParameterError(f"model {model.spec.name!r} is not recurrent")
     pad = lambda n: -(-n // SIZE_MULTIPLE)  # noqa: E731
-    return (1, model.lstm.hidden_channels, pad(height), pad(width))
+    return (batch, model.lstm.hidden_channels, pad(height), pad(width))
 
 
 def export_onnx(
@@ -62,7 +63,7 @@ def export_onnx(
     model = model.cpu().eval()
     x = torch.rand(batch, model.shape.in_channels, height, width)
     if step:
-        zeros = torch.zeros((batch, *state_shape(model, height, width)[1:]))
+        zeros = torch.zeros(state_shape(model, height, width, batch))
         wrapper, args = _Step(model), (x, zeros, zeros.clone())
         names_in, names_out = ["input", "hidden", "cell"], ["output", "next_hidden", "next_cell"]
     else:

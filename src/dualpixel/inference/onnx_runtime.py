@@ -16,6 +16,7 @@ nothing that looks finished.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -24,12 +25,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from dualpixel.device import resolve_device
 from dualpixel.errors import ParameterError
-from dualpixel.inference.onnx_export import export_onnx
-from dualpixel.models.unet import SIZE_MULTIPLE, DeblurNet
+from dualpixel.inference.onnx_export import export_onnx, state_shape
+from dualpixel.models.unet import DeblurNet
 from dualpixel.names import BACKENDS
 
-__all__ = ["BACKENDS", "OnnxRuntimeNet", "cache_dir", "check_backend"]
+__all__ = ["BACKENDS", "OnnxRuntimeNet", "backend_device", "cache_dir", "check_backend"]
 
 #: The opset of cached graphs (part of the cache key).
 OPSET = 18
@@ -50,6 +52,12 @@ def check_backend(backend: str) -> str:
                 f"backend onnxruntime needs {', '.join(missing)}: pip install 'dualpixel[onnx]'"
             )
     return backend
+
+
+def backend_device(backend: str, device: str) -> torch.device:
+    """Check ``backend`` and resolve ``device`` for it (``auto`` is the CPU for onnxruntime)."""
+    check_backend(backend)
+    return resolve_device("cpu" if backend == "onnxruntime" and device == "auto" else device)
 
 
 def _importable(name: str) -> bool:
@@ -93,7 +101,7 @@ class OnnxRuntimeNet:
         import onnxruntime
 
         self.spec, self.shape, self.temporal = model.spec, model.shape, model.temporal
-        self.hidden_channels = model.lstm.hidden_channels if self.temporal else 0
+        self._state_shape = functools.partial(state_shape, model)
         folder = Path(cache) if cache is not None else cache_dir()
         path = folder / f"{_fingerprint(model, self.temporal)}.onnx"
         if not path.is_file():
@@ -121,10 +129,8 @@ class OnnxRuntimeNet:
             (out,) = self.session.run(None, feeds)
             return torch.from_numpy(out), None
         if state is None:
-            pad = lambda n: -(-n // SIZE_MULTIPLE)  # noqa: E731
-            zeros = np.zeros((x.shape[0], self.hidden_channels, pad(x.shape[2]),
-                              pad(x.shape[3])), np.float32)
-            state = (torch.from_numpy(zeros), torch.from_numpy(zeros))
+            zeros = torch.zeros(self._state_shape(x.shape[2], x.shape[3], x.shape[0]))
+            state = (zeros, zeros)
         feeds.update(hidden=_numpy(state[0]), cell=_numpy(state[1]))
         out, hidden, cell = self.session.run(None, feeds)
         return torch.from_numpy(out), (torch.from_numpy(hidden), torch.from_numpy(cell))

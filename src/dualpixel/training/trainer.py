@@ -408,6 +408,7 @@ class Trainer:
         """One epoch of optimisation; returns its record (mean losses, seconds)."""
         config, device, kinds = self.config, self.device, self.kinds
         use_cuda = device.type == "cuda"
+        amp = config.amp and fast_numerics(device)
         self.model.train()
         loaders = []
         for index, kind in enumerate(kinds):
@@ -426,8 +427,7 @@ class Trainer:
             item = {k: v.to(device, non_blocking=True)
                     for k, v in next(loaders[iteration % len(kinds)]).items()}
             frames = self.net.spec.make_input(item["left"], item["right"], item["radial"])
-            with torch.autocast(device.type, dtype=torch.bfloat16,
-                                enabled=config.amp and fast_numerics(device)):
+            with torch.autocast(device.type, dtype=torch.bfloat16, enabled=amp):
                 prediction, _ = self.model(frames)
             loss, parts = self.criterion(prediction.float(), item["target"])
             self.optimizer.zero_grad(set_to_none=True)
