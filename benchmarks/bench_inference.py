@@ -2,7 +2,9 @@
 
 Default mode (issue #36): the shipped ``rdpd-light`` on the default path (``--precision auto``:
 bf16 autocast and channels-last where the CPU computes bf16 natively) against ``--precision fp32``
-(channels-last), against the path before issue #36 (fp32, contiguous memory) and against
+(channels-last), against the same without :func:`~dualpixel.memory.reuse_freed_memory` (which
+the ``dualpixel`` command calls at start-up; every other case has it), against the path before
+issue #36 (fp32, contiguous memory, fresh pages) and against
 ``--backend onnxruntime`` (fp32; its one-off export, cached per checkpoint, timed apart and done
 in a temporary cache folder; skipped without the ``onnx`` extra); tiled at 512
 against whole frames; the flips ensemble (one batch) against four plain passes; and the PSNR the
@@ -38,9 +40,12 @@ def measure(case: dict, device: str, repeats: int) -> dict:
 
     from dualpixel.inference import Deblurrer
     from dualpixel.inference.precision import Precision
+    from dualpixel.memory import reuse_freed_memory
     from dualpixel.models import build_model, load_model
     from dualpixel.weights import resolve_checkpoint
 
+    if not case.get("fresh_pages"):
+        reuse_freed_memory()  # as the dualpixel command does at start-up
     torch.manual_seed(0)
     setup = time.perf_counter()
     if case["model"] == "rdpd-light":
@@ -104,8 +109,9 @@ def canon_psnr_difference(device: str) -> dict[str, float]:
 
 CASES = {
     "default": {"model": "rdpd-light"},
+    "fresh-pages": {"model": "rdpd-light", "fresh_pages": True},
     "fp32": {"model": "rdpd-light", "precision": "fp32"},
-    "legacy": {"model": "rdpd-light", "precision": "fp32", "legacy": True},
+    "legacy": {"model": "rdpd-light", "precision": "fp32", "legacy": True, "fresh_pages": True},
     "onnxruntime": {"model": "rdpd-light", "backend": "onnxruntime"},
     "tiled": {"model": "rdpd-light", "tile": 512},
     "flips": {"model": "rdpd-light", "flips": True},
@@ -157,6 +163,13 @@ def main() -> None:
     if args.one:
         print(json.dumps(measure(json.loads(args.one), args.device, args.repeats)))
         return
+    from dualpixel.device import resolve_device
+    from dualpixel.errors import ParameterError
+
+    try:
+        args.device = str(resolve_device(args.device))
+    except ParameterError as error:
+        parser.error(f"--device: {error}")
     if args.paper:
         r = run_cases(PAPER_CASES, args.device, args.repeats)
         print(f"ratio RDPD / DPDNet (whole frame, {args.device}): "
@@ -167,6 +180,8 @@ def main() -> None:
     r = run_cases(CASES, args.device, args.repeats)
     seconds = {name: result["seconds"] for name, result in r.items()}
     print(f"ratio default / --precision fp32: {seconds['default'] / seconds['fp32']:.2f}")
+    print(f"ratio default / without reuse_freed_memory: "
+          f"{seconds['default'] / seconds['fresh-pages']:.2f}")
     print(f"ratio default / fp32 before #36 (contiguous): "
           f"{seconds['default'] / seconds['legacy']:.2f} (target <= 0.35)")
     print(f"default per 1680x1120 image: {seconds['default']:.2f} s (target <= 3 s, idle machine)")

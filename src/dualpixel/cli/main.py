@@ -9,6 +9,7 @@ import click
 from dualpixel import __version__
 from dualpixel.cli import calibration, demo, inference, reproduce, synthesis, training
 from dualpixel.cli.common import CONTEXT, DPGroup
+from dualpixel.memory import reuse_freed_memory
 
 __all__ = ["cli"]
 
@@ -18,6 +19,7 @@ __all__ = ["cli"]
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars (for logs and scripts).")
 def cli(quiet: bool) -> None:
     """dualpixel: dual-pixel defocus deblurring (Abuolaim et al., ICCV 2021)."""
+    reuse_freed_memory()
     if quiet:
         _silence_progress_bars()
 

@@ -98,7 +98,8 @@ class Deblurrer:
     """Stateful frame-by-frame deblurring with a trained model.
 
     Args:
-        model: the network (put in eval mode here).
+        model: the network; like ``nn.Module.to``, this moves it in place to ``device``, to the
+            precision's memory layout (channels-last or contiguous) and into eval mode.
         device: where it runs.
         tile: largest tile size (multiple of 16) for bounded memory, or ``None`` for whole frames.
         overlap: tile overlap in pixels (default: :func:`default_overlap` of the tile).
