@@ -124,6 +124,7 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     (['combined', 'defocus', 'left', 'right', 'target'], (24, 32, 3))
     """
     from dualpixel.device import resolve_device
+    from dualpixel.io.images import check_depth_map
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.optics.psf_bank import PSF_BANKS
     from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES, focus_from_depth
@@ -133,14 +134,9 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     if len(images) != 1:
         raise ParameterError("synthesize takes one frame; call it per frame of a batch")
     depth_map = np.asarray(depth.detach().cpu() if isinstance(depth, torch.Tensor) else depth)
-    if not (np.issubdtype(depth_map.dtype, np.floating)
-            or np.issubdtype(depth_map.dtype, np.integer)):
-        raise ParameterError(f"depth must be real numbers (metres), got dtype {depth_map.dtype}")
-    depth_map = depth_map.astype(np.float32)
-    if depth_map.shape != images.shape[1:3]:
+    if depth_map.shape[:2] != images.shape[1:3]:
         raise ParameterError(f"depth {depth_map.shape} must be (H, W) of rgb {images.shape[1:3]}")
-    if not np.isfinite(depth_map).all() or (depth_map <= 0).any():
-        raise ParameterError("depth must be finite and > 0 (metres)")
+    depth_map = check_depth_map(depth_map)
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
     if camera in DEFOCUS_PROFILES:

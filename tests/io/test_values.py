@@ -61,6 +61,18 @@ def test_complex_depth_is_refused(tmp_path):
         read_depth(tmp_path / "d.npy")
 
 
+@pytest.mark.parametrize("value, problem", [(float("nan"), "1 NaN/inf values"),
+                                            (0.0, "1 zero or negative values")])
+def test_bad_depth_gets_the_same_problem_from_the_api_and_from_a_file(tmp_path, value, problem):
+    depth = np.full((16, 16), 2.0)
+    depth[3, 4] = value
+    with pytest.raises(ParameterError, match=problem):
+        api.synthesize(np.full((16, 16, 3), 0.5), depth, camera="set0")
+    np.save(tmp_path / "d.npy", depth)
+    with pytest.raises(InputFileError, match=rf"d\.npy: depth has {problem}"):
+        read_depth(tmp_path / "d.npy")
+
+
 def test_a_checkpoint_with_one_nan_weight_is_refused(tmp_path):
     model = build_model("rdpd", width=0.125)
     with torch.no_grad():

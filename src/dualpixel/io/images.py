@@ -19,6 +19,7 @@ from dualpixel.io.metadata import ImageMetadata, embed_metadata, tiff_write_opti
 
 __all__ = [
     "WRITE_FORMATS",
+    "check_depth_map",
     "check_image_path",
     "check_png_compression",
     "decode_synthia_depth",
@@ -183,18 +184,29 @@ def read_depth(path: str | Path, *, png_scale: float = 0.001) -> np.ndarray:
                     path, f"depth PNG must be 16-bit (one channel), got {depth.dtype}"
                 )
             depth = depth.astype(np.float32) * png_scale
+    try:
+        return check_depth_map(depth)
+    except ParameterError as error:
+        raise InputFileError(path, str(error)) from None
+
+
+def check_depth_map(depth: np.ndarray) -> np.ndarray:
+    """A depth map in metres as float32 ``(H, W)`` (the first channel of ``(H, W, C)``), or a
+    :class:`ParameterError` saying what is wrong: not real numbers, not one channel, NaN/inf,
+    or values <= 0."""
+    depth = np.asarray(depth)
     if not (np.issubdtype(depth.dtype, np.floating) or np.issubdtype(depth.dtype, np.integer)):
-        raise InputFileError(path, f"depth must hold real numbers (metres), not {depth.dtype}")
+        raise ParameterError(f"depth must hold real numbers (metres), not {depth.dtype}")
     if depth.ndim == 3 and depth.shape[2] >= 1:
         depth = depth[:, :, 0]
     if depth.ndim != 2:
-        raise InputFileError(path, f"depth must be a single-channel map, got shape {depth.shape}")
+        raise ParameterError(f"depth must be a single-channel map, got shape {depth.shape}")
     depth = depth.astype(np.float32)
     if not np.isfinite(depth).all():
-        raise InputFileError(path, f"depth has {int((~np.isfinite(depth)).sum())} NaN/inf values")
+        raise ParameterError(f"depth has {int((~np.isfinite(depth)).sum())} NaN/inf values")
     if (depth <= 0).any():
-        raise InputFileError(
-            path, f"depth has {int((depth <= 0).sum())} zero or negative values (must be > 0)"
+        raise ParameterError(
+            f"depth has {int((depth <= 0).sum())} zero or negative values (must be > 0)"
         )
     return depth
 
