@@ -169,3 +169,27 @@ def test_reinit_bottleneck_keeps_the_output_and_revives_the_level(name):
     output.mean().backward()
     gradient = model.decoders[0][0].weight.grad[:, half:]
     assert gradient.abs().sum() > 0
+
+
+def test_up_convolution_equals_upsampling_then_keras_same_conv():
+    """The decoder's up-convolution is computed at the input's resolution (phase kernels and a
+    pixel shuffle); it must equal its definition, nearest 2x upsampling, one zero row and column
+    at the bottom and right, a 2x2 conv and ReLU, in value and in gradient."""
+    import torch.nn.functional as F
+
+    from dualpixel.models.unet import _UpConv
+
+    torch.manual_seed(0)
+    layer = _UpConv(6, 5)
+    x = torch.randn(2, 6, 7, 9, requires_grad=True)
+    reference = F.relu(layer.conv(F.pad(F.interpolate(x, scale_factor=2.0, mode="nearest"),
+                                        (0, 1, 0, 1))))
+    out = layer(x)
+    assert out.shape == reference.shape == (2, 5, 14, 18)
+    torch.testing.assert_close(out, reference, atol=1e-5, rtol=0)
+    weights = torch.randn_like(out)
+    grads = torch.autograd.grad((out * weights).sum(), [x, layer.conv.weight, layer.conv.bias])
+    grads_ref = torch.autograd.grad((reference * weights).sum(),
+                                    [x, layer.conv.weight, layer.conv.bias])
+    for got, expected in zip(grads, grads_ref):
+        torch.testing.assert_close(got, expected, atol=1e-4, rtol=1e-5)
