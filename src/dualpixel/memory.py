@@ -4,7 +4,6 @@ anything; and keeping freed memory for reuse, so large tensors do not fault in f
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import os
 
 from dualpixel.errors import ParameterError
@@ -63,9 +62,8 @@ def reuse_freed_memory() -> bool:
             return False
     except (ValueError, OSError, AttributeError):  # not glibc, or no confstr (Windows)
         return False
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
+    try:  # the process's own symbols hold glibc's (find_library would spawn ldconfig)
+        mallopt = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError):
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
