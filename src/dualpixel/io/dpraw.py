@@ -32,6 +32,7 @@ import numpy as np
 
 from dualpixel.data.statistics import defocus_shift_counts
 from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.images import quantise
 
 __all__ = [
     "DualPixelRaw",
@@ -160,7 +161,7 @@ def develop_mosaic(mosaic: np.ndarray, pattern: str,
     site_gain = np.array([[gains[pattern[0]], gains[pattern[1]]],
                           [gains[pattern[2]], gains[pattern[3]]]], np.float32)
     balanced = mosaic * _per_site(site_gain, mosaic.shape)
-    levels = np.rint(np.clip(balanced, 0.0, 1.0) * 65535).astype(np.uint16)
+    levels = quantise(balanced, 16)
     rgb = cv2.cvtColor(levels, _DEMOSAIC[pattern]).astype(np.float32) / 65535.0
     return _srgb(rgb).astype(np.float32)
 
