@@ -15,7 +15,7 @@ GPU), tiled and two-scale RDPD.
 
 Each case runs in its own process (its peak memory is its own), best of ``--repeats``.
 
-    .venv/bin/python benchmarks/bench_inference.py [--device cuda] [--repeats 2] [--paper]
+    .venv/bin/python benchmarks/bench_inference.py [--device cuda] [--repeats N] [--paper]
 """
 
 from __future__ import annotations
@@ -156,10 +156,15 @@ def run_cases(cases: dict, device: str, repeats: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu")
-    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--repeats", type=int,
+                        help="best of this many passes per case (default: 5; 2 with --paper)")
     parser.add_argument("--paper", action="store_true", help="full-width RDPD against DPDNet")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one case as JSON
     args = parser.parse_args()
+    if args.repeats is None:  # single passes vary by ~0.1 s; the full-width ones take minutes
+        args.repeats = 2 if args.paper else 5
+    if args.repeats < 1:
+        parser.error(f"--repeats must be at least 1, got {args.repeats}")
     if args.one:
         print(json.dumps(measure(json.loads(args.one), args.device, args.repeats)))
         return
