@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# A long `dualpixel reproduce` on a lent GPU machine (the `device` tool), across several calls.
+#
+# The machine is given back ~30 s after a call ends, and with it the run folder, so the job runs
+# in the background and every call stays busy waiting on it; call again as soon as one returns.
+# The device's python3 has torch; the project runs from the sent tree (PYTHONPATH=src).
+#
+#   start RECIPE RUN [SECONDS]  start the run in the background (unless it runs), then `wait`
+#   wait RUN [SECONDS]          wait up to SECONDS (default 540) while it runs; print progress
+#   collect RUN NAME            put RUN/ship/NAME.safetensors into $OUT as 15 MiB parts, with its
+#                               sha256 and the log's tail (join here: cat NAME.part* > NAME.safetensors)
+#
+# e.g. device run: bash experiments/scripts/gpu_lease.sh start recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
+set -euo pipefail
+command=${1:?start, wait or collect}; shift
+
+running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
+
+case $command in
+start)
+  recipe=$1 run=$2 seconds=${3:-540}
+  mkdir -p "$(dirname "$run")"
+  if running "$run"; then
+    echo "already running: $run"
+  else
+    rm -f "$run.rc"
+    ( PYTHONPATH=src python3 -m dualpixel reproduce "$recipe" --output "$run" \
+        --workers "${WORKERS:-14}" --no-progress; echo $? > "$run.rc" ) >> "$run.log" 2>&1 &
+    echo $! > "$run.pid"
+    echo "started: $run (log $run.log)"
+  fi
+  exec "$0" wait "$run" "$seconds"
+  ;;
+wait)
+  run=$1 seconds=${2:-540}
+  end=$((SECONDS + seconds))
+  while running "$run" && [ ! -f "$run.rc" ] && [ $SECONDS -lt $end ]; do sleep 5; done
+  tail -n 8 "$run.log" || true
+  nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader 2>/dev/null || true
+  if [ -f "$run.rc" ]; then
+    echo "finished: exit status $(cat "$run.rc")"
+  else
+    echo "still running: call wait again now"
+  fi
+  ;;
+collect)
+  run=$1 name=$2
+  weights=$run/ship/$name.safetensors
+  [ -f "$weights" ] || { echo "no $weights" >&2; exit 1; }
+  : "${OUT:?set OUT to the device tool output folder}"
+  split -b 15M -d "$weights" "$OUT/$name.part"
+  (cd "$(dirname "$weights")" && sha256sum "$name.safetensors") > "$OUT/$name.sha256"
+  tail -n 40 "$run.log" > "$OUT/$name.log"
+  ls -l "$OUT"
+  ;;
+*)
+  echo "unknown command: $command (start, wait or collect)" >&2
+  exit 2
+  ;;
+esac
