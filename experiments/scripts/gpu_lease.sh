@@ -39,8 +39,11 @@ wait)
   nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader 2>/dev/null || true
   if [ -f "$run.rc" ]; then
     echo "finished: exit status $(cat "$run.rc")"
-  else
+  elif running "$run"; then
     echo "still running: call wait again now"
+  else  # killed, or a fresh machine without the run: start again (reproduce resumes)
+    echo "not running and no exit status: start it again" >&2
+    exit 1
   fi
   ;;
 collect)
