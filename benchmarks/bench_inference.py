@@ -6,7 +6,8 @@ bf16 autocast and channels-last where the CPU computes bf16 natively) against ``
 the ``dualpixel`` command calls at start-up; every other case has it), against the path before
 issue #36 (fp32, contiguous memory, fresh pages) and against
 ``--backend onnxruntime`` (fp32; its one-off export, cached per checkpoint, timed apart and done
-in a temporary cache folder; skipped without the ``onnx`` extra); tiled at 512
+in a temporary cache folder; skipped without the ``onnx`` extra; on CUDA also ``--precision
+fp16``, with frames per second and peak GPU memory); tiled at 512
 against whole frames; the flips ensemble (4 members) against one plain pass; and the PSNR the
 default precision gives against fp32 on the 7 Canon scenes at both resolutions.
 
@@ -145,7 +146,8 @@ def run_cases(cases: dict, device: str, repeats: int) -> dict:
             output = subprocess.run(command, check=True, capture_output=True, text=True,
                                     env={**os.environ, "DUALPIXEL_CACHE_DIR": cache}).stdout
         results[name] = r = json.loads(output.strip().splitlines()[-1])
-        extra = f", peak GPU {r['peak_gpu_gib']:.2f} GiB" if "peak_gpu_gib" in r else ""
+        extra = (f", peak GPU {r['peak_gpu_gib']:.2f} GiB, {1 / r['seconds']:.1f} frames/s"
+                 if "peak_gpu_gib" in r else "")
         if case.get("backend") == "onnxruntime":
             extra += f", export once {r['setup']:.1f} s"
         print(f"{name:<16} {r['precision']:<5} {r['seconds']:7.2f} s   "
@@ -182,7 +184,10 @@ def main() -> None:
         print(f"ratio RDPD two scales / one scale: "
               f"{r['rdpd-two-scales']['seconds'] / r['rdpd']['seconds']:.2f} (arithmetic: 1.25)")
         return
-    r = run_cases(CASES, args.device, args.repeats)
+    cases = dict(CASES)
+    if args.device.startswith("cuda"):  # fp16 runs on CUDA only
+        cases["fp16"] = {"model": "rdpd-light", "precision": "fp16"}
+    r = run_cases(cases, args.device, args.repeats)
     seconds = {name: result["seconds"] for name, result in r.items()}
     print(f"ratio default / --precision fp32: {seconds['default'] / seconds['fp32']:.2f} "
           "(target <= 0.35)")

@@ -258,6 +258,9 @@ def main() -> None:
         print(f"| {name} | {' / '.join(map(str, layers))} | {t_base:.2f} | {t_exact:.2f} | "
               f"{t_fast:.2f} | {t_fast / t_base:.3f} ({c_fast / c_base:.3f}) | "
               + " / ".join(f"{s:.1f}" for s in scores) + " |", flush=True)
+        if args.device.startswith("cuda"):  # issue #36: the GPU figures
+            print(f"| {name} on {args.device}: default {1 / t_fast:.1f} frames/s, peak GPU "
+                  f"memory so far {torch.cuda.max_memory_allocated() / 2**30:.2f} GiB |")
 
 
 if __name__ == "__main__":

@@ -9,10 +9,13 @@
 #   wait RUN [SECONDS]          wait up to SECONDS (default 540) while it runs; print progress
 #   collect RUN NAME            put RUN/ship/NAME.safetensors into $OUT as 15 MiB parts, with its
 #                               sha256 and the log's tail (join here: cat NAME.part* > NAME.safetensors)
+#   figures                     the GPU figures of issue #36 into $OUT: bench_inference.py and
+#                               bench_synthesis.py (render only) on cuda, nvidia-smi (~5 minutes);
+#                               not while a run trains (they would share the GPU)
 #
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait or collect}; shift
+command=${1:?start, wait, collect or figures}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -56,8 +59,16 @@ collect)
   tail -n 40 "$run.log" > "$OUT/$name.log"
   ls -l "$OUT"
   ;;
+figures)
+  : "${OUT:?set OUT to the device tool output folder}"
+  nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1 || true
+  PYTHONPATH=src python3 benchmarks/bench_inference.py --device cuda 2>&1 \
+    | tee "$OUT/bench_inference_cuda.txt"
+  PYTHONPATH=src python3 benchmarks/bench_synthesis.py --device cuda --no-baseline 2>&1 \
+    | tee "$OUT/bench_synthesis_cuda.txt"
+  ;;
 *)
-  echo "unknown command: $command (start, wait or collect)" >&2
+  echo "unknown command: $command (start, wait, collect or figures)" >&2
   exit 2
   ;;
 esac
