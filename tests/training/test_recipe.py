@@ -37,8 +37,8 @@ def _shrunk(source: Path, folder: Path, real: Path) -> Path:
                 section[key] = str(real)
     for phase in raw["phases"]:
         phase["set"].update(TINY_PHASE)
-        if phase["set"].get("width", 1) != 0.125:
-            phase["set"]["width"] = 0.125
+        if phase["set"].get("widen_init", raw["train"].get("widen_init")):
+            del phase["set"]["width"]  # the recipe's width: a multiple of its start's
     for entry in raw.get("evaluate", []):
         if not any(entry["dataset"] == s["name"] for s in raw["data"]):
             entry["dataset"] = str(real)

@@ -212,6 +212,28 @@ def test_reinit_bottleneck_applies_to_the_initial_weights(tiny_synthetic_dataset
     torch.testing.assert_close(after["encoders.3.0.weight"], before["encoders.3.0.weight"])
 
 
+def test_widen_init_starts_from_the_narrow_networks_function(tiny_synthetic_dataset, tmp_path):
+    from dualpixel.models import save_model
+
+    torch.manual_seed(5)
+    start = build_model("rdpd", width=0.125, residual=True)
+    with torch.no_grad():
+        start.head[-1].weight.normal_(0, 0.1)  # a correction to keep (it starts at zero)
+    save_model(tmp_path / "start.safetensors", start)
+    train(tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=1, residual=True,
+                      width=0.25, learning_rate=1e-12, widen_init=True,
+                      init_weights=str(tmp_path / "start.safetensors")),
+          tmp_path / "run", progress=False)
+    after = load_model(tmp_path / "run" / "last.safetensors")
+    assert after.shape.encoder == tuple(2 * w for w in start.shape.encoder)
+    frames = torch.rand(1, 1, 7, 32, 48)
+    with torch.no_grad():
+        torch.testing.assert_close(after.eval()(frames)[0], start.eval()(frames)[0],
+                                   rtol=0, atol=1e-4)
+    with pytest.raises(ParameterError, match="widen_init needs init_weights"):
+        load_config(None, {"synthetic_data": "x", "widen_init": True})
+
+
 def test_refiner_trains_on_top_of_a_frozen_base(tiny_synthetic_dataset, tmp_path):
     from dualpixel.models import save_model
 

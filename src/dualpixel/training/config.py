@@ -58,6 +58,9 @@ class TrainConfig:
     # ../shared/data/canon-dp-real); never used to choose a checkpoint.
     real_val_data: str | None = None
     init_weights: str | None = None  # start from these weights (same architecture), not at random
+    # Ours: init_weights are of a network this one widens by an integer factor (e.g. rdpd-light's
+    # base at width 0.5 into width 1.0); it starts from their function (dualpixel.models.widen).
+    widen_init: bool = False
     # Ours: after loading init_weights, fresh weights for the coarsest level, the output unchanged
     # (DeblurNet.reinit_bottleneck; for a model whose bottleneck went dormant).
     reinit_bottleneck: bool = False
@@ -129,6 +132,8 @@ class TrainConfig:
         if self.loss_reduction not in LOSS_REDUCTIONS:
             raise ParameterError(f"loss_reduction must be one of {', '.join(LOSS_REDUCTIONS)}, "
                                  f"got {self.loss_reduction!r}")
+        if self.widen_init and self.init_weights is None:
+            raise ParameterError("widen_init needs init_weights (the network to widen)")
         if self.reinit_bottleneck and self.init_weights is None:
             raise ParameterError("reinit_bottleneck needs init_weights (a new network is fresh "
                                  "everywhere already)")

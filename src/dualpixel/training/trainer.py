@@ -46,9 +46,10 @@ from dualpixel.evaluation.metrics import psnr
 from dualpixel.inference.precision import cpu_has_native_bf16
 from dualpixel.io.atomic import atomic_path, remove_partials
 from dualpixel.io.run_folder import differing_settings
-from dualpixel.models.checkpoint import load_weights, read_metadata, save_model
+from dualpixel.models.checkpoint import load_model, load_weights, read_metadata, save_model
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
+from dualpixel.models.widen import widen_network
 from dualpixel.training.config import TrainConfig, load_config, save_config
 from dualpixel.training.losses import DeblurLoss
 
@@ -392,9 +393,11 @@ class Trainer:
             path = _resolve_weights(self.config.init_weights)
             # the start, by the name given (a tag or a path, never re-resolved) and its hash
             self.init_record = {"name": self.config.init_weights, "sha256": file_sha256(path)}
-            # A network without a refiner goes into the base network of one with a refiner.
-            base_only = bool(self.config.refiner) and not read_metadata(path)["refiner"]
-            load_weights(self.net, path, base_only=base_only)
+            if self.config.widen_init:  # a narrower network's function, widened
+                widen_network(load_model(path), self.net, seed=self.config.seed)
+            else:  # a network without a refiner goes into the base of one with a refiner
+                base_only = bool(self.config.refiner) and not read_metadata(path)["refiner"]
+                load_weights(self.net, path, base_only=base_only)
             if self.config.reinit_bottleneck:
                 self.net.reinit_bottleneck()
         if self.main:
