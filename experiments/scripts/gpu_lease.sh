@@ -7,6 +7,9 @@
 #
 #   start RECIPE RUN [SECONDS]  start the run in the background (unless it runs), then `wait`
 #   wait RUN [SECONDS]          wait up to SECONDS (default 540) while it runs; print progress
+#   stop RECIPE RUN             end a run still going near the end of the budget and export its
+#                               last finished epoch (EMA weights) as RUN/ship/NAME.safetensors
+#                               (float16, the recipe's `ship` name); the evaluation is not run
 #   collect RUN NAME            put RUN/ship/NAME.safetensors into $OUT as 15 MiB parts, with its
 #                               sha256 and the log's tail (join here: cat NAME.part* > NAME.safetensors)
 #   figures                     the GPU figures of issue #36 into $OUT: bench_inference.py and
@@ -15,7 +18,7 @@
 #
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, collect or figures}; shift
+command=${1:?start, wait, stop, collect or figures}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -49,6 +52,26 @@ wait)
     exit 1
   fi
   ;;
+stop)
+  recipe=$1 run=$2
+  if ! running "$run" || [ -f "$run.rc" ]; then
+    echo "not running: $run (nothing to stop)"
+    exit 0
+  fi
+  pkill -TERM -f "dualpixel reproduce $recipe --output $run" || true
+  sleep 5
+  pkill -KILL -f "dualpixel reproduce $recipe --output $run" || true
+  echo "stopped: $run"
+  PYTHONPATH=src python3 - "$recipe" "$run" <<'PY'
+import sys
+from pathlib import Path
+from dualpixel.training.recipe import load_recipe, ship_phase
+recipe, output = load_recipe(sys.argv[1]), Path(sys.argv[2])
+phase = str(recipe.ship.get("phase", recipe.phases[-1].name))
+folder = recipe.phase_folder(output, recipe.phase_index(phase))
+print("exported", ship_phase(recipe, folder, output, phase, {"stopped_early": True}))
+PY
+  ;;
 collect)
   run=$1 name=$2
   weights=$run/ship/$name.safetensors
@@ -68,7 +91,7 @@ figures)
     | tee "$OUT/bench_synthesis_cuda.txt"
   ;;
 *)
-  echo "unknown command: $command (start, wait, collect or figures)" >&2
+  echo "unknown command: $command (start, wait, stop, collect or figures)" >&2
   exit 2
   ;;
 esac
