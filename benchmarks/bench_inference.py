@@ -17,6 +17,9 @@ GPU), tiled and two-scale RDPD.
 Each case runs in its own process (its peak memory is its own), best of ``--repeats``.
 
     .venv/bin/python benchmarks/bench_inference.py [--device cuda] [--repeats N] [--paper]
+    .venv/bin/python benchmarks/bench_inference.py [--device cuda] --profile default
+
+``--profile CASE`` prints where one pass of that case spends its time instead.
 """
 
 from __future__ import annotations
@@ -34,8 +37,9 @@ from pathlib import Path
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
-def measure(case: dict, device: str, repeats: int) -> dict:
-    """Seconds (best of ``repeats``, after a warm-up) and peak memory of one case."""
+def prepare(case: dict, device: str):
+    """The case's :class:`~dualpixel.inference.Deblurrer`, its setup seconds and a random
+    1680x1120 pair, after one warm-up pass."""
     import numpy as np
     import torch
 
@@ -65,6 +69,14 @@ def measure(case: dict, device: str, repeats: int) -> dict:
     left = rng.random((1120, 1680, 3), dtype=np.float32)
     right = rng.random((1120, 1680, 3), dtype=np.float32)
     deblurrer(left, right)  # warm-up
+    return deblurrer, setup, left, right
+
+
+def measure(case: dict, device: str, repeats: int) -> dict:
+    """Seconds (best of ``repeats``, after a warm-up) and peak memory of one case."""
+    import torch
+
+    deblurrer, setup, left, right = prepare(case, device)
     times = []
     for _ in range(repeats):
         deblurrer.reset()
@@ -80,6 +92,30 @@ def measure(case: dict, device: str, repeats: int) -> dict:
     if device.startswith("cuda"):
         result["peak_gpu_gib"] = torch.cuda.max_memory_allocated() / 2**30
     return result
+
+
+def profile(case: dict, device: str) -> None:
+    """Print where one pass of ``case`` spends its time (``torch.profiler``, after a warm-up):
+    the operators by their own host time and, on CUDA, by their own device time."""
+    import torch
+    from torch.profiler import ProfilerActivity
+
+    deblurrer, _, left, right = prepare(case, device)
+    activities = [ProfilerActivity.CPU]
+    if device.startswith("cuda"):
+        activities.append(ProfilerActivity.CUDA)
+    deblurrer.reset()
+    with torch.profiler.profile(activities=activities) as prof:
+        started = time.perf_counter()
+        deblurrer(left, right)
+        if device.startswith("cuda"):
+            torch.cuda.synchronize()
+        seconds = time.perf_counter() - started
+    print(f"one pass, {deblurrer.numerics.name}, under the profiler: {seconds:.3f} s")
+    table = prof.key_averages()
+    print(table.table(sort_by="self_cpu_time_total", row_limit=15))
+    if device.startswith("cuda"):
+        print(table.table(sort_by="self_cuda_time_total", row_limit=15))
 
 
 def canon_psnr_difference(device: str) -> dict[str, float]:
@@ -161,6 +197,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int,
                         help="best of this many passes per case (default: 5; 2 with --paper)")
     parser.add_argument("--paper", action="store_true", help="full-width RDPD against DPDNet")
+    parser.add_argument("--profile", metavar="CASE",
+                        help="instead: profile one pass of CASE (default, fp32, fp16, tiled, ...)")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one case as JSON
     args = parser.parse_args()
     if args.repeats is None:  # single passes vary by ~0.1 s; the full-width ones take minutes
@@ -177,6 +215,13 @@ def main() -> None:
         args.device = str(resolve_device(args.device))
     except ParameterError as error:
         parser.error(f"--device: {error}")
+    if args.profile:
+        cases = {**CASES, "fp16": {"model": "rdpd-light", "precision": "fp16"}, **PAPER_CASES}
+        if args.profile not in cases:
+            parser.error(f"--profile: unknown case {args.profile!r} (cases: "
+                         f"{', '.join(cases)})")
+        profile(cases[args.profile], args.device)
+        return
     if args.paper:
         r = run_cases(PAPER_CASES, args.device, args.repeats)
         print(f"ratio RDPD / DPDNet (whole frame, {args.device}): "

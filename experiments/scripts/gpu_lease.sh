@@ -12,8 +12,9 @@
 #                               (float16, the recipe's `ship` name); the evaluation is not run
 #   collect RUN NAME            put RUN/ship/NAME.safetensors into $OUT as 15 MiB parts, with its
 #                               sha256 and the log's tail (join here: cat NAME.part* > NAME.safetensors)
-#   figures                     the GPU figures of issue #36 into $OUT: bench_inference.py and
-#                               bench_synthesis.py (render only) on cuda, nvidia-smi (~5 minutes);
+#   figures                     the GPU figures of issue #36 into $OUT: bench_inference.py (and a
+#                               profile of its default and fp32 passes) and bench_synthesis.py
+#                               (render only) on cuda, nvidia-smi (~5 minutes);
 #                               not while a run trains (they would share the GPU)
 #
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
@@ -87,6 +88,9 @@ figures)
   nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1 || true
   PYTHONPATH=src python3 benchmarks/bench_inference.py --device cuda 2>&1 \
     | tee "$OUT/bench_inference_cuda.txt"
+  for case in default fp32; do  # where a CUDA pass spends its time (host or device)
+    PYTHONPATH=src python3 benchmarks/bench_inference.py --device cuda --profile $case 2>&1
+  done > "$OUT/profile_inference_cuda.txt"
   PYTHONPATH=src python3 benchmarks/bench_synthesis.py --device cuda --no-baseline 2>&1 \
     | tee "$OUT/bench_synthesis_cuda.txt"
   ;;
