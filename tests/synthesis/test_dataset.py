@@ -100,6 +100,28 @@ def test_output_folder_with_other_configuration_is_refused(scene_dir, tmp_path):
                            progress=False)
 
 
+def test_folder_moved_with_its_input_resumes(scene_dir, tmp_path):
+    """A run folder holding the input and the dataset, moved or copied whole, is the same
+    dataset; a dataset whose input changed both ways is refused."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(scene_dir, run / "scenes")
+    config = SynthConfig(**FAST)
+    synthesize_dataset(run / "scenes", "rgbd", run / "data", config, progress=False, limit=2)
+    moved = tmp_path / "elsewhere" / "run-moved"
+    moved.parent.mkdir()
+    run.rename(moved)
+    done = synthesize_dataset(moved / "scenes", "rgbd", moved / "data", config, progress=False)
+    assert done["status"] == "complete" and done["frames_done"] == 8
+    synthesize_dataset(scene_dir, "rgbd", tmp_path / "full", config, progress=False)
+    assert tree_bytes(moved / "data") == tree_bytes(tmp_path / "full")
+    other = tmp_path / "other-scenes"
+    shutil.copytree(scene_dir, other)
+    with pytest.raises(InputFileError, match=r"different configuration \(differs in input\)"):
+        synthesize_dataset(other, "rgbd", moved / "data", config, progress=False)
+
+
 def make_rgbd(root: Path, names=("a", "b"), size=(40, 30)) -> Path:
     (root / "rgb").mkdir(parents=True)
     (root / "depth").mkdir()

@@ -18,7 +18,8 @@ authors did: ``seq = camera_index * n_inputs + input_index + 1``. With noise off
 Robustness: every file is written atomically; a frame counts as done only once its manifest line
 is written after its files; a rerun skips done frames and finishes the rest; ``dataset.json`` says
 ``"status": "complete"`` only when every frame is done. An output folder made with another
-configuration is refused.
+configuration or from another input is refused; one moved or copied together with its input
+(a whole run folder) is the same dataset and resumes.
 """
 
 from __future__ import annotations
@@ -291,10 +292,15 @@ def _check_shard(shard: tuple[int, int]) -> tuple[int, int]:
 
 
 def _description(config: SynthConfig, input_dir: str | Path, fmt: InputFormat,
-                 frames: int) -> dict:
+                 frames: int, root: Path) -> dict:
+    """What ``dataset.json`` records; the input both as an absolute path and as seen from the
+    dataset folder, so that a folder moved together with its input (a whole run folder moved
+    or copied) is still recognised as the same dataset."""
+    resolved = Path(input_dir).resolve()
     return {
         "config": config.as_dict(),
-        "input": str(Path(input_dir).resolve()),
+        "input": str(resolved),
+        "input_from_output": os.path.relpath(resolved, Path(root).resolve()),
         "format": fmt,
         "version": __version__,
         "frames_total": frames,
@@ -364,7 +370,7 @@ def _merge_locked(out: Path, jobs: list, records: dict, owner: dict, config: Syn
         for relative in records[job.key]["outputs"].values():
             contained(owner[job.key], relative, manifest)
             contained(out, relative, manifest)
-    description = _description(config, first["input"], first["format"], len(jobs))
+    description = _description(config, first["input"], first["format"], len(jobs), out)
     _write_json(out / "dataset.json", description)  # "incomplete" until the end
     for job in tqdm(jobs, desc="merging shards", unit="frame", disable=not progress):
         for relative in records[job.key]["outputs"].values():
@@ -385,8 +391,10 @@ def _check_or_write_description(root: Path, description: dict) -> None:
     path = root / "dataset.json"
     if path.is_file():
         existing = read_mapping(path, "dataset description (remove the folder and rerun)")
-        mine = {k: description.get(k) for k in ("config", "input", "format", "shard")}
+        mine = {k: description.get(k) for k in ("config", "format", "shard")}
         differ = differing_settings(mine, {k: existing.get(k) for k in mine})
+        if not _same_input(description, existing):
+            differ = sorted([*differ, "input"])
         # A run that finished no frame holds nothing to protect: new settings may take over.
         if differ and read_manifest(root / "manifest.jsonl"):
             raise InputFileError(
@@ -394,6 +402,15 @@ def _check_or_write_description(root: Path, description: dict) -> None:
                 f"{', '.join(differ)}); choose another output folder"
             )
     _write_json(path, description)
+
+
+def _same_input(mine: dict, existing: dict) -> bool:
+    """Whether a dataset was made from this input: the same absolute path, or the same path
+    relative to the dataset folder (both moved together)."""
+    if mine["input"] == existing.get("input"):
+        return True
+    relative = existing.get("input_from_output")
+    return relative is not None and relative == mine["input_from_output"]
 
 
 def _write_json(path: Path, data: dict) -> None:
@@ -455,7 +472,7 @@ def _synthesize_locked(root: Path, jobs: list, input_dir, fmt, config: SynthConf
                        workers: int, device: str, progress: bool, limit: int | None,
                        png_compression: int | None) -> dict:
     """:func:`synthesize_dataset` once it holds the folder's lock."""
-    description = _description(config, input_dir, fmt, len(jobs))
+    description = _description(config, input_dir, fmt, len(jobs), root)
     if shard is not None:
         description["shard"] = list(shard)
     _check_or_write_description(root, description)
