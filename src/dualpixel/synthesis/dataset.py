@@ -297,10 +297,14 @@ def _description(config: SynthConfig, input_dir: str | Path, fmt: InputFormat,
     dataset folder, so that a folder moved together with its input (a whole run folder moved
     or copied) is still recognised as the same dataset."""
     resolved = Path(input_dir).resolve()
+    try:
+        relative: str | None = os.path.relpath(resolved, Path(root).resolve())
+    except ValueError:  # Windows: input and output on different drives
+        relative = None
     return {
         "config": config.as_dict(),
         "input": str(resolved),
-        "input_from_output": os.path.relpath(resolved, Path(root).resolve()),
+        "input_from_output": relative,
         "format": fmt,
         "version": __version__,
         "frames_total": frames,
@@ -410,7 +414,7 @@ def _same_input(mine: dict, existing: dict) -> bool:
     if mine["input"] == existing.get("input"):
         return True
     relative = existing.get("input_from_output")
-    return relative is not None and relative == mine["input_from_output"]
+    return relative is not None and relative == mine.get("input_from_output")
 
 
 def _write_json(path: Path, data: dict) -> None:
