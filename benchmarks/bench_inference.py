@@ -153,6 +153,7 @@ CASES = {
     "tiled": {"model": "rdpd-light", "tile": 512},
     "flips": {"model": "rdpd-light", "flips": True},
 }
+FP16_CASE = {"model": "rdpd-light", "precision": "fp16"}  # CUDA only
 PAPER_CASES = {
     "rdpd": {"model": "rdpd", "precision": "fp32"},
     "dpdnet": {"model": "dpdnet", "precision": "fp32"},
@@ -216,7 +217,7 @@ def main() -> None:
     except ParameterError as error:
         parser.error(f"--device: {error}")
     if args.profile:
-        cases = {**CASES, "fp16": {"model": "rdpd-light", "precision": "fp16"}, **PAPER_CASES}
+        cases = {**CASES, "fp16": FP16_CASE, **PAPER_CASES}
         if args.profile not in cases:
             parser.error(f"--profile: unknown case {args.profile!r} (cases: "
                          f"{', '.join(cases)})")
@@ -231,7 +232,7 @@ def main() -> None:
         return
     cases = dict(CASES)
     if args.device.startswith("cuda"):  # fp16 runs on CUDA only
-        cases["fp16"] = {"model": "rdpd-light", "precision": "fp16"}
+        cases["fp16"] = FP16_CASE
     r = run_cases(cases, args.device, args.repeats)
     seconds = {name: result["seconds"] for name, result in r.items()}
     print(f"ratio default / --precision fp32: {seconds['default'] / seconds['fp32']:.2f} "

@@ -68,7 +68,7 @@ import sys
 from pathlib import Path
 from dualpixel.training.recipe import load_recipe, ship_phase
 recipe, output = load_recipe(sys.argv[1]), Path(sys.argv[2])
-phase = str(recipe.ship.get("phase", recipe.phases[-1].name))
+phase = recipe.shipped_phase
 folder = recipe.phase_folder(output, recipe.phase_index(phase))
 print("exported", ship_phase(recipe, folder, output, phase, {"stopped_early": True}))
 PY

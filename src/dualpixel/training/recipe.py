@@ -84,6 +84,11 @@ class Recipe:
                                  f"{', '.join(names)})")
         return names.index(name)
 
+    @property
+    def shipped_phase(self) -> str:
+        """The phase whose weights ``ship`` exports: ``ship.phase``, else the last."""
+        return str(self.ship.get("phase", self.phases[-1].name))
+
 
 def _fail(path: Path, where: str, problem: str) -> InputFileError:
     return InputFileError(path, f"{where}: {problem}")
@@ -308,7 +313,7 @@ def plan_text(recipe: Recipe, output: Path, until: str | None = None) -> str:
                      f"[{_phase_state(folder, config.epochs)}]")
     if until is None and recipe.ship:
         lines.append(f"ship: {recipe.ship['name']} from phase "
-                     f"{recipe.ship.get('phase', recipe.phases[-1].name)} (float16)")
+                     f"{recipe.shipped_phase} (float16)")
         for entry in recipe.evaluate:
             lines.append(f"evaluate: {entry['name']} on {entry['dataset']}")
     return "\n".join(lines)
@@ -497,7 +502,7 @@ def _reproduce_locked(recipe: Recipe, output: Path, first: int, last: int, until
                for i in range(first, last + 1)}
     if until is not None or not recipe.ship:
         return None
-    phase = str(recipe.ship.get("phase", recipe.phases[-1].name))
+    phase = recipe.shipped_phase
     index = recipe.phase_index(phase)
     folder = folders.get(index, recipe.phase_folder(output, index))
     shipped = ship_phase(recipe, folder, output, phase)
