@@ -72,6 +72,33 @@ def test_resume_continues_exactly(tiny_synthetic_dataset, tmp_path, ema_decay):
     assert [json.loads(line)["epoch"] for line in lines] == [1, 2]
 
 
+def test_run_moved_with_its_data_resumes_and_other_data_is_refused(tiny_synthetic_dataset,
+                                                                    tmp_path):
+    """A run folder moved (or copied) together with its data resumes under the new paths; data
+    elsewhere under the same settings is refused by name."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_synthetic_dataset, run / "data")
+    settings = dict(val_split="train", val_limit=1)
+    train(tiny_config(run / "data", epochs=1, val_data=str(run / "data"), **settings),
+          run / "phase", progress=False)
+    moved = tmp_path / "moved"
+    shutil.move(run, moved)
+    resumed = train(tiny_config(moved / "data", val_data=str(moved / "data"), **settings),
+                    moved / "phase", resume=True, progress=False)
+    assert resumed.step == 6 and [r["epoch"] for r in resumed.history] == [1, 2]
+    saved = yaml.safe_load((moved / "phase" / "config.yaml").read_text())
+    assert saved["synthetic_data"] == str(moved / "data")
+    recorded = json.loads((moved / "phase" / "paths.json").read_text())
+    assert recorded["val_data"] == [[str((moved / "data").resolve()), "../data"]]
+
+    shutil.copytree(tiny_synthetic_dataset, tmp_path / "other")
+    with pytest.raises(ParameterError, match="synthetic_data"):
+        train(tiny_config(tmp_path / "other", epochs=3, val_data=str(moved / "data"),
+                          **settings), moved / "phase", resume=True, progress=False)
+
+
 def test_cosine_schedule_decays_over_the_run_and_resumes(tiny_synthetic_dataset, tmp_path):
     config = tiny_config(tiny_synthetic_dataset, epochs=4, iterations_per_epoch=1,
                          lr_schedule="cosine")

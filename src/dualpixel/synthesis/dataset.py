@@ -45,7 +45,7 @@ from dualpixel.io.dpdd import frame_paths, read_manifest
 from dualpixel.io.images import check_png_compression, quantise, save_npy, write_png
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
-from dualpixel.io.run_folder import differing_settings
+from dualpixel.io.run_folder import differing_settings, locate, same_location
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
@@ -296,14 +296,10 @@ def _description(config: SynthConfig, input_dir: str | Path, fmt: InputFormat,
     """What ``dataset.json`` records; the input both as an absolute path and as seen from the
     dataset folder, so that a folder moved together with its input (a whole run folder moved
     or copied) is still recognised as the same dataset."""
-    resolved = Path(input_dir).resolve()
-    try:
-        relative: str | None = os.path.relpath(resolved, Path(root).resolve())
-    except ValueError:  # Windows: input and output on different drives
-        relative = None
+    resolved, relative = locate(input_dir, root)
     return {
         "config": config.as_dict(),
-        "input": str(resolved),
+        "input": resolved,
         "input_from_output": relative,
         "format": fmt,
         "version": __version__,
@@ -411,10 +407,8 @@ def _check_or_write_description(root: Path, description: dict) -> None:
 def _same_input(mine: dict, existing: dict) -> bool:
     """Whether a dataset was made from this input: the same absolute path, or the same path
     relative to the dataset folder (both moved together)."""
-    if mine["input"] == existing.get("input"):
-        return True
-    relative = existing.get("input_from_output")
-    return relative is not None and relative == mine.get("input_from_output")
+    return same_location((mine["input"], mine["input_from_output"]),
+                         (existing.get("input"), existing.get("input_from_output")))
 
 
 def _write_json(path: Path, data: dict) -> None:

@@ -7,7 +7,8 @@ sRDPD+ setting). Adam with the learning rate halved every ``lr_halve_every`` epo
 
 A run folder holds ``config.yaml``, ``last.safetensors`` + ``last_state.pt`` (optimiser, schedule,
 RNG states; written atomically after every epoch), ``best.safetensors`` (highest validation PSNR),
-``history.jsonl`` (one line per epoch) and ``tensorboard/``. With ``ema_decay`` (ours), an
+``history.jsonl`` (one line per epoch), ``paths.json`` (where its data folders are, seen from
+the run folder, so that a run moved together with its data resumes) and ``tensorboard/``. With ``ema_decay`` (ours), an
 exponential moving average of the weights is kept beside them; validation, ``best`` and ``last``
 then hold the average, and ``last_state.pt`` both. ``resume=True`` continues after the
 last finished epoch and gives the weights an uninterrupted run would have. Batches are drawn from
@@ -45,7 +46,7 @@ from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.inference.precision import cpu_has_native_bf16
 from dualpixel.io.atomic import atomic_path, remove_partials
-from dualpixel.io.run_folder import differing_settings
+from dualpixel.io.run_folder import differing_settings, locate, same_location
 from dualpixel.models.checkpoint import load_model, load_weights, read_metadata, save_model
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
@@ -204,23 +205,61 @@ def _set_rng_state(state: dict[str, Any]) -> None:
         torch.cuda.set_rng_state_all(state["cuda"])
 
 
-# What a resume may change: the run's length and how it runs. The initial weights are read only
-# when a run starts (the state file holds them after), so a starting checkpoint renamed since (a
-# default shipped anew) resumes; the run folder keeps the name it started from.
-_RESUME_MAY_CHANGE = ("epochs", "workers", "threads", "device", "tensorboard")
+# What a resume may change: the run's length and how it runs (the frame store is a cache keyed
+# by its sources' content). The initial weights are read only when a run starts (the state file
+# holds them after), so a starting checkpoint renamed since (a default shipped anew) resumes; the
+# run folder keeps the name it started from.
+_RESUME_MAY_CHANGE = ("epochs", "workers", "threads", "device", "tensorboard", "frame_store")
+# Settings that name data: spelt differently on resume, they must still name the same folders
+# (``paths.json`` records where each pointed from the run folder: a recipe's run folder moved or
+# copied with its data, or a resume from another working directory).
+_PATH_SETTINGS = ("real_data", "synthetic_data", "val_data", "real_val_data")
+_PATHS_FILE = "paths.json"
+
+
+def _data_locations(config: TrainConfig, output: Path) -> dict[str, list[list[str | None]]]:
+    """Per path setting that is set, each folder as an absolute path and from ``output``."""
+    record = {}
+    for key in _PATH_SETTINGS:
+        value = getattr(config, key)
+        if value is not None:
+            folders = [value] if isinstance(value, str) else list(value)
+            record[key] = [list(locate(folder, output)) for folder in folders]
+    return record
+
+
+def _moved_data_differs(output: Path, config: TrainConfig, saved: TrainConfig) -> list[str]:
+    """The path settings whose folders are not those the run started with."""
+    spelt = [k for k in _PATH_SETTINGS if getattr(config, k) != getattr(saved, k)]
+    path = output / _PATHS_FILE
+    if not spelt or not path.is_file():  # runs from before paths.json: compare as spelt
+        return spelt
+    recorded = json.loads(path.read_text())
+    mine = _data_locations(config, output)
+    return [key for key in spelt
+            if len(mine.get(key, [])) != len(recorded.get(key, []))
+            or not all(same_location(tuple(a), tuple(b))
+                       for a, b in zip(mine[key], recorded[key]))]
+
+
+def _write_data_locations(config: TrainConfig, output: Path) -> None:
+    with atomic_path(output / _PATHS_FILE) as tmp:
+        tmp.write_text(json.dumps(_data_locations(config, output), indent=2) + "\n")
 
 
 def _check_resumable(output: Path, config: TrainConfig) -> TrainConfig:
-    """The saved run's config with what this resume may change taken from ``config``; raises
-    when anything else differs."""
+    """The saved run's config with what this resume may change taken from ``config`` (data
+    folders too, where they are the run's own, moved); raises when anything else differs."""
     saved = load_config(output / "config.yaml")
     changed = differing_settings(config.to_dict(), saved.to_dict(),
-                                 ignore=(*_RESUME_MAY_CHANGE, "init_weights"))
+                                 ignore=(*_RESUME_MAY_CHANGE, *_PATH_SETTINGS, "init_weights"))
+    changed = sorted([*changed, *_moved_data_differs(output, config, saved)])
     if changed:
         raise ParameterError(
             f"cannot resume {output}: config differs from the saved run in {', '.join(changed)}"
         )
-    return replace(saved, **{k: getattr(config, k) for k in _RESUME_MAY_CHANGE})
+    return replace(saved, **{k: getattr(config, k) for k in (*_RESUME_MAY_CHANGE,
+                                                              *_PATH_SETTINGS)})
 
 
 def _setup_distributed(config: TrainConfig) -> tuple[int, int, torch.device]:
@@ -313,6 +352,7 @@ class Trainer:
             if self.main:
                 remove_partials(output)  # what a killed checkpoint write left behind
                 save_config(resumed, output / "config.yaml")  # e.g. a run lengthened on resume
+                _write_data_locations(resumed, output)
 
     @property
     def averaged(self) -> DeblurNet:
@@ -403,6 +443,7 @@ class Trainer:
         if self.main:
             self.output.mkdir(parents=True, exist_ok=True)
             save_config(self.config, self.output / "config.yaml")
+            _write_data_locations(self.config, self.output)
             if self.init_record is not None:
                 with atomic_path(self.output / "init.json") as tmp:
                     tmp.write_text(json.dumps(self.init_record) + "\n")
