@@ -8,11 +8,12 @@ sRDPD+ setting). Adam with the learning rate halved every ``lr_halve_every`` epo
 A run folder holds ``config.yaml``, ``last.safetensors`` + ``last_state.pt`` (optimiser, schedule,
 RNG states; written atomically after every epoch), ``best.safetensors`` (highest validation PSNR),
 ``history.jsonl`` (one line per epoch), ``paths.json`` (where its data folders are, seen from
-the run folder, so that a run moved together with its data resumes) and ``tensorboard/``. With ``ema_decay`` (ours), an
-exponential moving average of the weights is kept beside them; validation, ``best`` and ``last``
-then hold the average, and ``last_state.pt`` both. ``resume=True`` continues after the
-last finished epoch and gives the weights an uninterrupted run would have. Batches are drawn from
-seeds derived from ``(seed, epoch, kind)``, so runs are reproducible whatever the number of workers.
+the run folder, so that a run moved together with its data resumes) and ``tensorboard/``. With
+``ema_decay`` (ours), an exponential moving average of the weights is kept beside them;
+validation, ``best`` and ``last`` then hold the average, and ``last_state.pt`` both.
+``resume=True`` continues after the last finished epoch and gives the weights an uninterrupted
+run would have. Batches are drawn from seeds derived from ``(seed, epoch, kind)``, so runs are
+reproducible whatever the number of workers.
 
 Multi-GPU: launch with ``torchrun --nproc-per-node N -m dualpixel train ...``; each
 process takes its share of every global batch and ``DistributedDataParallel`` averages gradients.
