@@ -31,8 +31,12 @@ start)
     echo "already running: $run"
   else
     rm -f "$run.rc"
-    ( PYTHONPATH=src python3 -m dualpixel reproduce "$recipe" --output "$run" \
-        --workers "${WORKERS:-14}" --no-progress; echo $? > "$run.rc" ) >> "$run.log" 2>&1 &
+    # its own session and process group (the pid file holds its id): `stop` ends the run with
+    # every loader process it forked, and a call's end does not kill it (the machine stays
+    # warm ~30 s, so it goes on only until then unless the next call comes)
+    setsid bash -c 'PYTHONPATH=src python3 -m dualpixel reproduce "$1" --output "$2" \
+        --workers "$3" --no-progress; echo $? > "$2.rc"' _ "$recipe" "$run" "${WORKERS:-14}" \
+        >> "$run.log" 2>&1 < /dev/null &
     echo $! > "$run.pid"
     echo "started: $run (log $run.log)"
   fi
@@ -59,9 +63,10 @@ stop)
     echo "not running: $run (nothing to stop)"
     exit 0
   fi
-  pkill -TERM -f "dualpixel reproduce $recipe --output $run" || true
+  group=$(cat "$run.pid")
+  kill -TERM -- "-$group" 2>/dev/null || true
   sleep 5
-  pkill -KILL -f "dualpixel reproduce $recipe --output $run" || true
+  kill -KILL -- "-$group" 2>/dev/null || true
   echo "stopped: $run"
   PYTHONPATH=src python3 - "$recipe" "$run" <<'PY'
 import sys
