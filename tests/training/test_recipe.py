@@ -78,6 +78,16 @@ def test_every_recipe_runs_end_to_end_on_tiny_data(name, tmp_path, real_pairs):
             assert len(init["sha256"]) == 64 and not init["name"].startswith("rdpd-light/")
 
 
+@pytest.mark.parametrize("path", sorted((RECIPES.parent / "experiments" / "recipes").glob(
+    "*.yaml")), ids=lambda p: p.name)
+def test_experiment_recipes_resolve(path, tmp_path):
+    """Variants kept under experiments/ (measured, not shipped) still name valid settings,
+    camera files and starts."""
+    from dualpixel.training.recipe import check_recipe
+
+    check_recipe(load_recipe(path), tmp_path / "run")
+
+
 def _tiny_recipe(tmp_path: Path, **changes) -> Path:
     raw = {
         "name": "tiny",
