@@ -32,7 +32,7 @@ def _texture(height: int, width: int, seed: int) -> np.ndarray:
     return np.clip(image, 0.0, 1.0)
 
 
-def _pair(seed: int, ratio=RATIO, params=TRUE_PSF, size=(192, 288)):
+def _pair(seed: int, ratio=RATIO, params=TRUE_PSF, size=(192, 288), light="encoded"):
     """A rendered DP pair of a slanted plane (CoC from -6 to +8 px across the frame)."""
     height, width = size
     target = _texture(height, width, seed)
@@ -41,7 +41,7 @@ def _pair(seed: int, ratio=RATIO, params=TRUE_PSF, size=(192, 288)):
     camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 10.0,
                             max_coc_radius=9.0)
     recipe = SequenceRecipe(camera=camera, psf=params, distortion=None, noise_sigma=None,
-                            disparity_ratio=ratio)
+                            disparity_ratio=ratio, light=light)
     frame = synthesize_frame(target, depth, recipe)
     hwc = [t.permute(1, 2, 0).numpy() for t in (frame.left, frame.right, frame.target)]
     return (f"pair{seed}", *hwc)
@@ -84,6 +84,17 @@ def test_calibration_recovers_known_ratios_and_psf_shape():
     assert scores[TRUE_PSF] < scores[OTHER_PSF]
 
 
+@pytest.mark.parametrize("light", ["encoded", "linear"])
+def test_calibration_tells_where_the_blur_happens(light):
+    """Pairs blurred in linear light (as a lens does) or in the stored values (the paper's
+    generator): the calibration says which, and measures the ratios in that space."""
+    result = calibrate_camera([_pair(seed, light=light) for seed in (10, 11)], patch=32,
+                              max_radius=10.0, psf_candidates=(TRUE_PSF,))
+    assert result.camera.light == light
+    assert (result.linear_share > 0.7) if light == "linear" else (result.linear_share < 0.3)
+    np.testing.assert_allclose(result.camera.disparity_ratio, RATIO, atol=0.05)
+
+
 def test_calibration_tells_the_paper_model_from_a_real_camera():
     paper = calibrate_camera([_pair(3, ratio=(1.0, 1.0, 1.0))], patch=32, max_radius=10.0,
                              psf_candidates=(TRUE_PSF,))
@@ -108,8 +119,12 @@ def test_camera_file_round_trip_and_bad_fields(tmp_path):
     camera = DPCamera("test", 840, (0.7, 0.95, 1.0), TRUE_PSF, noise_std=0.01)
     path = camera.save(tmp_path / "camera.json")
     assert load_camera(path) == camera
+    assert "light" not in json.loads(path.read_text())  # files from before it read the same
+    linear = DPCamera("test", 840, (0.7, 0.95, 1.0), TRUE_PSF, light="linear")
+    assert load_camera(linear.save(tmp_path / "linear.json")) == linear
     data = json.loads(path.read_text())
     for change, message in (({"disparity_ratio": [1.0, 1.0]}, "one value per channel"),
+                            ({"light": "log"}, "light must be one of encoded, linear"),
                             ({"psf": {"n": 3}}, "psf must hold"),
                             ({"colour": 1}, "unknown camera field.*colour"),
                             ({"format": "x"}, "not a dualpixel camera file")):

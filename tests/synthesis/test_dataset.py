@@ -4,6 +4,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import torch
 from click.testing import CliRunner
 
 from dualpixel.cli.main import cli
@@ -315,3 +316,25 @@ def test_quantise_rounds_to_the_nearest_level():
         assert levels.dtype == dtype
         assert np.abs(levels - exact).max() <= (0 if bits == 8 else 1)
         assert levels.min() == 0 and levels.max() == peak  # clipped, not wrapped
+
+
+def test_linear_light_is_recorded_and_sums_the_views_light(scene_dir, tmp_path):
+    """``light="linear"``: recorded in dataset.json and the manifest, the combined image is the
+    views' summed light (not their mean value); the default records nothing new, so datasets
+    made before the setting resume."""
+    from dualpixel.optics.tone import srgb_to_linear
+
+    assert "light" not in SynthConfig(**FAST).as_dict()
+    out = tmp_path / "linear"
+    synthesize_dataset(scene_dir, "rgbd", out, SynthConfig(noise=False, light="linear", **FAST),
+                       progress=False)
+    assert json.loads((out / "dataset.json").read_text())["config"]["light"] == "linear"
+    record = json.loads((out / "manifest.jsonl").read_text().splitlines()[0])
+    assert record["light"] == "linear"
+    views = [torch.from_numpy(read16(out / record["outputs"][k]) / 65535.0)
+             for k in ("left", "right", "combined")]
+    summed = (srgb_to_linear(views[0]) + srgb_to_linear(views[1])) / 2
+    assert float((srgb_to_linear(views[2]) - summed).abs().max()) < 2e-4
+    assert float((views[2] - (views[0] + views[1]) / 2).abs().max()) > 1e-3
+    with pytest.raises(ParameterError, match="light must be one of"):
+        SynthConfig(light="log")

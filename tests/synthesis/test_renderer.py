@@ -199,3 +199,33 @@ def test_reduced_layers_composited_by_covered_regions_equal_the_whole_group(monk
     whole = fast_renderer.render_fast(image, coc)
     for a, b in zip(split, whole):
         torch.testing.assert_close(a, b, atol=1e-6, rtol=0)
+
+
+def test_linear_light_blur_conserves_light_not_stored_values():
+    """A lens mixes light: blurred in linear light (``light="linear"``) a frame keeps its mean
+    linear intensity, blurred in the stored values (the paper's generator) its mean stored
+    value; flat regions far from the edge are the same either way."""
+    from dualpixel.optics.psf import PSFParams
+    from dualpixel.optics.thin_lens import ThinLensCamera
+    from dualpixel.optics.tone import srgb_to_linear
+    from dualpixel.synthesis.frame import SequenceRecipe, synthesize_frame
+
+    image = np.full((64, 96, 3), 0.05, np.float32)
+    image[:, 40:56] = 0.9  # a bright bar on a dark ground
+    depth = np.full((64, 96), 8.0, np.float32)
+    lens = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=1.0)
+    camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 8.0)
+    frames = {light: synthesize_frame(image, depth, SequenceRecipe(
+        camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None, light=light))
+        for light in ("encoded", "linear")}
+    inner = (slice(None), slice(None), slice(16, 80))  # away from the frame's borders
+    source = torch.from_numpy(image).permute(2, 0, 1)[inner]
+    encoded, linear = (frames[k].combined[inner] for k in ("encoded", "linear"))
+    assert float(encoded.mean()) == pytest.approx(float(source.mean()), rel=1e-3)
+    assert float(srgb_to_linear(linear).mean()) == pytest.approx(
+        float(srgb_to_linear(source).mean()), rel=1e-3)
+    # the bright bar spreads further into the dark ground in linear light
+    assert float(linear[:, :, 19].mean()) > float(encoded[:, :, 19].mean()) + 0.02
+    torch.testing.assert_close(frames["linear"].target, frames["encoded"].target, atol=1e-5,
+                               rtol=0)
+    torch.testing.assert_close(linear[:, :, :4], encoded[:, :, :4], atol=1e-4, rtol=0)

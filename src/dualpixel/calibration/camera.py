@@ -14,8 +14,11 @@ block,
 behind the focal plane (the same for all channels of a block, so green's sign orients the others).
 The camera's ratio per channel is the median over usable blocks (textured, blurred by at least
 ``min_radius`` px in green and not at the grid's end). The PSF shape is the candidate of least
-total residual. Because the fit is our synthesis model itself, data made with known parameters
-give them back (``tests/calibration/test_camera.py``).
+total residual. The winning shape is then fitted again to the pairs decoded to linear light
+(:mod:`dualpixel.optics.tone`); where that fit leaves a smaller share of the views' variance in
+most usable blocks, the camera blurs in linear light (``light: "linear"``) and its ratios and
+blur sizes come from that fit. Because the fit is our synthesis model itself, data made with
+known parameters give them back (``tests/calibration/test_camera.py``).
 """
 
 from __future__ import annotations
@@ -28,12 +31,14 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import torch
 
 from dualpixel.data.statistics import block_sums
 from dualpixel.errors import InputFileError, ParameterError, check_range
 from dualpixel.io.documents import read_mapping
 from dualpixel.optics.crosstalk import check_disparity_ratio
 from dualpixel.optics.psf import PSFParams, dp_psf
+from dualpixel.optics.tone import check_light, srgb_to_linear
 
 __all__ = [
     "BlockFits",
@@ -41,6 +46,7 @@ __all__ = [
     "DPCamera",
     "calibrate_camera",
     "fit_blocks",
+    "linear_light_share",
     "load_camera",
 ]
 
@@ -67,6 +73,8 @@ class DPCamera:
         noise_std: noise std of the views, [0, 1] units (Immerkaer's estimator).
         coc_percentiles: |CoC radius| px at ``width`` over the textured blocks (p10 ... p90).
         blocks: how many blocks the estimate rests on.
+        light: where the views are blurred (:mod:`dualpixel.optics.tone`): "linear" (linear
+            light, then the sRGB curve) or "encoded" (the stored values, the paper's model).
     """
 
     name: str
@@ -76,8 +84,10 @@ class DPCamera:
     noise_std: float = 0.0
     coc_percentiles: dict[str, float] = field(default_factory=dict)
     blocks: int = 0
+    light: str = "encoded"
 
     def __post_init__(self) -> None:
+        check_light(self.light)
         check_range("width", self.width, 1)
         check_disparity_ratio(self.disparity_ratio)
         check_range("noise_std", self.noise_std, 0.0, 1.0)
@@ -86,7 +96,8 @@ class DPCamera:
         return {"format": CAMERA_FORMAT, "name": self.name, "width": self.width,
                 "disparity_ratio": [round(float(v), 4) for v in self.disparity_ratio],
                 "psf": self.psf.as_dict(), "noise_std": round(float(self.noise_std), 6),
-                "coc_percentiles": self.coc_percentiles, "blocks": self.blocks}
+                "coc_percentiles": self.coc_percentiles, "blocks": self.blocks,
+                **({} if self.light == "encoded" else {"light": self.light})}
 
     def save(self, path: str | Path) -> Path:
         """Write ``camera.json`` atomically."""
@@ -106,7 +117,7 @@ class DPCamera:
         missing = [k for k in required if k not in data]
         if missing:
             raise InputFileError(source, f"camera field(s) missing: {', '.join(missing)}")
-        known = {"format", *required, "noise_std", "coc_percentiles", "blocks"}
+        known = {"format", *required, "noise_std", "coc_percentiles", "blocks", "light"}
         unknown = sorted(set(data) - known)
         if unknown:
             raise InputFileError(source, f"unknown camera field(s): {', '.join(unknown)}")
@@ -122,7 +133,8 @@ class DPCamera:
                        psf=PSFParams(**{k: float(v) for k, v in psf.items()}),
                        noise_std=float(data.get("noise_std", 0.0)),
                        coc_percentiles=dict(data.get("coc_percentiles", {})),
-                       blocks=int(data.get("blocks", 0)))
+                       blocks=int(data.get("blocks", 0)),
+                       light=str(data.get("light", "encoded")))
         except (ParameterError, TypeError, ValueError) as error:
             raise InputFileError(source, f"bad camera field: {error}") from None
 
@@ -136,14 +148,16 @@ def load_camera(path: str | Path) -> DPCamera:
 @dataclass
 class BlockFits:
     """Per block and channel ``(rows, cols, C)``: CoC radius (px, >= 0), signed disparity ratio,
-    residual (sum of squares over both views), target texture; ``centres`` ``(rows, cols, 2)``
-    (x, y) px."""
+    residual (sum of squares over both views), target texture, the views' sum of squares about
+    their block mean (``residual / variance``: the share the model leaves unexplained);
+    ``centres`` ``(rows, cols, 2)`` (x, y) px."""
 
     radius: np.ndarray
     ratio: np.ndarray
     residual: np.ndarray
     texture: np.ndarray
     centres: np.ndarray
+    variance: np.ndarray
 
 
 def _sums(values: np.ndarray, patch: int) -> np.ndarray:
@@ -212,20 +226,43 @@ def fit_blocks(
     rows, cols = best["radius"].shape[:2]
     ys, xs = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     centres = np.stack([margin + (xs + 0.5) * patch, margin + (ys + 0.5) * patch], axis=-1)
+    variance = sums["ll"] - sums["l1"] ** 2 / count
     return BlockFits(best["radius"], ratio, best["residual"],
-                     _sums(gradient, patch) / patch**2, centres)
+                     _sums(gradient, patch) / patch**2, centres, variance)
 
 
 @dataclass
 class CameraCalibration:
     """The camera model and what it was measured from: per PSF candidate the total residual,
-    and the block fits of the winning candidate (one :class:`BlockFits` per frame fitted)."""
+    and the block fits of the winning candidate (one :class:`BlockFits` per frame fitted, in
+    the light space that won), and the share of blocks that linear light explains better."""
 
     camera: DPCamera
     scores: list[tuple[PSFParams, float]]
     fits: list[BlockFits]
     usable: list[np.ndarray]  # per frame, (rows, cols) bool: the blocks the ratios rest on
     frames: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]  # the frames fitted (aligned)
+    linear_share: float = 0.0
+
+
+def _linear(image: np.ndarray) -> np.ndarray:
+    return srgb_to_linear(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
+
+
+def linear_light_share(encoded: list[BlockFits], linear: list[BlockFits], min_radius: float,
+                       max_radius: float) -> float:
+    """The share of blocks usable in both fits (all channels together) that the fit in linear
+    light explains better than the fit of the stored values, by the share of the views'
+    variance each leaves (:mod:`dualpixel.optics.tone`); 0 without such blocks."""
+    better, total = 0, 0
+    for a, b in zip(encoded, linear):
+        both = _usable(a, min_radius, max_radius) & _usable(b, min_radius, max_radius)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            left = (a.residual / a.variance).sum(-1)[both]
+            right = (b.residual / b.variance).sum(-1)[both]
+        better += int((right < left).sum())
+        total += int(both.sum())
+    return better / total if total else 0.0
 
 
 def _usable(fit: BlockFits, min_radius: float, max_radius: float) -> np.ndarray:
@@ -332,6 +369,13 @@ def calibrate_camera(
     bar.close()
     winner = int(np.argmin([s for _, s in scores]))
     fits = all_fits[winner]
+    # where the blur happens: the winning shape fitted again in linear light
+    linear_fits = [fit_blocks(_linear(left), _linear(right), _linear(target), scores[winner][0],
+                              radii, patch=patch) for _, left, right, target in frames]
+    share = linear_light_share(fits, linear_fits, min_radius, max_radius)
+    light = "linear" if share > 0.5 else "encoded"
+    if light == "linear":
+        fits = linear_fits
     usable = [_usable(f, min_radius, max_radius) for f in fits]
     count = int(sum(u.sum() for u in usable))
     if count < MIN_BLOCKS:
@@ -353,8 +397,9 @@ def calibrate_camera(
         coc_percentiles={f"p{p}": round(float(np.percentile(textured, p)), 3)
                          for p in (10, 25, 50, 75, 90)},
         blocks=count,
+        light=light,
     )
-    return CameraCalibration(camera, scores, fits, usable, frames)
+    return CameraCalibration(camera, scores, fits, usable, frames, share)
 
 
 def read_calibration_frames(

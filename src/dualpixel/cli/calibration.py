@@ -153,7 +153,8 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
                    figure: Path | None, name: str | None, patch: int, max_radius: float,
                    psf_grid: str, skip_misaligned: bool) -> None:
     """Measure a camera's DP blur model from real pairs with targets: per-channel disparity
-    ratio, PSF shape, noise and blur sizes."""
+    ratio, PSF shape, where the blur happens (linear light or stored values), noise and blur
+    sizes."""
     from dualpixel.calibration.camera import calibrate_camera, read_calibration_frames
     from dualpixel.io.atomic import check_writable
     from dualpixel.optics.psf import PSFParams
@@ -179,6 +180,8 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
         click.echo(f"Warning: {warning.message}", err=True)
     calibration.camera.save(output)
     click.echo(json.dumps(calibration.camera.to_dict(), indent=2))
+    click.echo(f"light: {calibration.camera.light} (linear light explains "
+               f"{100 * calibration.linear_share:.0f} % of the blocks better)")
     click.echo(f"wrote {output}")
     if figure is not None:
         from dualpixel.viz.camera_figure import render_camera_figure

@@ -96,6 +96,10 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               default=None,
               help="A calibrated camera (`dualpixel calibrate camera`): its PSF shape replaces "
                    "--psf-bank and its per-channel disparity ratio shapes the views.")
+@click.option("--light", type=click.Choice(["encoded", "linear"]), default=None,
+              help="Blur the stored (sRGB-encoded) values, as the paper's generator, or linear "
+                   "light with the sRGB curve after, as a lens does  [default: the --camera "
+                   "file's, else encoded].")
 @click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
 @click.option("--depth-scale", type=float, default=0.001,
@@ -113,7 +117,8 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, render_mode: str,
           bit_depth: str,
           noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
-          psf_model: str, psf_bank: str, camera_file: Path | None, split: str, max_depth: float,
+          psf_model: str, psf_bank: str, camera_file: Path | None, light: str | None,
+          split: str, max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
           png_compression: int | None, shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
@@ -132,6 +137,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
         noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
         camera=None if camera_file is None else load_camera(camera_file).to_dict(),
+        light=light,
     )
     summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device,
                                  shard=shard, png_compression=png_compression)

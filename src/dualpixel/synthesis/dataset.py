@@ -56,6 +56,7 @@ from dualpixel.optics.thin_lens import (
     ThinLensCamera,
     focus_from_depth,
 )
+from dualpixel.optics.tone import check_light
 from dualpixel.parallel import completed
 from dualpixel.synthesis.frame import SequenceRecipe, draw_recipe, synthesize_frame
 from dualpixel.synthesis.inputs import (
@@ -92,6 +93,9 @@ class SynthConfig:
     # --camera camera.json``): its PSF shape replaces the bank and its per-channel disparity
     # ratio is applied to every frame. None: the paper's model.
     camera: dict | None = field(default=None, hash=False)
+    # Ours: where the blur happens (dualpixel.optics.tone): "encoded" (the paper's) or
+    # "linear"; None: the camera's, else "encoded".
+    light: str | None = None
 
     def __post_init__(self) -> None:
         known = (*CAMERA_PRESETS, *DEFOCUS_PROFILES)
@@ -117,6 +121,16 @@ class SynthConfig:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
         if self.camera is not None:
             self.dp_camera()  # refuses a bad camera description now
+        if self.light is not None:
+            check_light(self.light)
+
+    @property
+    def render_light(self) -> str:
+        """The light space frames are blurred in: ``light``, else the camera's, else encoded."""
+        if self.light is not None:
+            return self.light
+        camera = self.dp_camera()
+        return "encoded" if camera is None else camera.light
 
     def dp_camera(self):
         """The calibrated camera (:class:`~dualpixel.calibration.camera.DPCamera`), or None."""
@@ -130,6 +144,8 @@ class SynthConfig:
         data = asdict(self)
         data["cameras"] = list(self.cameras)
         data["noise_sigmas"] = list(self.noise_sigmas)
+        if data["light"] is None:  # as recorded before the setting existed
+            del data["light"]
         return data
 
 
@@ -198,7 +214,7 @@ def plan_jobs(
                                          seed)
             recipe = draw_recipe(
                 seed, camera, psf_model=config.psf_model, bank=bank,
-                disparity_ratio=disparity_ratio,
+                disparity_ratio=disparity_ratio, light=config.render_light,
                 distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
                 max_layers=config.max_layers, render_mode=config.render_mode,
@@ -240,8 +256,10 @@ def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
     paths = job.paths(root)
     left = _quantise(result.left, config.bit_depth)
     right = _quantise(result.right, config.bit_depth)
-    # (left + right) / 2 of the stored integers, rounded up
-    combined = ((left.astype(np.uint32) + right + 1) >> 1).astype(left.dtype)
+    if job.recipe.light == "linear":  # the views' light summed, then encoded
+        combined = _quantise(result.combined, config.bit_depth)
+    else:  # (left + right) / 2 of the stored integers, rounded up
+        combined = ((left.astype(np.uint32) + right + 1) >> 1).astype(left.dtype)
     target = _quantise(result.target, config.bit_depth)
     # The encoders release the GIL: the frame's files are written side by side, and all of them
     # are in place before its manifest line (the frame's commit) is returned.

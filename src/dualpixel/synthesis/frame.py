@@ -24,6 +24,7 @@ from dualpixel.optics.noise import (
 from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
 from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
 from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
+from dualpixel.optics.tone import Light, check_light, linear_to_srgb, srgb_to_linear
 from dualpixel.synthesis.layers import check_render_mode
 from dualpixel.synthesis.renderer import render_dp_views
 
@@ -45,10 +46,14 @@ class SequenceRecipe:
     # Ours: per channel, the fraction of the model's disparity the camera's views keep
     # (dualpixel.optics.crosstalk; a calibrated camera); None: the paper's model (1, 1, 1).
     disparity_ratio: tuple[float, ...] | None = None
+    # Ours: "linear" blurs in linear light and encodes the views and target as sRGB after
+    # (dualpixel.optics.tone; a calibrated camera); "encoded": the paper's, the stored values.
+    light: Light = "encoded"
 
     def __post_init__(self) -> None:
         if self.disparity_ratio is not None:
             check_disparity_ratio(self.disparity_ratio)
+        check_light(self.light)
 
     def describe(self) -> dict:
         """A JSON-ready description for manifests."""
@@ -70,6 +75,7 @@ class SequenceRecipe:
             "render_mode": self.render_mode,
             **({} if self.disparity_ratio is None
                else {"disparity_ratio": list(self.disparity_ratio)}),
+            **({} if self.light == "encoded" else {"light": self.light}),
         }
 
 
@@ -86,6 +92,7 @@ def draw_recipe(
     max_layers: int = 500,
     render_mode: str = "fast",
     disparity_ratio: tuple[float, ...] | None = None,
+    light: Light = "encoded",
 ) -> SequenceRecipe:
     """Draw a sequence's PSF shape and noise strength from ``seed`` for a camera.
 
@@ -117,6 +124,7 @@ def draw_recipe(
         max_layers=max_layers,
         render_mode=render_mode,
         disparity_ratio=disparity_ratio,
+        light=light,
     )
 
 
@@ -125,7 +133,8 @@ class DPFrame:
     """A synthetic frame, torch tensors with values in [0, 1] (defocus in pixels).
 
     ``left`` and ``right`` are at the brightness of the combined image (DPDD convention), so
-    ``combined = (left + right) / 2``; the paper's half-brightness views are ``left / 2``.
+    ``combined = (left + right) / 2`` (in linear light where the recipe's ``light`` is
+    "linear"); the paper's half-brightness views are ``left / 2``.
     """
 
     left: torch.Tensor  # (3, H, W)
@@ -172,20 +181,28 @@ def synthesize_frame(
             f"{tuple(depth_t.shape)}"
         )
     coc = coc_radius(depth_t, recipe.camera)
+    linear = recipe.light == "linear"
+    scene = srgb_to_linear(image) if linear else image
     left, right = render_dp_views(
-        image, coc, recipe.psf, model=recipe.psf_model, max_layers=recipe.max_layers,
+        scene, coc, recipe.psf, model=recipe.psf_model, max_layers=recipe.max_layers,
         mode=recipe.render_mode,
     )
     if recipe.disparity_ratio is not None:
         left, right = apply_crosstalk(left, right, recipe.disparity_ratio)
-    target, defocus = image, coc
+    target, defocus = scene, coc
     if recipe.distortion is not None:
         # one warp for all planes: the inverse-distortion grid is computed once per frame
         warped = distort_image(torch.cat((left, right, target, coc[None])), recipe.distortion)
         left, right, target, defocus = warped.split((3, 3, 3, 1))
         defocus = defocus[0]
+    if linear:  # the tone curve after the optics; noise is added to the stored values
+        left, right, target = (linear_to_srgb(t) for t in (left, right, target))
     if recipe.noise_sigma is not None and recipe.noise_sigma > 0:
         left = _noisy_view(left, recipe, noise_seed * 2)
         right = _noisy_view(right, recipe, noise_seed * 2 + 1)
     left, right, target = (t.clamp(0.0, 1.0) for t in (left, right, target))
-    return DPFrame(left, right, (left + right) / 2.0, target, defocus)
+    if linear:  # the two photodiodes' light summed, then the tone curve
+        combined = linear_to_srgb((srgb_to_linear(left) + srgb_to_linear(right)) / 2.0)
+    else:
+        combined = (left + right) / 2.0
+    return DPFrame(left, right, combined, target, defocus)

@@ -1,0 +1,48 @@
+"""Where the blur happens: in linear light, while images store encoded (sRGB) values (ours).
+
+A lens mixes light, so a real camera's defocus blur is a convolution of scene radiance, and the
+tone curve comes after it; the paper's generator (and ``light="encoded"``) convolves the stored
+8-bit values instead. The difference shows at contrasty edges and highlights: blurred in linear
+light, a bright region spreads further into a dark one. ``dualpixel calibrate camera`` measures
+which of the two explains a camera's pairs (:mod:`dualpixel.calibration.camera`).
+
+The transfer function is sRGB's (IEC 61966-2-1), applied to values in [0, 1].
+
+>>> import torch
+>>> round(float(linear_to_srgb(srgb_to_linear(torch.tensor(0.5)))), 6)
+0.5
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import torch
+
+from dualpixel.errors import ParameterError
+
+__all__ = ["LIGHT_SPACES", "Light", "check_light", "linear_to_srgb", "srgb_to_linear"]
+
+Light = Literal["encoded", "linear"]
+#: ``encoded``: blur the stored values (the paper's generator); ``linear``: decode to linear
+#: light, blur, encode again.
+LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")
+
+
+def check_light(light: str) -> str:
+    if light not in LIGHT_SPACES:
+        raise ParameterError(f"light must be one of {', '.join(LIGHT_SPACES)}, got {light!r}")
+    return light
+
+
+def srgb_to_linear(values: torch.Tensor) -> torch.Tensor:
+    """sRGB-encoded values in [0, 1] -> linear light in [0, 1] (any shape)."""
+    values = values.clamp(0.0, 1.0)
+    return torch.where(values <= 0.04045, values / 12.92, ((values + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(values: torch.Tensor) -> torch.Tensor:
+    """Linear light in [0, 1] -> sRGB-encoded values in [0, 1] (any shape; clipped first)."""
+    values = values.clamp(0.0, 1.0)
+    return torch.where(values <= 0.0031308, 12.92 * values,
+                       1.055 * values.clamp_min(0.0031308) ** (1.0 / 2.4) - 0.055)
