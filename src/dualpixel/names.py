@@ -3,12 +3,16 @@ command line can list them without importing torch (``dualpixel --help`` stays f
 
 from __future__ import annotations
 
-__all__ = ["BACKENDS", "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "SCENE_LAYOUTS"]
+__all__ = ["BACKENDS", "LIGHT_SPACES", "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS",
+           "SCENE_LAYOUTS"]
 
 #: DP PSF models: ours (Eq. 2-4) and the ablation's baselines.
 PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
 #: Banks of PSF shapes (:data:`dualpixel.optics.psf_bank.PSF_BANKS`).
 PSF_BANK_NAMES: tuple[str, ...] = ("paper", "pixel4")
+#: Where synthesis blurs (:mod:`dualpixel.optics.tone`): the stored (sRGB-encoded) values, the
+#: paper's generator, or linear light with the sRGB curve after, as a lens does.
+LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")
 #: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`).
 SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo")
 #: Inference precisions (:mod:`dualpixel.inference.precision`).

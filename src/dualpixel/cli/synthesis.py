@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, float_list, parse_size
-from dualpixel.names import PSF_BANK_NAMES, PSF_MODELS, SCENE_LAYOUTS
+from dualpixel.names import LIGHT_SPACES, PSF_BANK_NAMES, PSF_MODELS, SCENE_LAYOUTS
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -96,7 +96,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               default=None,
               help="A calibrated camera (`dualpixel calibrate camera`): its PSF shape replaces "
                    "--psf-bank and its per-channel disparity ratio shapes the views.")
-@click.option("--light", type=click.Choice(["encoded", "linear"]), default=None,
+@click.option("--light", type=click.Choice(LIGHT_SPACES), default=None,
               help="Blur the stored (sRGB-encoded) values, as the paper's generator, or linear "
                    "light with the sRGB curve after, as a lens does  [default: the --camera "
                    "file's, else encoded].")

@@ -20,13 +20,11 @@ from typing import Literal
 import torch
 
 from dualpixel.errors import ParameterError
+from dualpixel.names import LIGHT_SPACES
 
 __all__ = ["LIGHT_SPACES", "Light", "check_light", "linear_to_srgb", "srgb_to_linear"]
 
-Light = Literal["encoded", "linear"]
-#: ``encoded``: blur the stored values (the paper's generator); ``linear``: decode to linear
-#: light, blur, encode again.
-LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")
+Light = Literal["encoded", "linear"]  # LIGHT_SPACES
 
 
 def check_light(light: str) -> str:

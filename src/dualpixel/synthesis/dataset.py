@@ -202,6 +202,7 @@ def plan_jobs(
     camera_model = config.dp_camera()
     if camera_model is not None:
         bank, disparity_ratio = PSFBank([camera_model.psf]), camera_model.disparity_ratio
+    light = config.render_light
     for cam_index, camera_name in enumerate(config.cameras):
         for seq_index, sequence in enumerate(sequences):
             number = cam_index * len(sequences) + seq_index + 1
@@ -214,7 +215,7 @@ def plan_jobs(
                                          seed)
             recipe = draw_recipe(
                 seed, camera, psf_model=config.psf_model, bank=bank,
-                disparity_ratio=disparity_ratio, light=config.render_light,
+                disparity_ratio=disparity_ratio, light=light,
                 distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
                 max_layers=config.max_layers, render_mode=config.render_mode,
