@@ -4,12 +4,15 @@ command line can list them without importing torch (``dualpixel --help`` stays f
 from __future__ import annotations
 
 __all__ = ["BACKENDS", "LIGHT_SPACES", "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS",
-           "SCENE_LAYOUTS"]
+           "PSF_SHAPE_SOURCES", "SCENE_LAYOUTS"]
 
 #: DP PSF models: ours (Eq. 2-4) and the ablation's baselines.
 PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
 #: Banks of PSF shapes (:data:`dualpixel.optics.psf_bank.PSF_BANKS`).
-PSF_BANK_NAMES: tuple[str, ...] = ("paper", "pixel4")
+PSF_BANK_NAMES: tuple[str, ...] = ("paper", "pixel4", "broad")
+#: Where a synthesis with a calibrated camera takes its PSF shapes from: the camera's fitted
+#: shape, or the PSF bank (the camera's disparity ratios and light kept).
+PSF_SHAPE_SOURCES: tuple[str, ...] = ("camera", "bank")
 #: Where synthesis blurs (:mod:`dualpixel.optics.tone`): the stored (sRGB-encoded) values, the
 #: paper's generator, or linear light with the sRGB curve after, as a lens does.
 LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")

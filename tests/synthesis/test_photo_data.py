@@ -127,3 +127,35 @@ def test_dataset_with_a_profile_uses_the_scene_focus(tmp_path):
         SynthConfig(psf_bank="canon")
     with pytest.raises(ParameterError, match="dslr-840"):
         SynthConfig(cameras=("dslr",))
+
+
+def test_a_camera_can_keep_its_ratios_and_light_with_the_banks_shapes(tmp_path):
+    from dualpixel.calibration.camera import DPCamera
+    from dualpixel.optics import BROAD_PSF_BANK, PSFParams
+
+    scenes = tmp_path / "scenes"
+    write_scene_folder(scenes, 12, SceneConfig(width=64, height=48, frames=1, layout="photo"),
+                       seed=6, progress=False)
+    sequences = discover_sequences(scenes, "rgbd")
+    fitted = PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)
+    camera = DPCamera(name="c", width=840, disparity_ratio=(0.7, 0.96, 1.0), psf=fitted,
+                      light="linear").to_dict()
+    own = plan_jobs(sequences, SynthConfig(cameras=("dslr-840",), camera=camera,
+                                           psf_bank="broad"))
+    assert {job.recipe.psf for job in own} == {fitted}  # default: the camera's fitted shape
+    config = SynthConfig(cameras=("dslr-840",), camera=camera, psf_bank="broad",
+                         psf_shapes="bank")
+    drawn = plan_jobs(sequences, config)
+    shapes = {job.recipe.psf for job in drawn}
+    assert len(shapes) >= 6 and shapes <= set(BROAD_PSF_BANK)
+    assert all(job.recipe.disparity_ratio == (0.7, 0.96, 1.0) for job in drawn)
+    assert all(job.recipe.light == "linear" for job in drawn)
+    assert config.as_dict()["psf_shapes"] == "bank"
+    assert "psf_shapes" not in SynthConfig(camera=camera).as_dict()  # old datasets unchanged
+    with pytest.raises(ParameterError, match="needs a camera"):
+        SynthConfig(psf_shapes="bank")
+    with pytest.raises(ParameterError, match="psf_shapes must be one of camera, bank"):
+        SynthConfig(camera=camera, psf_shapes="wide")
+    kappas = {p.kappa for p in BROAD_PSF_BANK}
+    betas = {p.beta for p in BROAD_PSF_BANK}
+    assert min(kappas) < 0.1 and max(kappas) > 0.4 and max(betas) >= 0.9

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
+from dualpixel.names import PSF_BANK_NAMES
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -143,9 +144,9 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
 @click.option("--patch", type=click.IntRange(16), default=48, help="Block size in pixels.")
 @click.option("--max-radius", type=click.FloatRange(1.0, 60.0), default=12.0,
               help="Largest CoC radius (px) searched; twice as large at twice the resolution.")
-@click.option("--psf-grid", type=click.Choice(["single", "pixel4"]), default="single",
-              help="PSF shapes to choose from: single (the Pixel 4 fits' mode; quick) or the "
-                   "36 shapes of the pixel4 bank.")
+@click.option("--psf-grid", type=click.Choice(["single", *PSF_BANK_NAMES]), default="single",
+              help="PSF shapes to choose from: single (the Pixel 4 fits' mode; quick) or a "
+                   "bank's shapes (pixel4: 36, broad: 192; a few seconds per shape and pair).")
 @click.option("--skip-misaligned", is_flag=True,
               help="Leave out (with a warning) pairs whose target is shifted against the views "
                    "by over 1 px, instead of stopping.")
@@ -158,14 +159,14 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
     from dualpixel.calibration.camera import calibrate_camera, read_calibration_frames
     from dualpixel.io.atomic import check_writable
     from dualpixel.optics.psf import PSFParams
-    from dualpixel.optics.psf_bank import PIXEL4_PSF_BANK
+    from dualpixel.optics.psf_bank import PSF_BANKS
 
     check_writable(output)
     if figure is not None:
         from dualpixel.viz.figures import check_figure_path
 
         check_writable(check_figure_path(figure))
-    candidates = (list(PIXEL4_PSF_BANK) if psf_grid == "pixel4"
+    candidates = (list(PSF_BANKS[psf_grid]) if psf_grid in PSF_BANKS
                   else [PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)])
     import warnings
 

@@ -7,7 +7,13 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, float_list, parse_size
-from dualpixel.names import LIGHT_SPACES, PSF_BANK_NAMES, PSF_MODELS, SCENE_LAYOUTS
+from dualpixel.names import (
+    LIGHT_SPACES,
+    PSF_BANK_NAMES,
+    PSF_MODELS,
+    PSF_SHAPE_SOURCES,
+    SCENE_LAYOUTS,
+)
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -91,11 +97,16 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--psf-model", type=click.Choice(PSF_MODELS),
               default="ours", help="DP PSF model (the others for the paper's ablations).")
 @click.option("--psf-bank", type=click.Choice(PSF_BANK_NAMES), default="paper",
-              help="PSF shapes to draw from: the paper's 48, or around the real Pixel 4 fits.")
+              help="PSF shapes to draw from: the paper's 48, around the real Pixel 4 fits, or "
+                   "broad (fuller and smoother shapes too).")
 @click.option("--camera", "camera_file", type=click.Path(dir_okay=False, path_type=Path),
               default=None,
               help="A calibrated camera (`dualpixel calibrate camera`): its PSF shape replaces "
-                   "--psf-bank and its per-channel disparity ratio shapes the views.")
+                   "--psf-bank (see --psf-shapes) and its per-channel disparity ratio shapes "
+                   "the views.")
+@click.option("--psf-shapes", type=click.Choice(PSF_SHAPE_SOURCES), default=None,
+              help="With --camera: PSF shapes from the camera's fit, or drawn from --psf-bank "
+                   "with the camera's disparity ratios and light  [default: camera].")
 @click.option("--light", type=click.Choice(LIGHT_SPACES), default=None,
               help="Blur the stored (sRGB-encoded) values, as the paper's generator, or linear "
                    "light with the sRGB curve after, as a lens does  [default: the --camera "
@@ -117,7 +128,8 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, render_mode: str,
           bit_depth: str,
           noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
-          psf_model: str, psf_bank: str, camera_file: Path | None, light: str | None,
+          psf_model: str, psf_bank: str, camera_file: Path | None, psf_shapes: str | None,
+          light: str | None,
           split: str, max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
           png_compression: int | None, shard: tuple[int, int] | None) -> None:
@@ -137,7 +149,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
         noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
         camera=None if camera_file is None else load_camera(camera_file).to_dict(),
-        light=light,
+        psf_shapes=psf_shapes, light=light,
     )
     summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device,
                                  shard=shard, png_compression=png_compression)

@@ -15,7 +15,13 @@ from dualpixel.optics.psf import (
     dp_psf,
     kernel_size,
 )
-from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PIXEL4_PSF_BANK, PSF_BANKS, PSFBank
+from dualpixel.optics.psf_bank import (
+    BROAD_PSF_BANK,
+    PAPER_PSF_BANK,
+    PIXEL4_PSF_BANK,
+    PSF_BANKS,
+    PSFBank,
+)
 from dualpixel.optics.thin_lens import (
     CAMERA_PRESETS,
     DEFOCUS_PROFILES,
@@ -25,6 +31,7 @@ from dualpixel.optics.thin_lens import (
 )
 
 __all__ = [
+    "BROAD_PSF_BANK",
     "CAMERA_PRESETS",
     "DEFOCUS_PROFILES",
     "DISTORTION_PRESETS",

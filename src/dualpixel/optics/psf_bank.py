@@ -11,7 +11,7 @@ from dualpixel.errors import ParameterError
 from dualpixel.names import PSF_BANK_NAMES
 from dualpixel.optics.psf import PSFParams
 
-__all__ = ["PAPER_PSF_BANK", "PIXEL4_PSF_BANK", "PSF_BANKS", "PSFBank"]
+__all__ = ["BROAD_PSF_BANK", "PAPER_PSF_BANK", "PIXEL4_PSF_BANK", "PSF_BANKS", "PSFBank"]
 
 
 class PSFBank(Sequence[PSFParams]):
@@ -67,6 +67,15 @@ PIXEL4_PSF_BANK = PSFBank.from_grid(
     n=(2, 3, 7, 15), alpha=(0.35, 0.45, 0.55), beta=(0.1, 0.2, 0.3), kappa=(0.17, 0.21, 0.25)
 )
 
+#: Ours: the Pixel 4 bank's orders and cutoffs with a wider range of centre depletion (beta up
+#: to 0.9, nearly a full disk) and smoothing (kappa 0.05 sharp-edged to 0.45 soft), so that a
+#: network meets view PSFs fuller or smoother than one camera's fit (192 shapes).
+BROAD_PSF_BANK = PSFBank.from_grid(
+    n=(2, 3, 7, 15), alpha=(0.35, 0.45, 0.55), beta=(0.1, 0.3, 0.6, 0.9),
+    kappa=(0.05, 0.14, 0.25, 0.45)
+)
+
 #: Banks by name (``dualpixel synth --psf-bank``).
-PSF_BANKS: dict[str, PSFBank] = dict(zip(PSF_BANK_NAMES, (PAPER_PSF_BANK, PIXEL4_PSF_BANK),
-                                          strict=True))
+PSF_BANKS: dict[str, PSFBank] = dict(
+    zip(PSF_BANK_NAMES, (PAPER_PSF_BANK, PIXEL4_PSF_BANK, BROAD_PSF_BANK), strict=True)
+)

@@ -46,6 +46,7 @@ from dualpixel.io.images import check_png_compression, quantise, save_npy, write
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
 from dualpixel.io.run_folder import differing_settings, locate, same_location
+from dualpixel.names import PSF_SHAPE_SOURCES
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
@@ -90,9 +91,12 @@ class SynthConfig:
     depth_scale: float = 0.001
     split: str = "train"
     # Ours: a calibrated camera (dualpixel.calibration.camera.DPCamera.to_dict(); ``synth
-    # --camera camera.json``): its PSF shape replaces the bank and its per-channel disparity
-    # ratio is applied to every frame. None: the paper's model.
+    # --camera camera.json``): its PSF shape replaces the bank (see psf_shapes) and its
+    # per-channel disparity ratio is applied to every frame. None: the paper's model.
     camera: dict | None = field(default=None, hash=False)
+    # Ours: with a camera, draw PSF shapes from the camera's fit ("camera") or from psf_bank
+    # ("bank", the camera's ratios and light kept); None: "camera".
+    psf_shapes: str | None = None
     # Ours: where the blur happens (dualpixel.optics.tone): "encoded" (the paper's) or
     # "linear"; None: the camera's, else "encoded".
     light: str | None = None
@@ -123,6 +127,14 @@ class SynthConfig:
             self.dp_camera()  # refuses a bad camera description now
         if self.light is not None:
             check_light(self.light)
+        if self.psf_shapes is not None and self.psf_shapes not in PSF_SHAPE_SOURCES:
+            raise ParameterError(
+                f"psf_shapes must be one of {', '.join(PSF_SHAPE_SOURCES)}, got "
+                f"{self.psf_shapes!r}"
+            )
+        if self.psf_shapes is not None and self.camera is None:
+            raise ParameterError("psf_shapes chooses between a camera's PSF shape and the bank; "
+                                 "it needs a camera")
 
     @property
     def render_light(self) -> str:
@@ -144,8 +156,9 @@ class SynthConfig:
         data = asdict(self)
         data["cameras"] = list(self.cameras)
         data["noise_sigmas"] = list(self.noise_sigmas)
-        if data["light"] is None:  # as recorded before the setting existed
-            del data["light"]
+        for key in ("light", "psf_shapes"):  # as recorded before the settings existed
+            if data[key] is None:
+                del data[key]
         return data
 
 
@@ -201,7 +214,9 @@ def plan_jobs(
     bank, disparity_ratio = PSF_BANKS[config.psf_bank], None
     camera_model = config.dp_camera()
     if camera_model is not None:
-        bank, disparity_ratio = PSFBank([camera_model.psf]), camera_model.disparity_ratio
+        disparity_ratio = camera_model.disparity_ratio
+        if config.psf_shapes != "bank":
+            bank = PSFBank([camera_model.psf])
     light = config.render_light
     for cam_index, camera_name in enumerate(config.cameras):
         for seq_index, sequence in enumerate(sequences):
