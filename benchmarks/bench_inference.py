@@ -3,8 +3,9 @@
 Default mode (issue #36): the shipped ``rdpd-light`` on the default path (``--precision auto``:
 bf16 autocast and channels-last where the CPU computes bf16 natively) against ``--precision fp32``
 (channels-last), against the same without :func:`~dualpixel.memory.reuse_freed_memory` (which
-the ``dualpixel`` command calls at start-up; every other case has it), against the path before
-issue #36 (fp32, contiguous memory, fresh pages) and against
+the ``dualpixel`` command calls at start-up; every other case has it), against the same without
+:mod:`~dualpixel.inference.fusion` (convolutions and their activations run apart), against
+the path before issue #36 (fp32, contiguous memory, fresh pages) and against
 ``--backend onnxruntime`` (fp32; its one-off export, cached per checkpoint, timed apart and done
 in a temporary cache folder; skipped without the ``onnx`` extra; on CUDA also ``--precision
 fp16``, with frames per second and peak GPU memory); tiled at 512
@@ -62,6 +63,8 @@ def prepare(case: dict, device: str):
                           multiscale=case.get("multiscale", False),
                           backend=case.get("backend", "torch"))
     setup = time.perf_counter() - setup
+    if case.get("unfused") or case.get("legacy"):  # convolutions and activations apart
+        deblurrer._net = deblurrer.model
     if case.get("legacy"):  # before issue #36: float32 in contiguous memory
         deblurrer.numerics = Precision("fp32", None, channels_last=False)
         deblurrer.model.to(memory_format=torch.contiguous_format)
@@ -147,6 +150,7 @@ def canon_psnr_difference(device: str) -> dict[str, float]:
 CASES = {
     "default": {"model": "rdpd-light"},
     "fresh-pages": {"model": "rdpd-light", "fresh_pages": True},
+    "unfused": {"model": "rdpd-light", "unfused": True},
     "fp32": {"model": "rdpd-light", "precision": "fp32"},
     "legacy": {"model": "rdpd-light", "precision": "fp32", "legacy": True, "fresh_pages": True},
     "onnxruntime": {"model": "rdpd-light", "backend": "onnxruntime"},
@@ -239,6 +243,8 @@ def main() -> None:
           "(target <= 0.35)")
     print(f"ratio default / without reuse_freed_memory: "
           f"{seconds['default'] / seconds['fresh-pages']:.2f}")
+    print(f"ratio default / without the conv + activation fusion: "
+          f"{seconds['default'] / seconds['unfused']:.2f}")
     print(f"ratio default / fp32 before #36 (contiguous, fresh pages): "
           f"{seconds['default'] / seconds['legacy']:.2f}")
     print(f"default per 1680x1120 image: {seconds['default']:.2f} s (target <= 3 s, idle machine)")

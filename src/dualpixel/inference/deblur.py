@@ -18,6 +18,10 @@ in :data:`BATCH_PIXELS`; on the CPU whole frames go one by one, which measured f
 :data:`~dualpixel.inference.tiling.MAX_BATCH` at a time. 4x the arithmetic (2x for a
 single-view model, which has only the vertical flip).
 
+On the CPU the network runs as a copy with each convolution and its activation fused into one
+oneDNN call (:mod:`dualpixel.inference.fusion`; the same outputs, a quarter faster in bfloat16);
+the model passed in is left as it is.
+
 ``backend="onnxruntime"`` runs the network with ONNX Runtime on the CPU in float32
 (:mod:`dualpixel.inference.onnx_runtime`); everything above works the same.
 
@@ -37,6 +41,7 @@ import torch
 from dualpixel.data.layout import DPSequence, read_frame
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
+from dualpixel.inference.fusion import fused_copy
 from dualpixel.inference.multiscale import (
     FUSION_SIGMA,
     check_fusion_sigma,
@@ -139,7 +144,8 @@ class Deblurrer:
             memory = (torch.channels_last if self.numerics.channels_last
                       else torch.contiguous_format)
             self.model = self.model.to(self.device, memory_format=memory).eval()
-            self._net = self.model
+            # on the CPU a copy with convolution + activation pairs fused (outputs unchanged)
+            self._net, _ = fused_copy(self.model, self.numerics.dtype)
         # (flip upside down, flip left-right with the views swapped) per ensemble member.
         self._flips = [(False, False)]
         if self.flips:
