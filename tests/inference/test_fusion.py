@@ -45,6 +45,16 @@ def test_the_fused_copy_computes_the_same_and_leaves_the_model(refined_model):
     assert (got_bf16.float() - plain_bf16.float()).abs().max() < 0.02
 
 
+def test_pairs_the_kernel_cannot_take_stay_as_they_are():
+    model = nn.Sequential(nn.Conv2d(3, 4, 3, padding="same"), nn.ReLU(),
+                          nn.Conv2d(4, 4, 3, padding=1, padding_mode="reflect"), nn.ReLU(),
+                          nn.Conv2d(4, 4, 3, padding=1), nn.ReLU())
+    fused, count = fused_copy(model)
+    assert count == 1
+    assert [type(m) for m in fused] == [nn.Conv2d, nn.ReLU, nn.Conv2d, nn.ReLU,
+                                        FusedConvActivation, nn.Identity]
+
+
 def test_with_gradients_the_pair_is_computed_as_before():
     torch.manual_seed(2)
     pair = nn.Sequential(nn.Conv2d(3, 5, 3, padding=1), nn.LeakyReLU(0.1))

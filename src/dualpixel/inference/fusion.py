@@ -59,11 +59,14 @@ def _fuse_in_place(model: nn.Module, dtype: torch.dtype) -> int:
             continue
         children = list(module._modules.items())
         for (name, first), (next_name, second) in itertools.pairwise(children):
-            if (type(first) is nn.Conv2d and type(second) in (nn.ReLU, nn.LeakyReLU)
-                    and first.padding_mode == "zeros" and not isinstance(first.padding, str)):
+            if type(first) is not nn.Conv2d or type(second) not in (nn.ReLU, nn.LeakyReLU):
+                continue
+            try:
                 module._modules[name] = FusedConvActivation(first, second, dtype)
-                module._modules[next_name] = nn.Identity()
-                count += 1
+            except ValueError:  # padding the kernel does not take
+                continue
+            module._modules[next_name] = nn.Identity()
+            count += 1
     return count
 
 
