@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from dualpixel.errors import ParameterError
+from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.lock import LOCK_NAME
 from dualpixel.optics import DEFOCUS_PROFILES, PIXEL4_PSF_BANK, DefocusProfile, coc_radius
 from dualpixel.synthesis.dataset import SynthConfig, plan_jobs, read_manifest, synthesize_dataset
@@ -159,3 +159,22 @@ def test_a_camera_can_keep_its_ratios_and_light_with_the_banks_shapes(tmp_path):
     kappas = {p.kappa for p in BROAD_PSF_BANK}
     betas = {p.beta for p in BROAD_PSF_BANK}
     assert min(kappas) < 0.1 and max(kappas) > 0.4 and max(betas) >= 0.9
+
+
+def test_relief_varies_depth_inside_surfaces_within_its_bound(tmp_path):
+    flat_config = SceneConfig(width=96, height=64, frames=1, layout="photo")
+    relief_config = SceneConfig(width=96, height=64, frames=1, layout="photo", relief=0.1)
+    (flat_rgb, flat_depth), = render_scene(3, flat_config)[0]
+    (rgb_r, depth_r), = render_scene(3, relief_config)[0]
+    assert np.array_equal(rgb_r, flat_rgb)  # the same scene, only its depth in relief
+    ratio = depth_r / flat_depth
+    assert 0.9 - 1e-4 <= ratio.min() and ratio.max() <= 1.1 + 1e-4
+    assert np.mean(np.abs(ratio - 1) > 0.01) > 0.3  # most surfaces are not flat any more
+    again, _ = render_scene(3, relief_config)
+    assert np.array_equal(again[0][1], depth_r)
+    # a flat folder records its settings as before the option existed
+    write_scene_folder(tmp_path / "flat", 1, flat_config, progress=False)
+    assert "relief" not in json.loads((tmp_path / "flat" / "scenes.json").read_text())["config"]
+    write_scene_folder(tmp_path / "relief", 1, relief_config, progress=False)
+    with pytest.raises(InputFileError, match="relief"):
+        write_scene_folder(tmp_path / "relief", 1, flat_config, progress=False)

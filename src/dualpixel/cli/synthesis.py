@@ -58,15 +58,18 @@ def psf(output: Path, radii: list[float], order: float, alpha: float, beta: floa
 @click.option("--layout", type=click.Choice(SCENE_LAYOUTS), default="leaves",
               help="leaves: shapes at random depths; photo: an in-focus subject, ground plane, "
                    "background and occluders, with richer textures (writes the focus distance).")
+@click.option("--relief", type=click.FloatRange(0.0, 0.5), default=0.0, show_default=True,
+              help="Relief of textured surfaces: the largest relative depth change their fine "
+                   "structure makes (0: flat surfaces).")
 @click.option("--workers", type=click.IntRange(1), default=1,
               help="Parallel processes (the output does not depend on it).")
 def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], leaves: int,
-           seed: int, layout: str, workers: int) -> None:
+           seed: int, layout: str, relief: float, workers: int) -> None:
     """Render procedural RGB-D sequences (the built-in default input)."""
     from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 
     config = SceneConfig(width=size[0], height=size[1], frames=frames, leaves=leaves,
-                         layout=layout)
+                         layout=layout, relief=relief)
     write_scene_folder(output, sequences, config, seed=seed, workers=workers)
     click.echo(f"wrote {sequences} sequences of {frames} frames to {output}")
 

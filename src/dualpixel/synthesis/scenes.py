@@ -48,6 +48,10 @@ class SceneConfig:
     camera_speed: float = 6.0  # px per frame for a surface at 1 m ... scaled by 1/depth
     leaf_speed: float = 2.0  # px per frame
     layout: str = "leaves"  # "leaves" (dead-leaves world) or "photo" (subject, ground, background)
+    # Ours: relief of textured surfaces, the largest relative depth change within one (0: flat,
+    # as before): depth follows each texture's fine structure, so the blur varies inside objects
+    # and their details occlude one another, as on foliage, fabric or gravel.
+    relief: float = 0.0
 
     def __post_init__(self) -> None:
         check_range("width", self.width, 16, 16384)
@@ -56,6 +60,7 @@ class SceneConfig:
         check_range("leaves", self.leaves, 0, 10000)
         check_range("near", self.near, 0.0, self.far, low_inclusive=False)
         check_range("plane_near", self.plane_near, 0.0, self.plane_far, low_inclusive=False)
+        check_range("relief", self.relief, 0.0, 0.5)
         if self.layout not in SCENE_LAYOUTS:
             raise ParameterError(
                 f"layout must be one of {', '.join(SCENE_LAYOUTS)}, got {self.layout!r}"
@@ -116,6 +121,15 @@ class _Leaf:
     vy: float
     depth_rate: float  # relative change of depth per frame
     tilt: float = 0.0  # relative depth change across the leaf's width (a slanted surface)
+
+
+def _relief(texture: np.ndarray) -> np.ndarray:
+    """A texture's relief in [-1, 1], ``(H, W)`` float32: its luminance above or below the local
+    mean (Gaussian, 1/16 of its size), normalised; brighter detail lies nearer."""
+    luminance = texture.mean(axis=-1).astype(np.float32)
+    sigma = max(texture.shape[0], texture.shape[1]) / 16
+    detail = luminance - cv2.GaussianBlur(luminance, (0, 0), sigma)
+    return np.tanh(detail / (2 * float(detail.std()) + 1e-6)).astype(np.float32)
 
 
 def _plane_depth(config: SceneConfig, horizon: float) -> np.ndarray:
@@ -204,6 +218,8 @@ def render_scene(
     if config.layout == "photo":
         background, back_depth, leaves, focus = _photo_world(rng, config, margin)
         parallax_depth = float(np.median(back_depth))
+        if config.relief:
+            back_depth = back_depth * (1 - config.relief * _relief(background))
     else:
         background = _texture(rng, height + 2 * margin, width + 2 * margin)
         horizon = rng.uniform(-0.3, 0.5) * height
@@ -223,6 +239,7 @@ def render_scene(
                 vy=config.leaf_speed * rng.normal() * 0.5,
                 depth_rate=rng.normal(0, 0.02),
             ))
+    reliefs = [_relief(leaf.texture) if config.relief else None for leaf in leaves]
     frames = []
     for t in range(config.frames):
         # the background scrolls with the camera at the parallax of its typical depth
@@ -232,23 +249,26 @@ def render_scene(
         depth = (plane.copy() if back_depth is None
                  else back_depth[oy : oy + height, ox : ox + width].copy())
         placed = []
-        for leaf in leaves:
+        for leaf, relief in zip(leaves, reliefs, strict=True):
             d = leaf.depth * (1.0 + leaf.depth_rate) ** t
             x = leaf.x + (leaf.vx + pan[0] / d) * t
             y = leaf.y + (leaf.vy + pan[1] / d) * t
-            placed.append((d, round(x), round(y), leaf))
-        for d, x, y, leaf in sorted(placed, key=lambda item: -item[0]):  # far to near
+            placed.append((d, round(x), round(y), leaf, relief))
+        for d, x, y, leaf, relief in sorted(placed, key=lambda item: -item[0]):  # far to near
             size = leaf.mask.shape[0]
             x0, y0, x1, y1 = max(x, 0), max(y, 0), min(x + size, width), min(y + size, height)
             if x0 >= x1 or y0 >= y1:
                 continue
             mask = leaf.mask[y0 - y : y1 - y, x0 - x : x1 - x]
             rgb[y0:y1, x0:x1][mask] = leaf.texture[y0 - y : y1 - y, x0 - x : x1 - x][mask]
-            leaf_depth = np.float32(d)
+            leaf_depth = np.full(mask.shape, d, np.float32)
             if leaf.tilt:
                 ramp = (np.arange(x0 - x, x1 - x, dtype=np.float32) / size - 0.5) * leaf.tilt
-                leaf_depth = np.broadcast_to(d * (1 + ramp)[None, :], mask.shape)[mask]
-            depth[y0:y1, x0:x1][mask] = leaf_depth
+                leaf_depth = leaf_depth * (1 + ramp)[None, :]
+            if relief is not None:
+                leaf_depth = leaf_depth * (1 - config.relief * relief[y0 - y : y1 - y,
+                                                                      x0 - x : x1 - x])
+            depth[y0:y1, x0:x1][mask] = leaf_depth[mask]
         frames.append((np.ascontiguousarray(rgb), np.ascontiguousarray(depth, np.float32)))
     return frames, focus
 
@@ -298,7 +318,10 @@ def write_scene_folder(
     folders = [root / f"seq_{k:03d}" for k in range(sequences)]
     names = [f"frame_{t:04d}" for t in range(config.frames)]
     with folder_lock(root, "scenes"):
-        _check_or_write_description(root, {"config": asdict(config), "seed": seed})
+        settings = asdict(config)
+        if not settings["relief"]:  # as recorded before the setting existed
+            del settings["relief"]
+        _check_or_write_description(root, {"config": settings, "seed": seed})
         remove_partials(root)  # temporary files of writes a kill interrupted
         missing = [(folder, k, names, config, seed) for k, folder in enumerate(folders)
                    if not all((folder / "depth" / f"{n}.npy").is_file()
