@@ -93,7 +93,7 @@ def fused_copy(model: nn.Module, dtype: torch.dtype | None = None) -> tuple[nn.M
     """A copy of ``model`` (on the CPU) with its convolution + activation pairs fused, weights
     of the fused ones in ``dtype`` (default float32), and how many were fused; ``model``
     itself when nothing can be (then the count is 0)."""
-    if not fusion_available() or any(p.device.type != "cpu" for p in model.parameters()):
+    if any(p.device.type != "cpu" for p in model.parameters()) or not fusion_available():
         return model, 0
     fused = copy.deepcopy(model)
     count = _fuse_in_place(fused, dtype or torch.float32)

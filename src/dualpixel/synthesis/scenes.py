@@ -48,9 +48,10 @@ class SceneConfig:
     camera_speed: float = 6.0  # px per frame for a surface at 1 m ... scaled by 1/depth
     leaf_speed: float = 2.0  # px per frame
     layout: str = "leaves"  # "leaves" (dead-leaves world) or "photo" (subject, ground, background)
-    # Ours: relief of textured surfaces, the largest relative depth change within one (0: flat,
-    # as before): depth follows each texture's fine structure, so the blur varies inside objects
-    # and their details occlude one another, as on foliage, fabric or gravel.
+    # Ours: relief of textured surfaces (every shape; the background in the "photo" layout), the
+    # largest relative depth change within one (0: flat, as before): depth follows each
+    # texture's fine structure, so the blur varies inside objects and their details occlude one
+    # another, as on foliage, fabric or gravel.
     relief: float = 0.0
 
     def __post_init__(self) -> None:
