@@ -146,6 +146,16 @@ def test_eval_prediction_folders_and_niqe_commands(shared_dir, tmp_path):
     expected = np.mean([25.38, 28.54])
     assert summary["prediction"]["combined"]["psnr"] == pytest.approx(expected, abs=0.01)
     assert summary["prediction"]["combined"]["niqe"] > 0
+    assert "Aligned" not in (tmp_path / "r" / "summary.md").read_text()
+    # registered to their targets: DPDNet's outputs move by a fraction of a pixel
+    result = run("eval", "--pred", pred, "--target", target, "--no-niqe", "--align", "affine",
+                 "--output", tmp_path / "ra")
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "ra" / "summary.json").read_text())
+    aligned = report["summary"]["prediction"]["combined"]["aligned_psnr"]
+    assert report["align"] == "affine" and abs(aligned - expected) < 1.0
+    assert "Aligned PSNR" in (tmp_path / "ra" / "summary.md").read_text()
+    assert "aligned_psnr" in (tmp_path / "ra" / "per_image.csv").read_text().splitlines()[0]
     score = run("niqe", "score", pred / "s0.png", "--model", tmp_path / "niqe.npz")
     assert score.exit_code == 0 and "s0.png" in score.output
     (pred / "s1.png").unlink()

@@ -137,6 +137,10 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @click.option("--figures", type=click.IntRange(0), default=3,
               help="Side-by-side figures for the first N images.")
 @click.option("--save-outputs", is_flag=True, help="Also write the model's outputs (PNG).")
+@click.option("--align", type=click.Choice(["none", "translation", "affine"]), default="none",
+              show_default=True,
+              help="Also score each output after registering it to its target (ECC), for real "
+                   "pairs whose two captures moved by a fraction of a pixel.")
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
 @_OVERLAP_OPTION
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
@@ -145,7 +149,7 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
-                     niqe_model, no_niqe, output, figures, save_outputs, tile, overlap,
+                     niqe_model, no_niqe, output, figures, save_outputs, align, tile, overlap,
                      device, precision, backend, flips, multiscale) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
@@ -153,7 +157,7 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
     request = EvaluationRequest(
         output=output, dataset=dataset, split=split, pred=pred, target=target, compare=compare,
         categories=categories, niqe_model=niqe_model, niqe=not no_niqe, figures=figures,
-        save_outputs=save_outputs)
+        save_outputs=save_outputs, align=None if align == "none" else align)
     deblurrer, method, meta = None, "model", {}
     if not no_model and pred is None and target is None:
         from dualpixel.inference import Deblurrer

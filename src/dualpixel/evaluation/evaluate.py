@@ -3,7 +3,8 @@
 Rows are methods: ``input`` (the combined blurred image), the model being evaluated (timed per
 image), and any other method's outputs (a folder of images named like the examples, or extra images
 in scene folders such as ``dpdnet.png``). Columns are PSNR / SSIM / MAE per category (Indoor,
-Outdoor, Combined when a category list is given), NIQE and seconds per image.
+Outdoor, Combined when a category list is given), NIQE and seconds per image; with ``align``, also
+PSNR and SSIM after registering each output to its target (:mod:`dualpixel.evaluation.alignment`).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import csv
 import io
 import json
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -21,6 +23,7 @@ from tqdm import tqdm
 
 from dualpixel.data.layout import DPSequence
 from dualpixel.errors import InputFileError
+from dualpixel.evaluation.alignment import AlignmentError, align_to_target
 from dualpixel.evaluation.blur_breakdown import BlurBreakdown, read_defocus
 from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.evaluation.niqe import NIQEModel, niqe
@@ -65,6 +68,8 @@ class ImageResult:
     mae: float
     niqe: float | None
     seconds: float | None
+    aligned_psnr: float | None = None
+    aligned_ssim: float | None = None
 
 
 def examples_from_sequences(
@@ -110,13 +115,23 @@ def read_categories(path: str | Path) -> dict[str, str]:
 
 
 def _score(method: str, name: str, category: str, output: np.ndarray, target: np.ndarray,
-           niqe_model: NIQEModel | None, seconds: float | None, source: Path) -> ImageResult:
+           niqe_model: NIQEModel | None, seconds: float | None, source: Path,
+           align: str | None = None) -> ImageResult:
     if output.shape != target.shape:
         raise InputFileError(source, f"size {output.shape[1]}x{output.shape[0]} differs from the "
                                      f"target ({target.shape[1]}x{target.shape[0]})")
     score = niqe(output, niqe_model) if niqe_model is not None else None
-    return ImageResult(name, method, category, psnr(output, target), ssim(output, target),
-                       mae(output, target), score, seconds)
+    result = ImageResult(name, method, category, psnr(output, target), ssim(output, target),
+                         mae(output, target), score, seconds)
+    if align is not None:
+        try:
+            pair = align_to_target(output, target, align)
+        except AlignmentError as error:
+            warnings.warn(f"{source}: {error}; its aligned scores are left out", stacklevel=2)
+        else:
+            result.aligned_psnr = psnr(pair.prediction, pair.target)
+            result.aligned_ssim = ssim(pair.prediction, pair.target)
+    return result
 
 
 def evaluate(
@@ -130,10 +145,12 @@ def evaluate(
     save_outputs: Callable[[EvalExample, np.ndarray], None] | None = None,
     progress: bool = True,
     breakdown: BlurBreakdown | None = None,
+    align: str | None = None,
 ) -> list[ImageResult]:
     """Score the input, the model (``deblur(left, right)``; ``reset()`` between sequences) and
     every other method of each example; pool errors by blur size into ``breakdown`` where the
-    examples have defocus maps."""
+    examples have defocus maps; ``align`` ("translation" or "affine") adds scores after
+    registering each output to its target."""
     results, current = [], None
     for example in tqdm(examples, desc="evaluating", unit="image", disable=not progress):
         known = categories or {}
@@ -144,7 +161,7 @@ def evaluate(
         left, right = read_rgb(example.left), read_rgb(example.right)
         combined = read_rgb(example.combined) if example.combined else (left + right) / 2
         results.append(_score("input", example.name, category, combined, target, niqe_model,
-                              None, example.combined or example.left))
+                              None, example.combined or example.left, align))
         images = {"input": combined}
         if deblur is not None:
             if example.sequence != current and reset is not None:
@@ -154,21 +171,22 @@ def evaluate(
             output = deblur(left, right)
             seconds = time.perf_counter() - started
             results.append(_score(method, example.name, category, output, target, niqe_model,
-                                  seconds, example.left))
+                                  seconds, example.left, align))
             images[method] = output
             if save_outputs is not None:
                 save_outputs(example, output)
         for other, path in sorted(example.others.items()):
             images[other] = read_rgb(path)
             results.append(_score(other, example.name, category, images[other], target,
-                                  niqe_model, None, path))
+                                  niqe_model, None, path, align))
         if breakdown is not None and example.defocus is not None:
             breakdown.add(read_defocus(example.defocus, target.shape[:2]), images, target)
     return results
 
 
 def summarise(results: list[ImageResult]) -> dict[str, dict[str, dict[str, float]]]:
-    """Means per method and category (``combined`` = all images): psnr, ssim, mae, niqe, seconds."""
+    """Means per method and category (``combined`` = all images): psnr, ssim, mae; for
+    ``combined`` also niqe, seconds and the aligned psnr / ssim (None where not measured)."""
     summary: dict[str, dict[str, dict[str, float]]] = {}
     methods = list(dict.fromkeys(r.method for r in results))
     categories = sorted({r.category for r in results if r.category})
@@ -181,7 +199,7 @@ def summarise(results: list[ImageResult]) -> dict[str, dict[str, dict[str, float
                      for key in ("psnr", "ssim", "mae")}
             entry["count"] = len(chosen)
             if category == "combined":
-                for key in ("niqe", "seconds"):
+                for key in ("niqe", "seconds", "aligned_psnr", "aligned_ssim"):
                     values = [getattr(r, key) for r in chosen if getattr(r, key) is not None]
                     entry[key] = float(np.mean(values)) if values else None
             summary[method][category] = entry
@@ -191,16 +209,20 @@ def summarise(results: list[ImageResult]) -> dict[str, dict[str, dict[str, float
 def markdown_table(summary: dict[str, dict[str, dict[str, float]]]) -> str:
     """The summary as a Markdown table in the layout of the paper's Table 1."""
     categories = list(next(iter(summary.values())).keys())
+    aligned = any(m["combined"].get("aligned_psnr") is not None for m in summary.values())
     head = "| Method | " + " | ".join(
         f"{c.capitalize()} PSNR ↑ | SSIM ↑ | MAE ↓" for c in categories
-    ) + " | NIQE ↓ | Time (s) ↓ |"
-    lines = [head, "|" + "---|" * (1 + 3 * len(categories) + 2)]
+    ) + (" | Aligned PSNR ↑ | Aligned SSIM ↑" if aligned else "") + " | NIQE ↓ | Time (s) ↓ |"
+    lines = [head, "|" + "---|" * (1 + 3 * len(categories) + 2 + 2 * aligned)]
     for method, per_category in summary.items():
         cells = []
         for category in categories:
             e = per_category[category]
             cells += [f"{e['psnr']:.2f}", f"{e['ssim']:.3f}", f"{e['mae']:.3f}"]
         combined = per_category["combined"]
+        if aligned:
+            cells += ["–" if combined.get(key) is None else f"{combined[key]:{form}}"
+                      for key, form in (("aligned_psnr", ".2f"), ("aligned_ssim", ".3f"))]
         niqe_cell = "–" if combined.get("niqe") is None else f"{combined['niqe']:.2f}"
         time_cell = "–" if combined.get("seconds") is None else f"{combined['seconds']:.3f}"
         lines.append(f"| {method} | " + " | ".join(cells) + f" | {niqe_cell} | {time_cell} |")
@@ -238,8 +260,10 @@ def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict 
 def evaluate_folders(
     predictions: Path, targets: Path, *, niqe_model: NIQEModel | None = None,
     categories: dict[str, str] | None = None, method: str = "prediction",
+    align: str | None = None,
 ) -> list[ImageResult]:
-    """Score every target against the prediction of the same name (any image suffix)."""
+    """Score every target against the prediction of the same name (any image suffix); ``align``
+    as in :func:`evaluate`."""
     target_files = sorted(p for p in Path(targets).rglob("*") if p.suffix.lower() in IMAGE_SUFFIXES)
     if not target_files:
         raise InputFileError(targets, "no images found")
@@ -252,5 +276,5 @@ def evaluate_folders(
             raise InputFileError(Path(predictions) / name, "prediction missing for this target")
         category = (categories or {}).get(name, "")
         results.append(_score(method, name, category, read_rgb(found[0]), read_rgb(target_path),
-                              niqe_model, None, found[0]))
+                              niqe_model, None, found[0], align))
     return results

@@ -40,6 +40,7 @@ class EvaluationRequest:
     niqe: bool = True
     figures: int = 3
     save_outputs: bool = False
+    align: str | None = None  # "translation" or "affine": also score registered outputs
 
 
 def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "model",
@@ -58,11 +59,14 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
     meta = dict(meta or {})
     meta["niqe_model"] = None if niqe is None else \
         f"{request.niqe_model or 'builtin'} ({niqe.source})"
+    if request.align is not None:
+        meta["align"] = request.align
     breakdown: BlurBreakdown | None = None
     if request.pred is not None or request.target is not None:
         if request.pred is None or request.target is None or request.dataset is not None:
             raise ParameterError("give --pred and --target together, without --dataset")
-        results = evaluate_folders(request.pred, request.target, niqe_model=niqe, categories=cats)
+        results = evaluate_folders(request.pred, request.target, niqe_model=niqe, categories=cats,
+                                   align=request.align)
     else:
         if request.dataset is None:
             raise ParameterError("give --dataset, or --pred and --target")
@@ -85,7 +89,8 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
         results = evaluate(examples, deblur=deblurrer,
                            reset=deblurrer.reset if deblurrer else None, method=method,
                            niqe_model=niqe, categories=cats,
-                           save_outputs=keep if deblurrer else None, breakdown=breakdown)
+                           save_outputs=keep if deblurrer else None, breakdown=breakdown,
+                           align=request.align)
         draw_comparisons(examples[: request.figures], drawn, results, method, output)
     write_reports(results, output, meta=meta, breakdown=breakdown)
     if breakdown is not None and breakdown.images:
