@@ -15,7 +15,9 @@ default precision gives against fp32 on the 7 Canon scenes at both resolutions.
 ``--paper``: the paper's full-width RDPD against DPDNet (the paper: 0.3 s against 0.5 s on a
 GPU), tiled and two-scale RDPD.
 
-Each case runs in its own process (its peak memory is its own), best of ``--repeats``.
+Each case runs in its own process (its peak memory is its own), best of ``--repeats``. Those
+minima move by 0.05-0.1 s from process to process, so the tiled / whole ratio is also measured
+paired: both in one process, passes alternating, the median of the per-pair ratios.
 
     .venv/bin/python benchmarks/bench_inference.py [--device cuda] [--repeats N] [--paper]
     .venv/bin/python benchmarks/bench_inference.py [--device cuda] --profile default
@@ -95,6 +97,42 @@ def measure(case: dict, device: str, repeats: int) -> dict:
     if device.startswith("cuda"):
         result["peak_gpu_gib"] = torch.cuda.max_memory_allocated() / 2**30
     return result
+
+
+def tile_pixels(height: int, width: int, tile: int) -> float:
+    """Pixels the tiles of ``tile`` (default overlap) hold, over the frame's (padded) pixels."""
+    from dualpixel.inference.deblur import default_overlap
+    from dualpixel.inference.tiling import TileGrid
+    from dualpixel.models.unet import SIZE_MULTIPLE
+
+    grid = TileGrid(tile, default_overlap(tile))
+    height, width = (-(-n // SIZE_MULTIPLE) * SIZE_MULTIPLE for n in (height, width))
+    (span_h, tops), (span_w, lefts) = grid.layout(height), grid.layout(width)
+    return span_h * len(tops) * span_w * len(lefts) / (height * width)
+
+
+def measure_pair(first: dict, second: dict, device: str, repeats: int) -> dict:
+    """``second`` against ``first`` in one process, passes alternating (after a warm-up of
+    each): the median and range of the per-pair time ratios."""
+    import statistics
+
+    import torch
+
+    runs = [prepare(case, device) for case in (first, second)]
+    ratios = []
+    for _ in range(repeats):
+        seconds = []
+        for deblurrer, _, left, right in runs:
+            deblurrer.reset()
+            if device.startswith("cuda"):
+                torch.cuda.synchronize()
+            started = time.perf_counter()
+            deblurrer(left, right)
+            if device.startswith("cuda"):
+                torch.cuda.synchronize()
+            seconds.append(time.perf_counter() - started)
+        ratios.append(seconds[1] / seconds[0])
+    return {"ratio": statistics.median(ratios), "low": min(ratios), "high": max(ratios)}
 
 
 def profile(case: dict, device: str) -> None:
@@ -205,6 +243,7 @@ def main() -> None:
     parser.add_argument("--profile", metavar="CASE",
                         help="instead: profile one pass of CASE (default, fp32, fp16, tiled, ...)")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one case as JSON
+    parser.add_argument("--pair", help=argparse.SUPPRESS)  # internal: two cases, alternating
     args = parser.parse_args()
     if args.repeats is None:  # single passes vary by ~0.1 s; the full-width ones take minutes
         args.repeats = 2 if args.paper else 5
@@ -212,6 +251,10 @@ def main() -> None:
         parser.error(f"--repeats must be at least 1, got {args.repeats}")
     if args.one:
         print(json.dumps(measure(json.loads(args.one), args.device, args.repeats)))
+        return
+    if args.pair:
+        first, second = json.loads(args.pair)
+        print(json.dumps(measure_pair(first, second, args.device, args.repeats)))
         return
     from dualpixel.device import resolve_device
     from dualpixel.errors import ParameterError
@@ -252,6 +295,13 @@ def main() -> None:
         print(f"ratio onnxruntime / --precision fp32: "
               f"{seconds['onnxruntime'] / seconds['fp32']:.2f}")
     print(f"ratio tiled 512 / whole: {seconds['tiled'] / seconds['default']:.2f} (target <= 1.3)")
+    command = [sys.executable, __file__, "--pair", json.dumps([CASES["default"], CASES["tiled"]]),
+               "--device", args.device, "--repeats", str(max(args.repeats, 7))]
+    paired = json.loads(subprocess.run(command, check=True, capture_output=True,
+                                       text=True).stdout.strip().splitlines()[-1])
+    print(f"ratio tiled 512 / whole, paired in one process: {paired['ratio']:.2f} "
+          f"(pairs {paired['low']:.2f}-{paired['high']:.2f}; target <= 1.3; the tiles hold "
+          f"{tile_pixels(1120, 1680, 512):.2f}x the pixels)")
     print(f"ratio flips (4 members) / plain: "
           f"{seconds['flips'] / seconds['default']:.2f} (arithmetic: 4)")
     for name, (mean, worst, chosen) in canon_psnr_difference(args.device).items():
