@@ -77,21 +77,26 @@ def prepare(case: dict, device: str):
     return deblurrer, setup, left, right
 
 
+def timed_pass(deblurrer, left, right, device: str) -> float:
+    """Seconds of one pass from a reset state (the GPU synchronised on both sides)."""
+    import torch
+
+    deblurrer.reset()
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+    started = time.perf_counter()
+    deblurrer(left, right)
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+    return time.perf_counter() - started
+
+
 def measure(case: dict, device: str, repeats: int) -> dict:
     """Seconds (best of ``repeats``, after a warm-up) and peak memory of one case."""
     import torch
 
     deblurrer, setup, left, right = prepare(case, device)
-    times = []
-    for _ in range(repeats):
-        deblurrer.reset()
-        if device.startswith("cuda"):
-            torch.cuda.synchronize()
-        started = time.perf_counter()
-        deblurrer(left, right)
-        if device.startswith("cuda"):
-            torch.cuda.synchronize()
-        times.append(time.perf_counter() - started)
+    times = [timed_pass(deblurrer, left, right, device) for _ in range(repeats)]
     result = {"seconds": min(times), "precision": deblurrer.numerics.name, "setup": setup,
               "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
     if device.startswith("cuda"):
@@ -116,21 +121,11 @@ def measure_pair(first: dict, second: dict, device: str, repeats: int) -> dict:
     each): the median and range of the per-pair time ratios."""
     import statistics
 
-    import torch
-
     runs = [prepare(case, device) for case in (first, second)]
     ratios = []
     for _ in range(repeats):
-        seconds = []
-        for deblurrer, _, left, right in runs:
-            deblurrer.reset()
-            if device.startswith("cuda"):
-                torch.cuda.synchronize()
-            started = time.perf_counter()
-            deblurrer(left, right)
-            if device.startswith("cuda"):
-                torch.cuda.synchronize()
-            seconds.append(time.perf_counter() - started)
+        seconds = [timed_pass(deblurrer, left, right, device)
+                   for deblurrer, _, left, right in runs]
         ratios.append(seconds[1] / seconds[0])
     return {"ratio": statistics.median(ratios), "low": min(ratios), "high": max(ratios)}
 
