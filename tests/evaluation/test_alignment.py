@@ -5,6 +5,7 @@ import pytest
 from dualpixel.errors import ParameterError
 from dualpixel.evaluation.alignment import AlignmentError, align_to_target
 from dualpixel.evaluation.metrics import psnr
+from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 
 
 def _texture(height=120, width=160, seed=0):
@@ -58,3 +59,10 @@ def test_registration_refuses_bad_input():
     flat = np.full_like(target, 0.5)
     with pytest.raises(AlignmentError):
         align_to_target(flat, flat, "affine")
+
+
+def test_evaluation_refuses_an_unknown_align_mode_before_any_work(tmp_path):
+    request = EvaluationRequest(output=tmp_path / "report", dataset=tmp_path, align="perspective")
+    with pytest.raises(ParameterError, match="align must be one of"):
+        run_evaluation(request)
+    assert not (tmp_path / "report" / "summary.json").exists()
