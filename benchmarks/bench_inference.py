@@ -1,6 +1,7 @@
 """Deblurring speed on one 1680x1120 DP frame, every case in one run, printed as ratios.
 
-Default mode (issue #36): the shipped ``rdpd-light`` on the default path (``--precision auto``:
+Default mode (issue #36): the shipped default model (``--checkpoint``: another shipped name) on
+the default path (``--precision auto``:
 bf16 autocast and channels-last where the CPU computes bf16 natively) against ``--precision fp32``
 (channels-last), against the same without :func:`~dualpixel.memory.reuse_freed_memory` (which
 the ``dualpixel`` command calls at start-up; every other case has it), against the same without
@@ -56,8 +57,8 @@ def prepare(case: dict, device: str):
         reuse_freed_memory()  # as the dualpixel command does at start-up
     torch.manual_seed(0)
     setup = time.perf_counter()
-    if case["model"] == "rdpd-light":
-        model = load_model(resolve_checkpoint("rdpd-light"))
+    if case["model"] == "shipped":
+        model = load_model(resolve_checkpoint(case["checkpoint"]))
     else:
         model = build_model(case["model"])
     deblurrer = Deblurrer(model, device=device, tile=case.get("tile"),
@@ -154,7 +155,7 @@ def profile(case: dict, device: str) -> None:
         print(table.table(sort_by="self_cuda_time_total", row_limit=15))
 
 
-def canon_psnr_difference(device: str) -> dict[str, float]:
+def canon_psnr_difference(device: str, checkpoint: str) -> dict[str, float]:
     """Mean PSNR (dB) of the default precision minus fp32, on the 7 Canon scenes per set."""
     from dualpixel.evaluation.metrics import psnr
     from dualpixel.inference import Deblurrer
@@ -162,7 +163,7 @@ def canon_psnr_difference(device: str) -> dict[str, float]:
     from dualpixel.models import load_model
     from dualpixel.weights import resolve_checkpoint
 
-    model = load_model(resolve_checkpoint("rdpd-light"))
+    model = load_model(resolve_checkpoint(checkpoint))
     default = Deblurrer(model, device=device)
     exact = Deblurrer(model, device=device, precision="fp32")
     differences = {}
@@ -181,16 +182,16 @@ def canon_psnr_difference(device: str) -> dict[str, float]:
 
 
 CASES = {
-    "default": {"model": "rdpd-light"},
-    "fresh-pages": {"model": "rdpd-light", "fresh_pages": True},
-    "unfused": {"model": "rdpd-light", "unfused": True},
-    "fp32": {"model": "rdpd-light", "precision": "fp32"},
-    "legacy": {"model": "rdpd-light", "precision": "fp32", "legacy": True, "fresh_pages": True},
-    "onnxruntime": {"model": "rdpd-light", "backend": "onnxruntime"},
-    "tiled": {"model": "rdpd-light", "tile": 512},
-    "flips": {"model": "rdpd-light", "flips": True},
+    "default": {"model": "shipped"},
+    "fresh-pages": {"model": "shipped", "fresh_pages": True},
+    "unfused": {"model": "shipped", "unfused": True},
+    "fp32": {"model": "shipped", "precision": "fp32"},
+    "legacy": {"model": "shipped", "precision": "fp32", "legacy": True, "fresh_pages": True},
+    "onnxruntime": {"model": "shipped", "backend": "onnxruntime"},
+    "tiled": {"model": "shipped", "tile": 512},
+    "flips": {"model": "shipped", "flips": True},
 }
-FP16_CASE = {"model": "rdpd-light", "precision": "fp16"}  # CUDA only
+FP16_CASE = {"model": "shipped", "precision": "fp16"}  # CUDA only
 PAPER_CASES = {
     "rdpd": {"model": "rdpd", "precision": "fp32"},
     "dpdnet": {"model": "dpdnet", "precision": "fp32"},
@@ -232,6 +233,8 @@ def run_cases(cases: dict, device: str, repeats: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu")
+    parser.add_argument("--checkpoint", default=None,
+                        help="a shipped model's name (default: the package's default model)")
     parser.add_argument("--repeats", type=int,
                         help="best of this many passes per case (default: 5; 2 with --paper)")
     parser.add_argument("--paper", action="store_true", help="full-width RDPD against DPDNet")
@@ -252,14 +255,20 @@ def main() -> None:
         print(json.dumps(measure_pair(first, second, args.device, args.repeats)))
         return
     from dualpixel.device import resolve_device
-    from dualpixel.errors import ParameterError
+    from dualpixel.errors import InputFileError, ParameterError
+    from dualpixel.weights import DEFAULT_CHECKPOINT, resolve_checkpoint
 
     try:
         args.device = str(resolve_device(args.device))
-    except ParameterError as error:
-        parser.error(f"--device: {error}")
+        checkpoint = args.checkpoint or DEFAULT_CHECKPOINT
+        resolve_checkpoint(checkpoint)
+    except (ParameterError, InputFileError) as error:
+        parser.error(str(error))
+    shipped = {name: {**case, "checkpoint": checkpoint}
+               for name, case in {**CASES, "fp16": FP16_CASE}.items()}
+    print(f"model: {checkpoint}")
     if args.profile:
-        cases = {**CASES, "fp16": FP16_CASE, **PAPER_CASES}
+        cases = {**shipped, **PAPER_CASES}
         if args.profile not in cases:
             parser.error(f"--profile: unknown case {args.profile!r} (cases: "
                          f"{', '.join(cases)})")
@@ -272,9 +281,9 @@ def main() -> None:
         print(f"ratio RDPD two scales / one scale: "
               f"{r['rdpd-two-scales']['seconds'] / r['rdpd']['seconds']:.2f} (arithmetic: 1.25)")
         return
-    cases = dict(CASES)
+    cases = {name: case for name, case in shipped.items() if name != "fp16"}
     if args.device.startswith("cuda"):  # fp16 runs on CUDA only
-        cases["fp16"] = FP16_CASE
+        cases["fp16"] = shipped["fp16"]
     r = run_cases(cases, args.device, args.repeats)
     seconds = {name: result["seconds"] for name, result in r.items()}
     print(f"ratio default / --precision fp32: {seconds['default'] / seconds['fp32']:.2f} "
@@ -290,7 +299,8 @@ def main() -> None:
         print(f"ratio onnxruntime / --precision fp32: "
               f"{seconds['onnxruntime'] / seconds['fp32']:.2f}")
     print(f"ratio tiled 512 / whole: {seconds['tiled'] / seconds['default']:.2f} (target <= 1.3)")
-    command = [sys.executable, __file__, "--pair", json.dumps([CASES["default"], CASES["tiled"]]),
+    pair = json.dumps([shipped["default"], shipped["tiled"]])
+    command = [sys.executable, __file__, "--pair", pair,
                "--device", args.device, "--repeats", str(max(args.repeats, 7))]
     paired = json.loads(subprocess.run(command, check=True, capture_output=True,
                                        text=True).stdout.strip().splitlines()[-1])
@@ -299,7 +309,7 @@ def main() -> None:
           f"{tile_pixels(1120, 1680, 512):.2f}x the pixels)")
     print(f"ratio flips (4 members) / plain: "
           f"{seconds['flips'] / seconds['default']:.2f} (arithmetic: 4)")
-    for name, (mean, worst, chosen) in canon_psnr_difference(args.device).items():
+    for name, (mean, worst, chosen) in canon_psnr_difference(args.device, checkpoint).items():
         print(f"PSNR {chosen} - fp32 on {name} (7 scenes): mean {mean:+.4f} dB, "
               f"worst scene {worst:.4f} dB (target <= 0.02)")
 

@@ -16,6 +16,7 @@ import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.io.arrays import as_image_batch, restore_layout
+from dualpixel.weights import DEFAULT_CHECKPOINT
 
 __all__ = ["check_views", "deblur", "list_models", "load_model", "synthesize"]
 
@@ -27,7 +28,7 @@ def list_models() -> dict[str, dict[str, Any]]:
     return shipped()
 
 
-def load_model(name_or_path: str | Path = "rdpd-light", *, device: str = "cpu"):
+def load_model(name_or_path: str | Path = DEFAULT_CHECKPOINT, *, device: str = "cpu"):
     """A shipped model by name (see :func:`list_models`) or a checkpoint file, in eval mode."""
     from dualpixel.device import resolve_device
     from dualpixel.models import load_model as load_checkpoint
@@ -62,7 +63,7 @@ def check_views(left: Any, right: Any, combined: Any = None) -> list:
     return check(images["left"], images["right"], combined=images.get("combined"))
 
 
-def deblur(left: Any, right: Any = None, *, model: Any = "rdpd-light", device: str = "auto",
+def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, device: str = "auto",
            tile: int | None = None, flips: bool = False, multiscale: bool = False,
            precision: str = "auto", views_sum: bool = False,
            backend: str = "torch") -> np.ndarray | torch.Tensor:

@@ -114,9 +114,11 @@ def test_clear_errors_and_the_listing():
     with pytest.raises(ValueError, match="checkpoint not found"):
         dualpixel.load_model("no-such-model")
     models = dualpixel.list_models()
-    assert {"rdpd-light.v12", "rdpd-light.v7"} <= set(models)
+    assert {"rdpd-wide.v1", "rdpd-light.v12"} <= set(models)
     info = models["rdpd-light.v12"]
-    assert "rdpd-light" in info["aliases"]
+    assert "rdpd-light" in info["aliases"] and "rdpd-wide" in models["rdpd-wide.v1"]["aliases"]
+    with pytest.raises(ValueError, match=r"rdpd-light-fast no longer ships.*use rdpd-light"):
+        dualpixel.load_model("rdpd-light-fast")
     assert info["parameters"] > 1_000_000 and len(info["sha256"]) == 64
     assert set(dualpixel.__all__) >= {"deblur", "synthesize", "load_model", "list_models", "psnr"}
 

@@ -18,7 +18,7 @@ from dualpixel.weights import ALIASES, DEFAULT_CHECKPOINT, WEIGHTS, resolve_chec
 
 def test_shipped_checkpoint_loads_and_improves_on_a_new_synthetic_sequence():
     path = resolve_checkpoint(DEFAULT_CHECKPOINT)
-    assert path.stat().st_size < 30 * 2**20
+    assert path.stat().st_size < 60 * 2**20  # the wheel holds it and one more within 80 MB
     model = load_model(path)
     assert model.spec.name == "rdpd" and model.recurrent
     # A sequence with a scene seed never used for training data (0..39 train, 1000.. test).

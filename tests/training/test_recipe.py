@@ -35,10 +35,12 @@ def _shrunk(source: Path, folder: Path, real: Path) -> Path:
         for key in ("real_data", "real_val_data"):
             if key in section and not any(section[key] == s["name"] for s in raw["data"]):
                 section[key] = str(real)
+    widened = False
     for phase in raw["phases"]:
         phase["set"].update(TINY_PHASE)
-        if phase["set"].get("widen_init", raw["train"].get("widen_init")):
-            del phase["set"]["width"]  # the recipe's width: a multiple of its start's
+        widened = widened or phase["set"].get("widen_init", raw["train"].get("widen_init"))
+        if widened:  # the recipe's width: a multiple of its start's, kept by the phases after
+            del phase["set"]["width"]
     for entry in raw.get("evaluate", []):
         if not any(entry["dataset"] == s["name"] for s in raw["data"]):
             entry["dataset"] = str(real)

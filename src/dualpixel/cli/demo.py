@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand
+from dualpixel.weights import DEFAULT_CHECKPOINT
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (dualpixel models) or a .safetensors path."
 
@@ -14,7 +15,7 @@ _CHECKPOINT_HELP = "Checkpoint: a registry name (dualpixel models) or a .safeten
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
               default=Path("demo-output"), help="Report folder (index.html).")
-@click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
+@click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
 @click.option("--left", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=None, help="Your left view (with --right) instead of a procedural scene.")
 @click.option("--right", type=click.Path(dir_okay=False, exists=True, path_type=Path),

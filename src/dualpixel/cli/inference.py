@@ -9,6 +9,7 @@ import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
 from dualpixel.names import BACKENDS, PRECISIONS
+from dualpixel.weights import DEFAULT_CHECKPOINT
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
 # Options that deblur and eval share.
@@ -60,7 +61,7 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
 @click.option("--strict", is_flag=True,
               help="Stop on a doubtful pair (views swapped, wrong brightness, ...) instead of "
                    "warning.")
-@click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
+@click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
 @click.option("--tile", type=int, default=None,
               help="Tile size (multiple of 16) for bounded memory; default: whole frames.")
 @_OVERLAP_OPTION
@@ -122,7 +123,7 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
               default=None, help="Instead of --dataset: a folder of predictions ...")
 @click.option("--target", type=click.Path(file_okay=False, exists=True, path_type=Path),
               default=None, help="... and the folder of targets with the same names.")
-@click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
+@click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
 @click.option("--no-model", is_flag=True, help="Score only the input and other methods.")
 @click.option("--compare", multiple=True, callback=_compare, metavar="NAME=FOLDER",
               help="Another method's outputs, named like the examples (repeatable).")
@@ -214,7 +215,7 @@ def niqe_score(images: tuple[Path, ...], model: str | None) -> None:
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.option("--checkpoint", default="rdpd-light", help=_CHECKPOINT_HELP)
+@click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True)
 @click.option("--size", default="512x512",
               help="Frame size WIDTHxHEIGHT the graph is traced at (it runs at any size).")
