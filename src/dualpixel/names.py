@@ -3,9 +3,12 @@ command line can list them without importing torch (``dualpixel --help`` stays f
 
 from __future__ import annotations
 
-__all__ = ["BACKENDS", "LIGHT_SPACES", "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS",
-           "PSF_SHAPE_SOURCES", "SCENE_LAYOUTS"]
+__all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "LIGHT_SPACES", "PRECISIONS", "PSF_BANK_NAMES",
+           "PSF_MODELS", "PSF_SHAPE_SOURCES", "SCENE_LAYOUTS"]
 
+#: Registrations of an output to its target before scoring
+#: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
+ALIGN_MODE_NAMES: tuple[str, ...] = ("translation", "affine")
 #: DP PSF models: ours (Eq. 2-4) and the ablation's baselines.
 PSF_MODELS: tuple[str, ...] = ("ours", "punnappurath", "disk", "gaussian")
 #: Banks of PSF shapes (:data:`dualpixel.optics.psf_bank.PSF_BANKS`).

@@ -63,6 +63,6 @@ def test_registration_refuses_bad_input():
 
 def test_evaluation_refuses_an_unknown_align_mode_before_any_work(tmp_path):
     request = EvaluationRequest(output=tmp_path / "report", dataset=tmp_path, align="perspective")
-    with pytest.raises(ParameterError, match="align must be one of"):
+    with pytest.raises(ParameterError, match="align mode must be one of"):
         run_evaluation(request)
     assert not (tmp_path / "report" / "summary.json").exists()

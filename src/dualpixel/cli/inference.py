@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
-from dualpixel.names import BACKENDS, PRECISIONS
+from dualpixel.names import ALIGN_MODE_NAMES, BACKENDS, PRECISIONS
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
@@ -138,7 +138,7 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @click.option("--figures", type=click.IntRange(0), default=3,
               help="Side-by-side figures for the first N images.")
 @click.option("--save-outputs", is_flag=True, help="Also write the model's outputs (PNG).")
-@click.option("--align", type=click.Choice(["none", "translation", "affine"]), default="none",
+@click.option("--align", type=click.Choice(["none", *ALIGN_MODE_NAMES]), default="none",
               show_default=True,
               help="Also score each output after registering it to its target (ECC), for real "
                    "pairs whose two captures moved by a fraction of a pixel.")

@@ -19,11 +19,13 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import ParameterError
+from dualpixel.names import ALIGN_MODE_NAMES
 
-__all__ = ["ALIGN_MODES", "AlignedPair", "AlignmentError", "align_to_target"]
+__all__ = ["ALIGN_MODES", "AlignedPair", "AlignmentError", "align_to_target", "check_align_mode"]
 
 #: ``--align`` choices and OpenCV's motion models.
-ALIGN_MODES = {"translation": cv2.MOTION_TRANSLATION, "affine": cv2.MOTION_AFFINE}
+ALIGN_MODES = dict(zip(ALIGN_MODE_NAMES, (cv2.MOTION_TRANSLATION, cv2.MOTION_AFFINE),
+                       strict=True))
 
 
 class AlignmentError(ParameterError):
@@ -42,6 +44,13 @@ class AlignedPair:
     margin: int
 
 
+def check_align_mode(mode: str) -> str:
+    """``mode`` if it names a registration of :data:`ALIGN_MODES`, else a ParameterError."""
+    if mode not in ALIGN_MODES:
+        raise ParameterError(f"align mode must be one of {', '.join(ALIGN_MODES)}, got {mode!r}")
+    return mode
+
+
 def _grey(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(image, np.float32).mean(axis=-1))
 
@@ -56,8 +65,7 @@ def align_to_target(prediction: np.ndarray, target: np.ndarray, mode: str = "aff
         ParameterError: unknown mode or mismatched sizes.
         AlignmentError: ECC did not converge.
     """
-    if mode not in ALIGN_MODES:
-        raise ParameterError(f"align mode must be one of {sorted(ALIGN_MODES)}, got {mode!r}")
+    check_align_mode(mode)
     prediction = np.asarray(prediction, np.float32)
     target = np.asarray(target, np.float32)
     if prediction.shape != target.shape or prediction.ndim != 3:

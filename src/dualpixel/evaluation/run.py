@@ -8,7 +8,7 @@ from pathlib import Path
 
 from dualpixel.data.layout import discover_dp_dataset, discover_scene_folders
 from dualpixel.errors import ParameterError
-from dualpixel.evaluation.alignment import ALIGN_MODES
+from dualpixel.evaluation.alignment import check_align_mode
 from dualpixel.evaluation.blur_breakdown import BlurBreakdown
 from dualpixel.evaluation.evaluate import (
     evaluate,
@@ -61,10 +61,7 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
     meta["niqe_model"] = None if niqe is None else \
         f"{request.niqe_model or 'builtin'} ({niqe.source})"
     if request.align is not None:
-        if request.align not in ALIGN_MODES:
-            raise ParameterError(f"align must be one of {sorted(ALIGN_MODES)} or None, got "
-                                 f"{request.align!r}")
-        meta["align"] = request.align
+        meta["align"] = check_align_mode(request.align)
     breakdown: BlurBreakdown | None = None
     if request.pred is not None or request.target is not None:
         if request.pred is None or request.target is None or request.dataset is not None:
