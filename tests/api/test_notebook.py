@@ -114,9 +114,9 @@ def test_clear_errors_and_the_listing():
     with pytest.raises(ValueError, match="checkpoint not found"):
         dualpixel.load_model("no-such-model")
     models = dualpixel.list_models()
-    assert {"rdpd-wide.v1", "rdpd-light.v12"} <= set(models)
+    assert {"rdpd-wide.v2", "rdpd-light.v12"} <= set(models)
     info = models["rdpd-light.v12"]
-    assert "rdpd-light" in info["aliases"] and "rdpd-wide" in models["rdpd-wide.v1"]["aliases"]
+    assert "rdpd-light" in info["aliases"] and "rdpd-wide" in models["rdpd-wide.v2"]["aliases"]
     with pytest.raises(ValueError, match=r"rdpd-light-fast no longer ships.*use rdpd-light"):
         dualpixel.load_model("rdpd-light-fast")
     assert info["parameters"] > 1_000_000 and len(info["sha256"]) == 64
