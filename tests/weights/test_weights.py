@@ -82,3 +82,16 @@ def test_model_info_reads_headers_only():
     assert set(info) == set(WEIGHTS)
     for tag, row in info.items():
         assert row["parameters"] == WEIGHTS[tag].num_params and row["metrics"]
+
+
+@pytest.mark.parametrize("name", sorted(DEPRECATED))
+def test_retired_names_say_what_to_do_once(name):
+    with pytest.raises(InputFileError) as caught:
+        resolve_checkpoint(name)
+    message = str(caught.value)
+    note = DEPRECATED[name].get("note")
+    assert f"{name} no longer ships" in message
+    if note:
+        assert message.count(note) == 1, message
+    if DEPRECATED[name].get("use"):
+        assert f"use {DEPRECATED[name]['use']} instead" in message

@@ -64,10 +64,13 @@ DEFAULT_CHECKPOINT: str = _REGISTRY["default"]
 
 def _deprecation(name: str) -> str:
     entry = DEPRECATED[name]
-    how = (f"`dualpixel reproduce recipes/{entry['recipe']} --output DIR --until "
-           f"{entry['phase']}` makes it again" if entry.get("phase") else entry.get("note", ""))
-    replacement = f"; use {entry['use']} instead" if entry.get("use") else ""
-    return f"{name} no longer ships ({entry.get('note', 'retired')}){replacement}; {how}"
+    parts = [f"{name} no longer ships ({entry.get('note', 'retired')})"]
+    if entry.get("use"):
+        parts.append(f"use {entry['use']} instead")
+    if entry.get("phase"):
+        parts.append(f"`dualpixel reproduce recipes/{entry['recipe']} --output DIR --until "
+                     f"{entry['phase']}` makes it again")
+    return "; ".join(parts)
 
 
 def resolve_checkpoint(name_or_path: str | Path) -> Path:
