@@ -281,9 +281,8 @@ def main() -> None:
         print(f"ratio RDPD two scales / one scale: "
               f"{r['rdpd-two-scales']['seconds'] / r['rdpd']['seconds']:.2f} (arithmetic: 1.25)")
         return
-    cases = {name: case for name, case in shipped.items() if name != "fp16"}
-    if args.device.startswith("cuda"):  # fp16 runs on CUDA only
-        cases["fp16"] = shipped["fp16"]
+    cases = {name: case for name, case in shipped.items()  # fp16 runs on CUDA only
+             if name != "fp16" or args.device.startswith("cuda")}
     r = run_cases(cases, args.device, args.repeats)
     seconds = {name: result["seconds"] for name, result in r.items()}
     print(f"ratio default / --precision fp32: {seconds['default'] / seconds['fp32']:.2f} "
