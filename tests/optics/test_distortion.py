@@ -64,3 +64,21 @@ def test_identity_and_shapes():
 def test_folding_coefficients_are_rejected():
     with pytest.raises(ParameterError, match="fold"):
         distort_image(torch.rand(1, 8, 8), DivisionDistortion(-0.5, -0.5, -0.5))
+
+
+def test_cached_grid_gives_the_same_warp_and_keeps_gradients():
+    """The grid is made once per size and distortion; one first made under inference mode (as
+    inference makes it) still serves a warp that records gradients."""
+    from dualpixel.optics.distortion import _sampling_grid
+
+    d = DivisionDistortion(0.07, -0.01, 0.02, name="test-cache")
+    _sampling_grid.cache_clear()
+    image = torch.rand(3, 29, 37, generator=torch.Generator().manual_seed(1))
+    with torch.inference_mode():
+        first = distort_image(image, d)
+    again = distort_image(image, d)
+    assert _sampling_grid.cache_info().hits == 1
+    assert torch.equal(first, again)
+    source = image.clone().requires_grad_(True)
+    distort_image(source, d).sum().backward()
+    assert source.grad is not None and float(source.grad.abs().sum()) > 0

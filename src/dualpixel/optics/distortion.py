@@ -15,6 +15,7 @@ position, found by Newton's method on the radius, and samples it bilinearly with
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -111,6 +112,27 @@ def undistort_points(
     return centre + offset * scale
 
 
+@functools.lru_cache(maxsize=6)  # the five presets and one more
+def _sampling_grid(distortion: DivisionDistortion, width: int, height: int, dtype: torch.dtype,
+                   device: torch.device) -> torch.Tensor:
+    """``grid_sample``'s ``(H, W, 2)`` grid of the undistorted source of every output pixel, in
+    ``dtype``. Cached: a dataset's frames share their size and their sequence's distortion, and
+    the Newton inversion over every pixel costs several times the warp itself."""
+    distortion.check_monotone(1.0 + 1e-6)
+    work_dtype = torch.float64 if dtype == torch.float64 else torch.float32
+    # a plain tensor even when first asked for under inference mode: a later call that records
+    # gradients saves the grid for backward
+    with torch.inference_mode(False), torch.no_grad():
+        ys = torch.arange(height, dtype=work_dtype, device=device)
+        xs = torch.arange(width, dtype=work_dtype, device=device)
+        grid_y, grid_x = torch.meshgrid(ys, xs, indexing="ij")
+        points = torch.stack((grid_x, grid_y), dim=-1)
+        source = undistort_points(points, distortion, width, height)
+        # grid_sample with align_corners=True maps -1 / +1 to the centres of the edge pixels.
+        norm = source.new_tensor([2.0 / max(width - 1, 1), 2.0 / max(height - 1, 1)])
+        return (source * norm - 1.0).to(dtype)
+
+
 def distort_image(
     image: torch.Tensor,
     distortion: DivisionDistortion,
@@ -136,15 +158,7 @@ def distort_image(
         )
     batched = image if image.ndim == 4 else image[None]
     height, width = batched.shape[-2:]
-    distortion.check_monotone(1.0 + 1e-6)
-    work_dtype = torch.float64 if image.dtype == torch.float64 else torch.float32
-    ys = torch.arange(height, dtype=work_dtype, device=image.device)
-    xs = torch.arange(width, dtype=work_dtype, device=image.device)
-    grid_y, grid_x = torch.meshgrid(ys, xs, indexing="ij")
-    source = undistort_points(torch.stack((grid_x, grid_y), dim=-1), distortion, width, height)
-    # grid_sample with align_corners=True maps -1 / +1 to the centres of the edge pixels.
-    norm = source.new_tensor([2.0 / max(width - 1, 1), 2.0 / max(height - 1, 1)])
-    grid = (source * norm - 1.0).to(batched.dtype)
+    grid = _sampling_grid(distortion, width, height, batched.dtype, image.device)
     grid = grid[None].expand(batched.shape[0], -1, -1, -1)
     out = F.grid_sample(batched, grid, mode=mode, padding_mode=padding_mode, align_corners=True)
     return out if image.ndim == 4 else out[0]

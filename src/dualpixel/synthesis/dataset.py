@@ -65,6 +65,7 @@ from dualpixel.synthesis.inputs import (
     InputFrame,
     InputSequence,
     discover_sequences,
+    load_depth,
     load_frame,
 )
 from dualpixel.synthesis.layers import check_render_mode
@@ -191,7 +192,7 @@ def _profile_camera(
     frame; the frame width scales the blur."""
     rng = np.random.default_rng((*seed, 1))
     first = sequence.frames[0]
-    _, depth = load_frame(first, fmt, max_depth=config.max_depth, depth_scale=config.depth_scale)
+    depth = load_depth(first, fmt, max_depth=config.max_depth, depth_scale=config.depth_scale)
     scene_file = first.rgb.parent.parent / "scene.json"
     focus = None
     if scene_file.is_file():

@@ -18,7 +18,7 @@ from dualpixel.io.images import (
     read_synthia_depth,
 )
 
-__all__ = ["InputFrame", "InputSequence", "discover_sequences", "load_frame"]
+__all__ = ["InputFrame", "InputSequence", "discover_sequences", "load_depth", "load_frame"]
 
 InputFormat = Literal["synthia", "rgbd"]
 
@@ -100,16 +100,24 @@ def load_frame(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Read one frame's RGB ``(H, W, 3)`` and depth ``(H, W)`` and check they match."""
     rgb = read_rgb(frame.rgb)
-    if fmt == "synthia":
-        depth = read_synthia_depth(frame.depth, max_depth=max_depth)
-    else:
-        depth = np.minimum(read_depth(frame.depth, png_scale=depth_scale), max_depth)
+    depth = load_depth(frame, fmt, max_depth=max_depth, depth_scale=depth_scale)
     if depth.shape != rgb.shape[:2]:
         raise InputFileError(
             frame.depth,
             f"depth is {depth.shape[1]}x{depth.shape[0]} but {frame.rgb.name} is "
             f"{rgb.shape[1]}x{rgb.shape[0]}",
         )
+    return rgb, depth
+
+
+def load_depth(
+    frame: InputFrame, fmt: InputFormat, *, max_depth: float = 250.0, depth_scale: float = 0.001
+) -> np.ndarray:
+    """Read one frame's depth ``(H, W)``, clipped at ``max_depth`` (its RGB is not read)."""
+    if fmt == "synthia":
+        depth = read_synthia_depth(frame.depth, max_depth=max_depth)
+    else:
+        depth = np.minimum(read_depth(frame.depth, png_scale=depth_scale), max_depth)
     if fmt == "synthia" and (depth <= 0).any():
         raise InputFileError(frame.depth, "depth has zero values (must be > 0)")
-    return rgb, depth
+    return depth
