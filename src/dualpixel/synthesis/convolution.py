@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import torch
 import torch.nn.functional as F
-from scipy.fft import next_fast_len
 
 __all__ = ["FFT_MIN_KERNEL", "convolve_same"]
 
@@ -41,6 +40,8 @@ def convolve_same(planes: torch.Tensor, kernels: torch.Tensor, *, method: str = 
         return out.transpose(0, 1)
     if method != "fft":
         raise ValueError(f"method must be 'direct', 'fft' or 'auto', got {method!r}")
+    from scipy.fft import next_fast_len  # here: importing scipy.fft costs the synth command 0.25 s
+
     height, width = planes.shape[-2:]
     # Any padding to at least H + S - 1 gives the same linear convolution; sizes with only small
     # prime factors make the FFT several times faster than arbitrary ones.
