@@ -13,10 +13,11 @@ PSNR is fast against exact on the 8-bit scale, for left, right and combined.
 
 ``--end-to-end`` (issue #36): the whole ``dualpixel synth`` command on a 3-frame sequence
 (``--no-noise --no-distortion``; start-up, reading, rendering and writing four PNGs and a defocus
-map per frame) against three frames of the baseline, per camera set, in one run. With
+map per frame) against as many frames of the baseline, per camera set, in one run (``--frames``
+to amortise start-up over a longer sequence). With
 ``--authors-code DIR`` (a checkout of the authors' ``synthetic_dp_defocus_blur_code`` folder: their
 generator script, ``generate_bw_kernel.py`` and ``set_N.npy``; not shipped here) their generator
-itself also runs on the same three frames, stored as SYNTHIA-SF RGB and encoded depth: it renders
+itself also runs on the same frames, stored as SYNTHIA-SF RGB and encoded depth: it renders
 all five camera sets one after another, and each set's time is read from the line it prints when
 it starts the set (their start-up is not counted). Their script imports ``wand`` (ImageMagick) for
 radial distortion, which is off; without it installed a stand-in module that refuses to be used
@@ -24,7 +25,7 @@ is put on their path.
 
     .venv/bin/python benchmarks/bench_synthesis.py [--device cuda] [--sets set0,set4]
     .venv/bin/python benchmarks/bench_synthesis.py --end-to-end --sets set0,set4 \
-        [--authors-code CHECKOUT/synthetic_dp_defocus_blur_code]
+        [--frames 3] [--authors-code CHECKOUT/synthetic_dp_defocus_blur_code]
 """
 
 from __future__ import annotations
@@ -156,9 +157,9 @@ def authors_generator(code: Path, scenes: Path, work: Path) -> dict[str, float]:
 
 
 def end_to_end(sets: list[str], width: int, height: int, repeat: int,
-               authors_code: Path | None = None) -> None:
+               authors_code: Path | None = None, frames: int = 3) -> None:
     """The command against the baseline's computation (and the authors' generator, when given)
-    for the same three frames."""
+    for the same ``frames`` frames."""
     from dualpixel.io.images import read_rgb
     from dualpixel.synthesis.scenes import write_scene_folder
 
@@ -168,20 +169,21 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int,
     params = PSFParams(n=6, alpha=0.6, beta=0.2)
     with tempfile.TemporaryDirectory() as folder:
         scenes = Path(folder) / "scenes"
-        config = SceneConfig(width=width, height=height, frames=3, layout="photo")
+        config = SceneConfig(width=width, height=height, frames=frames, layout="photo")
         write_scene_folder(scenes, 1, config, seed=0, progress=False)
         first = scenes / "seq_000"
         rgb = read_rgb(first / "rgb" / "frame_0000.png")
         depth = np.load(first / "depth" / "frame_0000.npy")
         authors = {}
         if authors_code is not None:
-            print("running the authors' generator on the 3 frames (all five sets) ...", flush=True)
+            print(f"running the authors' generator on the {frames} frames (all five sets) ...",
+                  flush=True)
             authors = authors_generator(authors_code, scenes, Path(folder))
-        print(f"3 frames {width}x{height}: `dualpixel synth` (the command, I/O and start-up) "
-              "against 3 frames of the baseline's computation"
+        print(f"{frames} frames {width}x{height}: `dualpixel synth` (the command, I/O and "
+              f"start-up) against {frames} frames of the baseline's computation"
               + (" and the authors' generator (reading, rendering, writing)" if authors else ""))
         extra = " authors' generator s | command / authors' |" if authors else ""
-        print(f"| set | command s | baseline s (3 frames) | command / baseline |{extra}")
+        print(f"| set | command s | baseline s ({frames} frames) | command / baseline |{extra}")
         print("|---|---|---|---|" + ("---|---|" if authors else ""))
         for name in sets:
             walls = []
@@ -196,7 +198,7 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int,
             camera = CAMERA_PRESETS[name]
             _, per_frame, _ = median_timed(
                 lambda cam=camera: authors_algorithm(rgb, depth, cam, params), "cpu", 1)
-            command_s, baseline_s = float(np.median(walls)), 3 * per_frame
+            command_s, baseline_s = float(np.median(walls)), frames * per_frame
             theirs = (f" {authors[name]:.2f} | {command_s / authors[name]:.3f} |"
                       if name in authors else "")
             print(f"| {name} | {command_s:.2f} | {baseline_s:.2f} | "
@@ -213,13 +215,16 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3,
                         help="runs of the default and the baseline; medians are printed")
     parser.add_argument("--end-to-end", action="store_true",
-                        help="the synth command on 3 frames against the baseline")
+                        help="the synth command on a sequence against the baseline")
+    parser.add_argument("--frames", type=int, default=3,
+                        help="with --end-to-end: frames in the sequence (issue #36: 3)")
     parser.add_argument("--authors-code", type=Path, default=None,
                         help="with --end-to-end: the authors' synthetic_dp_defocus_blur_code "
                              "folder, to time their generator on the same frames")
     args = parser.parse_args()
     if args.end_to_end:
-        end_to_end(args.sets.split(","), args.width, args.height, args.repeat, args.authors_code)
+        end_to_end(args.sets.split(","), args.width, args.height, args.repeat, args.authors_code,
+                   args.frames)
         return
 
     rgb, depth = render_scene_sequence(0, SceneConfig(width=args.width, height=args.height,
