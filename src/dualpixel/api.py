@@ -112,11 +112,17 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
 def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
                psf_bank: str = "paper", noise: bool = True, noise_model: str = "multiplicative",
                noise_sigmas: tuple[float, ...] | None = None, distortion: bool = True,
-               device: str = "cpu") -> dict[str, Any]:
+               camera_file: str | Path | Any | None = None, psf_shapes: str | None = None,
+               light: str | None = None, device: str = "cpu") -> dict[str, Any]:
     """Synthesise a DP frame from an all-in-focus image and its depth (metres, ``(H, W)``).
 
     ``camera``: a preset ``set0``..``set4`` or a defocus profile such as ``dslr-840`` (focused at
     the depth map's 30th percentile, :func:`~dualpixel.optics.thin_lens.focus_from_depth`).
+    ``camera_file``: a calibrated camera, as ``dualpixel synth --camera`` takes it (a
+    ``camera.json`` path or a :class:`~dualpixel.calibration.camera.DPCamera`): its PSF shape
+    replaces ``psf_bank`` (unless ``psf_shapes="bank"``), its per-channel disparity ratio forms
+    the views and its light space is where the blur happens (``light`` overrides it: "encoded",
+    the paper's, or "linear"); see :func:`~dualpixel.synthesis.frame.camera_settings`.
     Returns ``left``, ``right``, ``combined``, ``target`` in the layout of ``rgb`` and
     ``defocus`` (signed CoC radius, px) as ``(H, W)``.
 
@@ -124,12 +130,13 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     >>> sorted(frame), frame["left"].shape
     (['combined', 'defocus', 'left', 'right', 'target'], (24, 32, 3))
     """
+    from dualpixel.calibration.camera import DPCamera, load_camera
     from dualpixel.device import resolve_device
     from dualpixel.io.images import check_depth_map
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.optics.psf_bank import PSF_BANKS
     from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES, focus_from_depth
-    from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
+    from dualpixel.synthesis.frame import camera_settings, draw_recipe, synthesize_frame
 
     images, layout = as_image_batch(rgb, "rgb")
     if len(images) != 1:
@@ -140,6 +147,13 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     depth_map = check_depth_map(depth_map)
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
+    if camera_file is not None and not isinstance(camera_file, DPCamera):
+        if not isinstance(camera_file, (str, Path)):
+            raise ParameterError("camera_file must be a camera.json path or a DPCamera, got "
+                                 f"{type(camera_file).__name__}")
+        camera_file = load_camera(camera_file)
+    bank, disparity_ratio, light_space = camera_settings(
+        camera_file, PSF_BANKS[psf_bank], psf_shapes=psf_shapes, light=light)
     if camera in DEFOCUS_PROFILES:
         focus = focus_from_depth(depth_map)
         lens = DEFOCUS_PROFILES[camera].camera(np.random.default_rng(seed), focus,
@@ -149,7 +163,8 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     else:
         known = ", ".join([*CAMERA_PRESETS, *DEFOCUS_PROFILES])
         raise ParameterError(f"camera must be one of {known}, got {camera!r}")
-    recipe = draw_recipe(seed, lens, bank=PSF_BANKS[psf_bank], distortion=distortion,
+    recipe = draw_recipe(seed, lens, bank=bank, disparity_ratio=disparity_ratio,
+                         light=light_space, distortion=distortion,
                          noise=noise, noise_model=noise_model,
                          noise_sigmas=PAPER_NOISE_SIGMAS if noise_sigmas is None
                          else tuple(noise_sigmas))

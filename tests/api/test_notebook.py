@@ -103,6 +103,44 @@ def test_every_function_takes_every_layout_alike():
         dualpixel.psnr(left8.transpose(2, 0, 1), target8.transpose(2, 0, 1))
 
 
+def test_synthesise_with_a_calibrated_camera(tmp_path):
+    """A calibrated camera as `synth --camera` takes it: its per-channel disparity ratio forms
+    the views and its light space is where the blur happens; a camera.json path and the
+    DPCamera give the same frame."""
+    from dualpixel.calibration.camera import DPCamera
+    from dualpixel.errors import InputFileError
+    from dualpixel.optics.psf import PSFParams
+
+    rgb, depth = scene()
+    psf = PSFParams(n=3.0, alpha=0.45, beta=0.2, kappa=0.21)
+    paper = DPCamera("paper", 64, (1.0, 1.0, 1.0), psf)
+    weak_red = DPCamera("weak-red", 64, (0.4, 1.0, 1.0), psf)
+    path = weak_red.save(tmp_path / "camera.json")
+    common = dict(camera="set1", seed=4, noise=False, distortion=False)
+    full = dualpixel.synthesize(rgb, depth, camera_file=paper, **common)
+    from_file = dualpixel.synthesize(rgb, depth, camera_file=path, **common)
+    from_object = dualpixel.synthesize(rgb, depth, camera_file=weak_red, **common)
+    for key in ("left", "right", "combined", "target", "defocus"):
+        np.testing.assert_array_equal(from_file[key], from_object[key])
+
+    def disparity(frame, channel):
+        return np.abs(frame["left"][..., channel] - frame["right"][..., channel]).mean()
+
+    assert disparity(full, 0) > 1e-3
+    assert disparity(from_file, 0) == pytest.approx(0.4 * disparity(full, 0), rel=0.02)
+    assert disparity(from_file, 1) == pytest.approx(disparity(full, 1), rel=1e-4)
+    linear = dualpixel.synthesize(rgb, depth, camera_file=path, light="linear", **common)
+    assert np.abs(linear["left"] - from_file["left"]).max() > 1e-3
+    with pytest.raises(ValueError, match=r"psf_shapes .* needs a camera"):
+        dualpixel.synthesize(rgb, depth, psf_shapes="bank")
+    with pytest.raises(ValueError, match="light must be one of"):
+        dualpixel.synthesize(rgb, depth, camera_file=path, light="log")
+    with pytest.raises(InputFileError, match=r"missing\.json"):
+        dualpixel.synthesize(rgb, depth, camera_file=tmp_path / "missing.json")
+    with pytest.raises(ValueError, match=r"camera_file must be a camera\.json path or a DPCamera"):
+        dualpixel.synthesize(rgb, depth, camera_file={"name": "x"})
+
+
 def test_clear_errors_and_the_listing():
     rgb, depth = scene()
     with pytest.raises(ValueError, match=r"left .* and right .* differ"):

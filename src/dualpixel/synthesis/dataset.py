@@ -46,7 +46,6 @@ from dualpixel.io.images import check_png_compression, quantise, save_npy, write
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
 from dualpixel.io.run_folder import differing_settings, locate, same_location
-from dualpixel.names import PSF_SHAPE_SOURCES
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
@@ -57,9 +56,13 @@ from dualpixel.optics.thin_lens import (
     ThinLensCamera,
     focus_from_depth,
 )
-from dualpixel.optics.tone import check_light
 from dualpixel.parallel import completed
-from dualpixel.synthesis.frame import SequenceRecipe, draw_recipe, synthesize_frame
+from dualpixel.synthesis.frame import (
+    SequenceRecipe,
+    camera_settings,
+    draw_recipe,
+    synthesize_frame,
+)
 from dualpixel.synthesis.inputs import (
     InputFormat,
     InputFrame,
@@ -124,26 +127,12 @@ class SynthConfig:
         check_plain_name(self.split, "split")
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
-        if self.camera is not None:
-            self.dp_camera()  # refuses a bad camera description now
-        if self.light is not None:
-            check_light(self.light)
-        if self.psf_shapes is not None and self.psf_shapes not in PSF_SHAPE_SOURCES:
-            raise ParameterError(
-                f"psf_shapes must be one of {', '.join(PSF_SHAPE_SOURCES)}, got "
-                f"{self.psf_shapes!r}"
-            )
-        if self.psf_shapes is not None and self.camera is None:
-            raise ParameterError("psf_shapes chooses between a camera's PSF shape and the bank; "
-                                 "it needs a camera")
+        self.recipe_settings()  # refuses a bad camera description, light or psf_shapes now
 
-    @property
-    def render_light(self) -> str:
-        """The light space frames are blurred in: ``light``, else the camera's, else encoded."""
-        if self.light is not None:
-            return self.light
-        camera = self.dp_camera()
-        return "encoded" if camera is None else camera.light
+    def recipe_settings(self) -> tuple[PSFBank, tuple[float, ...] | None, str]:
+        """``(bank, disparity_ratio, light)`` of every sequence: :func:`camera_settings`."""
+        return camera_settings(self.dp_camera(), PSF_BANKS[self.psf_bank],
+                               psf_shapes=self.psf_shapes, light=self.light)
 
     def dp_camera(self):
         """The calibrated camera (:class:`~dualpixel.calibration.camera.DPCamera`), or None."""
@@ -212,13 +201,7 @@ def plan_jobs(
 ) -> list[FrameJob]:
     """Every output frame, with the recipe of its sequence drawn from the seed."""
     jobs = []
-    bank, disparity_ratio = PSF_BANKS[config.psf_bank], None
-    camera_model = config.dp_camera()
-    if camera_model is not None:
-        disparity_ratio = camera_model.disparity_ratio
-        if config.psf_shapes != "bank":
-            bank = PSFBank([camera_model.psf])
-    light = config.render_light
+    bank, disparity_ratio, light = config.recipe_settings()
     for cam_index, camera_name in enumerate(config.cameras):
         for seq_index, sequence in enumerate(sequences):
             number = cam_index * len(sequences) + seq_index + 1

@@ -7,11 +7,13 @@ distortion set, noise strength); :func:`draw_recipe` draws it reproducibly from 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError
+from dualpixel.names import PSF_SHAPE_SOURCES
 from dualpixel.optics.crosstalk import apply_crosstalk, check_disparity_ratio
 from dualpixel.optics.distortion import DISTORTION_PRESETS, DivisionDistortion, distort_image
 from dualpixel.optics.noise import (
@@ -28,7 +30,10 @@ from dualpixel.optics.tone import Light, check_light, linear_to_srgb, srgb_to_li
 from dualpixel.synthesis.layers import check_render_mode
 from dualpixel.synthesis.renderer import render_dp_views
 
-__all__ = ["DPFrame", "SequenceRecipe", "draw_recipe", "synthesize_frame"]
+if TYPE_CHECKING:
+    from dualpixel.calibration.camera import DPCamera
+
+__all__ = ["DPFrame", "SequenceRecipe", "camera_settings", "draw_recipe", "synthesize_frame"]
 
 
 @dataclass(frozen=True)
@@ -77,6 +82,35 @@ class SequenceRecipe:
                else {"disparity_ratio": list(self.disparity_ratio)}),
             **({} if self.light == "encoded" else {"light": self.light}),
         }
+
+
+def camera_settings(
+    camera: DPCamera | None,
+    bank: PSFBank = PAPER_PSF_BANK,
+    *,
+    psf_shapes: str | None = None,
+    light: str | None = None,
+) -> tuple[PSFBank, tuple[float, ...] | None, Light]:
+    """What a calibrated camera (``dualpixel calibrate camera``) sets for :func:`draw_recipe`:
+    ``(bank, disparity_ratio, light)``.
+
+    The camera's fitted PSF shape replaces ``bank`` unless ``psf_shapes`` is "bank"; its
+    per-channel disparity ratio is applied; ``light`` overrides the camera's light space.
+    Without a camera: ``bank``, the paper's views (None) and ``light`` or "encoded".
+    """
+    if psf_shapes is not None:
+        if psf_shapes not in PSF_SHAPE_SOURCES:
+            raise ParameterError(f"psf_shapes must be one of {', '.join(PSF_SHAPE_SOURCES)}, "
+                                 f"got {psf_shapes!r}")
+        if camera is None:
+            raise ParameterError("psf_shapes chooses between a camera's PSF shape and the "
+                                 "bank; it needs a camera")
+    if light is not None:
+        check_light(light)
+    if camera is None:
+        return bank, None, light or "encoded"
+    shapes = bank if psf_shapes == "bank" else PSFBank([camera.psf])
+    return shapes, camera.disparity_ratio, light or camera.light  # type: ignore[return-value]
 
 
 def draw_recipe(
