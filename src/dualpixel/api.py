@@ -9,7 +9,7 @@ What comes back has the layout and library of what came in (PIL: NumPy), as floa
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -17,6 +17,9 @@ import torch
 from dualpixel.errors import ParameterError
 from dualpixel.io.arrays import as_image_batch, restore_layout
 from dualpixel.weights import DEFAULT_CHECKPOINT
+
+if TYPE_CHECKING:
+    from dualpixel.calibration.camera import DPCamera
 
 __all__ = ["check_views", "deblur", "list_models", "load_model", "synthesize"]
 
@@ -112,7 +115,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
 def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
                psf_bank: str = "paper", noise: bool = True, noise_model: str = "multiplicative",
                noise_sigmas: tuple[float, ...] | None = None, distortion: bool = True,
-               camera_file: str | Path | Any | None = None, psf_shapes: str | None = None,
+               camera_file: str | Path | DPCamera | None = None, psf_shapes: str | None = None,
                light: str | None = None, device: str = "cpu") -> dict[str, Any]:
     """Synthesise a DP frame from an all-in-focus image and its depth (metres, ``(H, W)``).
 
