@@ -133,7 +133,6 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     >>> sorted(frame), frame["left"].shape
     (['combined', 'defocus', 'left', 'right', 'target'], (24, 32, 3))
     """
-    from dualpixel.calibration.camera import DPCamera, load_camera
     from dualpixel.device import resolve_device
     from dualpixel.io.images import check_depth_map
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
@@ -150,11 +149,14 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     depth_map = check_depth_map(depth_map)
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
-    if camera_file is not None and not isinstance(camera_file, DPCamera):
-        if not isinstance(camera_file, (str, Path)):
+    if camera_file is not None:  # the calibration module only when a camera is given
+        from dualpixel.calibration.camera import DPCamera, load_camera
+
+        if isinstance(camera_file, (str, Path)):
+            camera_file = load_camera(camera_file)
+        elif not isinstance(camera_file, DPCamera):
             raise ParameterError("camera_file must be a camera.json path or a DPCamera, got "
                                  f"{type(camera_file).__name__}")
-        camera_file = load_camera(camera_file)
     bank, disparity_ratio, light_space = camera_settings(
         camera_file, PSF_BANKS[psf_bank], psf_shapes=psf_shapes, light=light)
     if camera in DEFOCUS_PROFILES:
