@@ -3,7 +3,8 @@
 One array convention at this boundary (:mod:`dualpixel.io.arrays`): images are NumPy ``(H, W, C)``,
 ``(H, W)`` or ``(N, H, W, C)``, torch ``(C, H, W)`` or ``(N, C, H, W)``, or PIL images; ``C`` is 1,
 3 or 4 (grey copied to RGB, alpha dropped); floats in [0, 1] or uint8 / uint16 read by their range.
-What comes back has the layout and library of what came in (PIL: NumPy), as float32 RGB in [0, 1].
+What comes back has the layout and library of what came in (PIL: NumPy), as float32 in [0, 1]:
+RGB, except that :func:`deblur` gives grey views a grey output.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError
-from dualpixel.io.arrays import as_image_batch, restore_layout
+from dualpixel.io.arrays import as_image_batch, full_scale, image_channels, restore_layout
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
 if TYPE_CHECKING:
@@ -69,7 +70,9 @@ def check_views(left: Any, right: Any, combined: Any = None) -> list:
 def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, device: str = "auto",
            tile: int | None = None, flips: bool = False, multiscale: bool = False,
            precision: str = "auto", views_sum: bool = False,
-           backend: str = "torch") -> np.ndarray | torch.Tensor:
+           backend: str = "torch", encoding: str = "srgb", black_level: float | None = None,
+           white_level: float | None = None,
+           right_gain: float | np.ndarray = 1.0) -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD), or ``views_sum=True`` for views that sum to it (a raw A/B split; they
     are doubled). :func:`check_views` tells the usual mistakes. ``model``: a name, a checkpoint
@@ -80,14 +83,31 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     computes it natively), ``fp32``, ``bf16`` or ``fp16`` (:mod:`dualpixel.inference.precision`).
     ``backend``: ``torch``, or ``onnxruntime`` (CPU, fp32; :mod:`dualpixel.inference.onnx_runtime`).
 
+    Phone and raw views (:mod:`dualpixel.inference.encoding`): grey views (one channel, such as
+    a Pixel's green-only DP data) come back grey, in the layout they came in. ``encoding``:
+    ``"srgb"`` (display values, the default) or ``"linear"`` (raw values; then ``black_level``
+    and ``white_level`` in the views' own units, e.g. 1024 and 16383 for uint16 arrays of
+    14-bit data, and ``right_gain`` for DP shading, a number or a flat-field map): the views are
+    encoded as the models were trained and the output decoded back to the views' encoding.
+    A pair that looks linear but is declared display-encoded, or the reverse, gives a warning.
+
     >>> out = deblur(np.full((32, 48, 3), 0.5, np.float32), np.full((32, 48, 3), 0.5, np.float32))
     >>> out.shape, out.dtype
     ((32, 48, 3), dtype('float32'))
     """
-    from dualpixel.inference import Deblurrer
-    from dualpixel.inference.onnx_runtime import backend_device
-    from dualpixel.inference.view_checks import views_from_sum
+    import warnings
 
+    from dualpixel.inference import Deblurrer
+    from dualpixel.inference.encoding import (
+        ViewEncoding,
+        encoding_findings,
+        from_model,
+        to_model,
+    )
+    from dualpixel.inference.onnx_runtime import backend_device
+
+    view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain)
+    channels, scale = min(image_channels(left), 3), full_scale(left)
     lefts, layout = as_image_batch(left, "left")
     rights = None
     if right is not None:
@@ -95,21 +115,36 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         if rights.shape != lefts.shape:
             raise ParameterError(f"left {lefts.shape[:3]} and right {rights.shape[:3]} views "
                                  "differ in size or count")
+        if min(image_channels(right), 3) != channels:
+            raise ParameterError(f"left has {channels} channel(s) and right "
+                                 f"{min(image_channels(right), 3)}: give both views of one "
+                                 "capture (grey with grey, colour with colour)")
+        if full_scale(right) != scale:
+            raise ParameterError("left and right differ in type (bit depth or float): give "
+                                 "both views as read from one capture")
     resolved = backend_device(backend, device)
     net = load_model(model, device=str(resolved)) if isinstance(model, (str, Path)) else model
     if right is None and net.spec.views == 2:
         raise ParameterError(f"this model ({net.spec.name}) needs both views; give right")
+    if views_sum and rights is None:
+        raise ParameterError("views_sum needs both views")
+    for finding in encoding_findings(lefts[0], (rights if rights is not None else lefts)[0],
+                                     encoding):
+        warnings.warn(finding.message, stacklevel=2)
+    lefts, rights_in = to_model(lefts, lefts if rights is None else rights, view_encoding,
+                                scale=scale, views_sum=views_sum)
+    rights = None if rights is None else rights_in
     deblurrer = Deblurrer(net, device=resolved, tile=tile, flips=flips,
                           multiscale=multiscale, precision=precision, backend=backend)
-    if views_sum:
-        if rights is None:
-            raise ParameterError("views_sum needs both views")
-        lefts, rights = views_from_sum(lefts, rights)
     outputs = []
     for index in range(len(lefts)):
         deblurrer.reset()  # a batch holds independent pairs
         outputs.append(deblurrer(lefts[index], None if rights is None else rights[index]))
-    return restore_layout(np.stack(outputs), layout)
+    result = restore_layout(from_model(np.stack(outputs), view_encoding, channels, scale=scale),
+                            layout)
+    grey_2d = np.ndim(left) == 2 if not type(left).__module__.startswith("PIL.") else False
+    return result[..., 0, :, :] if grey_2d and layout == "torch" else (
+        result[..., 0] if grey_2d else result)
 
 
 def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,

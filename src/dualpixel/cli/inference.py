@@ -58,6 +58,21 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
 @click.option("--views-sum", is_flag=True,
               help="The views sum to the combined image (a raw A/B split): double them, as the "
                    "models take each view at the combined image's brightness.")
+@click.option("--encoding", type=click.Choice(["srgb", "linear"]), default="srgb",
+              show_default=True,
+              help="How the views store light: display values (photographs, the DPDD), or "
+                   "linear raw values (a phone's DP data; give --black-level and --white-level).")
+@click.option("--black-level", type=float, default=None,
+              help="Linear views: the raw value of no light, in the file's units (e.g. 1024).")
+@click.option("--white-level", type=float, default=None,
+              help="Linear views: the raw value of saturation, in the file's units (e.g. 16383).")
+@click.option("--right-gain", type=float, default=1.0, show_default=True,
+              help="Linear views: gain that brings the right view to the left's (DP shading).")
+@click.option("--flat-field", nargs=2, type=click.Path(dir_okay=False, exists=True,
+                                                       path_type=Path),
+              default=None, metavar="LEFT RIGHT",
+              help="Linear views: a DP capture of a flat, evenly lit surface; the right view's "
+                   "gain map is taken from it (instead of --right-gain).")
 @click.option("--strict", is_flag=True,
               help="Stop on a doubtful pair (views swapped, wrong brightness, ...) instead of "
                    "warning.")
@@ -72,20 +87,27 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined: Path | None,
-           split: str, output: Path, views_sum: bool, strict: bool, checkpoint: str,
+           split: str, output: Path, views_sum: bool, encoding: str, black_level: float | None,
+           white_level: float | None, right_gain: float, flat_field: tuple[Path, Path] | None,
+           strict: bool, checkpoint: str,
            tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
            backend: str, flips: bool, multiscale: bool) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder.
 
-    The first pair of each sequence is checked for likely mistakes (views swapped, views at
-    half brightness, a combined image from another capture); each is a warning, or an error
+    Grey views (a phone's green-only DP data) give a grey output; --encoding linear takes raw
+    views and writes the output in the same raw values. The first pair of each sequence is
+    checked for likely mistakes (views swapped, views at half brightness, a combined image from
+    another capture, raw views declared as display values); each is a warning, or an error
     with --strict.
     """
     from tqdm import tqdm
 
     from dualpixel.inference import Deblurrer
+    from dualpixel.inference.encoding import view_encoding_from_files
     from dualpixel.inference.jobs import plan_deblur_jobs, run_deblur_jobs
 
+    view_encoding = view_encoding_from_files(encoding, black_level, white_level, right_gain,
+                                             flat_field)
     model, resolved = _load(checkpoint, device, backend)
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=model.spec.views == 2, combined=combined)
@@ -97,7 +119,8 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     def report(path: Path, finding) -> None:
         tqdm.write(f"Warning: {path}: {finding.message}", file=sys.stderr)
 
-    run = run_deblur_jobs(deblurrer, jobs, views_sum=views_sum, strict=strict, report=report)
+    run = run_deblur_jobs(deblurrer, jobs, views_sum=views_sum, strict=strict, report=report,
+                          encoding=view_encoding)
     for _ in tqdm(run, total=total, desc="deblurring", unit="frame"):
         pass
     click.echo(f"wrote {total} frame(s) to {output}")
@@ -288,4 +311,56 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
                f"deblur --input {output} --split {split} -o OUTPUT_FOLDER")
 
 
-COMMANDS = (deblur, evaluate_command, niqe, export, import_keras, import_dpraw)
+@click.command("check-model", cls=DPCommand, context_settings=CONTEXT)
+@click.option("--input", "inputs", multiple=True, required=True,
+              type=click.Path(file_okay=False, exists=True, path_type=Path),
+              help="Real DP pairs, no target needed: a folder of scene folders (NAME/left.png, "
+                   "NAME/right.png or view0/view1) or a DPDD-layout folder; repeat for more.")
+@click.option("--split", default=None, help="Split of a DPDD-layout --input [default: test].")
+@click.option("--checkpoint", "checkpoints", multiple=True, default=(DEFAULT_CHECKPOINT,),
+              show_default=True, help=_CHECKPOINT_HELP + " Repeat to compare models.")
+@click.option("--reference", default=None,
+              help="A --checkpoint to compare the others with: a pair where one shifts local "
+                   "brightness or overshoots more is listed.")
+@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Report folder: target_free.csv and target_free.md.")
+@click.option("--encoding", type=click.Choice(["srgb", "linear"]), default="srgb",
+              show_default=True, help="How the views store light (see deblur --encoding).")
+@click.option("--black-level", type=float, default=None, help="Linear views: see deblur.")
+@click.option("--white-level", type=float, default=None, help="Linear views: see deblur.")
+@click.option("--strict", is_flag=True,
+              help="Exit with status 1 when a model does worse than --reference, or changes a "
+                   "photograph's brightness by more than 1 %.")
+@click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
+@click.option("--device", default="auto", help="auto, cpu, cuda, ...")
+@_PRECISION_OPTION
+def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[str, ...],
+                reference: str | None, output: Path, encoding: str, black_level: float | None,
+                white_level: float | None, strict: bool, tile: int | None, device: str,
+                precision: str) -> None:
+    """Target-free checks of models on real DP pairs without ground truth: brightness kept,
+    no halos, in-focus regions kept, nothing invented, defocused regions sharper."""
+    from dualpixel.evaluation.target_free import (
+        check_folder,
+        model_methods,
+        write_target_free_report,
+    )
+    from dualpixel.inference.encoding import ViewEncoding
+
+    if reference is not None and reference not in checkpoints:
+        raise click.BadParameter(f"{reference!r} is not one of the --checkpoint values",
+                                 param_hint="--reference")
+    view_encoding = ViewEncoding(encoding, black_level, white_level)
+    methods = model_methods(checkpoints, device=device, encoding=view_encoding, tile=tile,
+                            precision=precision)
+    rows = []
+    for root in inputs:
+        rows += check_folder(root, methods, split=split, encoding=encoding, progress=True)
+    findings = write_target_free_report(rows, output, reference=reference)
+    click.echo((output / "target_free.md").read_text())
+    click.echo(f"reports in {output}")
+    if strict and findings:
+        raise SystemExit(1)
+
+
+COMMANDS = (check_model, deblur, evaluate_command, niqe, export, import_keras, import_dpraw)

@@ -160,12 +160,14 @@ SCENE_ROLES = {
 }
 
 
-def discover_scene_folders(root: str | Path) -> tuple[list[DPSequence], dict[str, dict[str, Path]]]:
+def discover_scene_folders(
+    root: str | Path, *, require_target: bool = True,
+) -> tuple[list[DPSequence], dict[str, dict[str, Path]]]:
     """Examples stored one folder per scene (e.g. ``../shared/data/canon-dp-real``).
 
     Each subfolder holds ``view0``/``left``, ``view1``/``right``, ``input``/``combined`` and
-    ``target`` images; any other image in it (e.g. ``dpdnet.png``) is another method's output,
-    returned as ``{scene: {method: path}}``.
+    ``target`` images (``target`` optional unless ``require_target``); any other image in it
+    (e.g. ``dpdnet.png``) is another method's output, returned as ``{scene: {method: path}}``.
     """
     root = Path(root)
     if not root.is_dir():
@@ -180,11 +182,12 @@ def discover_scene_folders(root: str | Path) -> tuple[list[DPSequence], dict[str
                 roles[role] = found[0]
         if "left" not in roles and "right" not in roles:
             continue
-        for role in ("left", "right", "target"):
+        for role in ("left", "right", "target") if require_target else ("left", "right"):
             if role not in roles:
                 names = " or ".join(SCENE_ROLES[role])
                 raise InputFileError(folder, f"{role} image missing ({names})")
-        frame = DPFramePaths(roles["left"], roles["right"], roles.get("combined"), roles["target"])
+        frame = DPFramePaths(roles["left"], roles["right"], roles.get("combined"),
+                             roles.get("target"))
         sequences.append(DPSequence(folder.name, (frame,), *_check_sizes([frame])))
         used = {p for p in roles.values()}
         others[folder.name] = {stem: p for stem, p in images.items() if p not in used}
@@ -194,15 +197,17 @@ def discover_scene_folders(root: str | Path) -> tuple[list[DPSequence], dict[str
 
 
 def discover_any(
-    root: str | Path, split: str | None = None, *, require_target: bool = False
+    root: str | Path, split: str | None = None, *, require_target: bool | None = None
 ) -> list[DPSequence]:
     """Sequences of a DPDD-layout folder (``split``, default "test" then "train", "val") or of a
-    folder of scene folders (``scene/view0.png ...``, as ``../shared/data/canon-dp-real``)."""
+    folder of scene folders (``scene/view0.png ...``, as ``../shared/data/canon-dp-real``).
+    ``require_target``: None asks for targets in scene folders only."""
     root = Path(root)
     if not root.is_dir():
         raise InputFileError(root, "folder not found")
     dpdd_splits = [s for s in ("test", "train", "val") if role_folder(root, s, "left").is_dir()]
     if dpdd_splits:  # the split only means something for the DPDD layout
-        return discover_dp_dataset(root, split or dpdd_splits[0], require_target=require_target)
-    sequences, _ = discover_scene_folders(root)
+        return discover_dp_dataset(root, split or dpdd_splits[0],
+                                   require_target=bool(require_target))
+    sequences, _ = discover_scene_folders(root, require_target=require_target is not False)
     return sequences

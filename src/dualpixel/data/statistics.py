@@ -33,6 +33,7 @@ from dualpixel.errors import InputFileError, ParameterError
 __all__ = [
     "DatasetStatistics",
     "FrameStatistics",
+    "block_disparity_map",
     "block_sums",
     "dataset_statistics",
     "defocus_shift_counts",
@@ -108,11 +109,13 @@ def _textured(grey: np.ndarray, patch: int, threshold: float) -> np.ndarray:
     return block_sums(gradient, patch) / patch**2 > threshold
 
 
-def block_disparity(
+def block_disparity_map(
     left: np.ndarray, right: np.ndarray, *, patch: int = 64, max_shift: int = 12,
     min_texture: float = 0.004,
-) -> np.ndarray:
-    """Signed horizontal shift of ``right`` against ``left`` per textured block, px ``(n,)``."""
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Signed horizontal shift of ``right`` against ``left`` per block, px ``(rows, cols)``,
+    whether each block is textured enough to trust it, and the image column where the block
+    grid starts (``max_shift``: the search needs that margin); rows start at 0."""
     gl, gr = (np.diff(_grey(v), axis=1) for v in (left, right))
     width = gl.shape[1]
     if width <= 2 * max_shift + 1:
@@ -133,7 +136,17 @@ def block_disparity(
     offset = np.where(curvature > 0, 0.5 * (c0 - c2) / np.maximum(curvature, 1e-12), 0.0)
     shift = inner - max_shift + np.clip(offset, -0.5, 0.5)
     textured = _textured(_grey(left)[:, core], patch, min_texture)
-    return shift[textured].astype(np.float32)
+    return shift.astype(np.float32), textured, max_shift
+
+
+def block_disparity(
+    left: np.ndarray, right: np.ndarray, *, patch: int = 64, max_shift: int = 12,
+    min_texture: float = 0.004,
+) -> np.ndarray:
+    """Signed horizontal shift of ``right`` against ``left`` per textured block, px ``(n,)``."""
+    shift, textured, _ = block_disparity_map(left, right, patch=patch, max_shift=max_shift,
+                                             min_texture=min_texture)
+    return shift[textured]
 
 
 #: A block counts as defocused when its views shift by more than this (px).

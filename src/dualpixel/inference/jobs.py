@@ -17,9 +17,10 @@ import numpy as np
 from dualpixel.data.layout import discover_dp_dataset, image_files
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError
 from dualpixel.inference.deblur import Deblurrer
-from dualpixel.inference.view_checks import ViewFinding, check_views, views_from_sum
+from dualpixel.inference.encoding import ViewEncoding, encoding_findings, from_model, to_model
+from dualpixel.inference.view_checks import ViewFinding, check_views
 from dualpixel.io.atomic import check_writable
-from dualpixel.io.images import check_image_path, read_rgb_with_depth, write_png
+from dualpixel.io.images import check_image_path, read_rgb_with_depth, read_view, write_png
 from dualpixel.io.metadata import read_metadata
 
 __all__ = ["DeblurJob", "plan_deblur_jobs", "run_deblur_jobs"]
@@ -134,48 +135,71 @@ def _same_size(path: Path, image: np.ndarray, reference: Path, shape: tuple[int,
 
 
 def _check_first_frame(job: DeblurJob, left: np.ndarray, right: np.ndarray, bits: tuple[int, int],
-                       *, strict: bool, report: Callable[[Path, ViewFinding], None] | None
-                       ) -> None:
+                       *, strict: bool, report: Callable[[Path, ViewFinding], None] | None,
+                       raw: tuple[np.ndarray, np.ndarray, str] | None = None) -> None:
     combined = None
     if job.combined is not None:
         combined = read_rgb_with_depth(job.combined)[0]
         _same_size(job.combined, combined, job.left, left.shape)
-    for finding in check_views(left, right, combined=combined, bit_depths=bits):
+    findings = encoding_findings(*raw) if raw is not None else []
+    for finding in [*findings, *check_views(left, right, combined=combined, bit_depths=bits)]:
         if strict:
             raise InputFileError(job.left, f"{finding.message} (--strict)")
         if report is not None:
             report(job.left, finding)
 
 
+def _read_pair(job: DeblurJob) -> tuple[np.ndarray, np.ndarray | None, int, int]:
+    """The job's views with their own channels (1 or 3) and bit depths; a clear error when
+    they differ in size or channels."""
+    left, bits = read_view(job.left)
+    if job.right is None:
+        return left, None, bits, bits
+    right, right_bits = read_view(job.right)
+    _same_size(job.right, right, job.left, left.shape[:2] + right.shape[2:])
+    if right.shape[2] != left.shape[2]:
+        kinds = {1: "grey (one channel)", 3: "colour (RGB)"}
+        raise InputFileError(job.right, f"is {kinds[right.shape[2]]} but the left view "
+                                        f"{job.left} is {kinds[left.shape[2]]}")
+    return left, right, bits, right_bits
+
+
 def run_deblur_jobs(
     deblurrer: Deblurrer, jobs: list[list[DeblurJob]], *, views_sum: bool = False,
     strict: bool = False, report: Callable[[Path, ViewFinding], None] | None = None,
+    encoding: ViewEncoding | None = None,
 ) -> Iterator[Path]:
     """Deblur every job in order (state reset per sequence), writing each output at the input's
-    bit depth with its ICC profile and EXIF (orientation included); yields each written path.
+    bit depth and channel count (grey views give a grey output) with its ICC profile and EXIF
+    (orientation included); yields each written path.
 
     The first pair of each sequence is checked (:func:`~dualpixel.inference.view_checks.
-    check_views`): each finding goes to ``report(path, finding)``, or with ``strict`` stops the
-    run with an error. ``views_sum``: the views sum to the combined image (a raw A/B split) and
-    are doubled first (:func:`~dualpixel.inference.view_checks.views_from_sum`); it needs the
-    right views too (refused before any work without them).
+    check_views`, :func:`~dualpixel.inference.encoding.encoding_findings`): each finding goes
+    to ``report(path, finding)``, or with ``strict`` stops the run with an error. ``views_sum``:
+    the views sum to the combined image (a raw A/B split) and are doubled first
+    (:func:`~dualpixel.inference.view_checks.views_from_sum`); it needs the right views too
+    (refused before any work without them). ``encoding``: how the views store light
+    (:class:`~dualpixel.inference.encoding.ViewEncoding`; display values by default); the
+    output is written back in it.
     """
+    encoding = encoding or ViewEncoding()
     if views_sum and any(job.right is None for sequence in jobs for job in sequence):
         raise ParameterError("--views-sum needs both views (the combined image is their sum): "
                              "give --right, also for a model that reads one view")
     for sequence in jobs:
         deblurrer.reset()
         for index, job in enumerate(sequence):
-            left, bits = read_rgb_with_depth(job.left)
-            right, right_bits = (read_rgb_with_depth(job.right) if job.right is not None
-                                 else (None, bits))
-            if right is not None:
-                _same_size(job.right, right, job.left, left.shape)
-                if views_sum:
-                    left, right = views_from_sum(left, right)
+            left, right, bits, right_bits = _read_pair(job)
+            channels, scale = left.shape[2], 65535.0 if bits == 16 else 255.0
+            raw = (left, right if right is not None else left, encoding.encoding)
+            if right is None:
+                left = to_model(left, left, encoding, scale=scale)[0]
+            else:
+                left, right = to_model(left, right, encoding, scale=scale, views_sum=views_sum)
                 if index == 0:
                     _check_first_frame(job, left, right, (bits, right_bits), strict=strict,
-                                       report=report)
-            write_png(job.output, deblurrer(left, right), bit_depth=bits,
+                                       report=report, raw=raw)
+            output = from_model(deblurrer(left, right), encoding, channels, scale=scale)
+            write_png(job.output, output[..., 0] if channels == 1 else output, bit_depth=bits,
                       metadata=read_metadata(job.left))
             yield job.output

@@ -21,7 +21,10 @@ import numpy as np
 
 from dualpixel.errors import ParameterError
 
-__all__ = ["FLOAT_TOLERANCE", "as_image_batch", "restore_layout", "to_unit_float"]
+__all__ = [
+    "FLOAT_TOLERANCE", "as_image_batch", "full_scale", "image_channels", "restore_layout",
+    "to_unit_float",
+]
 
 #: How far outside [0, 1] a float image may lie and still be read (clipped): one 8-bit level.
 FLOAT_TOLERANCE = 1.0 / 255.0
@@ -133,3 +136,24 @@ def restore_layout(images: np.ndarray, layout: str) -> Any:
 
     tensor = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2)
     return tensor[0] if layout == "torch" else tensor
+
+
+def image_channels(image: Any) -> int:
+    """How many channels ``image`` holds in any layout above (1 for grey, 2-D arrays and
+    single-channel PIL modes included), without converting it."""
+    if type(image).__module__.startswith("PIL."):
+        return len(image.getbands())
+    shape = tuple(image.shape) if hasattr(image, "shape") else np.shape(image)
+    if type(image).__module__.startswith("torch"):
+        return 1 if len(shape) == 2 else int(shape[-3])
+    return 1 if len(shape) == 2 else int(shape[-1])
+
+
+def full_scale(image: Any) -> float:
+    """The value that stands for 1.0 in ``image``'s own units: 255 for uint8, 65535 for uint16
+    (and 16-bit PIL images), 1 for floats."""
+    if type(image).__module__.startswith("PIL."):
+        return 65535.0 if image.mode.startswith("I") else 255.0 if image.mode != "F" else 1.0
+    dtype = str(getattr(image, "dtype", np.asarray(image).dtype))
+    return {"uint8": 255.0, "torch.uint8": 255.0, "uint16": 65535.0,
+            "torch.uint16": 65535.0}.get(dtype, 1.0)

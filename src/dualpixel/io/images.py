@@ -30,6 +30,8 @@ __all__ = [
     "read_rgb",
     "read_rgb_with_depth",
     "read_synthia_depth",
+    "read_view",
+    "read_views",
     "write_png",
 ]
 
@@ -146,6 +148,33 @@ def read_rgb_with_depth(path: str | Path) -> tuple[np.ndarray, int]:
         raise InputFileError(path, f"expected an RGB image with 3 channels, got shape {shape}")
     image = _unit_range(path, cv2.cvtColor(data[:, :, :3], cv2.COLOR_BGR2RGB))
     return image, 16 if data.dtype == np.uint16 else 8
+
+
+def read_view(path: str | Path) -> tuple[np.ndarray, int]:
+    """A DP view as float32 ``(H, W, C)`` in [0, 1] with the file's channels kept (``C`` 1 for
+    a grey view, such as a phone's green-only DP data, 3 for colour; alpha dropped) and its
+    bit depth (8 or 16)."""
+    path = Path(path)
+    data = _imread(path)
+    if data.ndim == 3 and data.shape[2] == 1:
+        data = data[:, :, 0]
+    if data.ndim == 2:
+        return _unit_range(path, data)[:, :, None], 16 if data.dtype == np.uint16 else 8
+    return read_rgb_with_depth(path)
+
+
+def read_views(left: str | Path, right: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """Both views of a pair (:func:`read_view`); a clear error when they differ in size or in
+    channels (a grey view given with a colour one)."""
+    (left_image, _), (right_image, _) = read_view(left), read_view(right)
+    if left_image.shape[:2] != right_image.shape[:2]:
+        raise InputFileError(right, f"{right_image.shape[1]}x{right_image.shape[0]} px, but the "
+                             f"left view {left} is {left_image.shape[1]}x{left_image.shape[0]}")
+    if left_image.shape[2] != right_image.shape[2]:
+        kinds = {1: "grey (one channel)", 3: "colour (RGB)"}
+        raise InputFileError(right, f"is {kinds[right_image.shape[2]]} but the left view {left} "
+                             f"is {kinds[left_image.shape[2]]}: give both views of one capture")
+    return left_image, right_image
 
 
 def decode_synthia_depth(bgr: np.ndarray, *, max_depth: float = 250.0) -> np.ndarray:

@@ -1,0 +1,197 @@
+"""Views as the models take them, and outputs back as the views came: grey and linear raw views.
+
+The shipped models take RGB views stored as display values (the sRGB curve, as 8-bit photographs
+and the DPDD store them). A phone's DP data are often neither: the Google Pixel's are one green
+channel of the raw frame (grey), and raw views are linear in light above a black level, with the
+right view a little darker or brighter than the left (DP shading). :class:`ViewEncoding` says how a
+pair stores light; :func:`to_model` turns the views into what the models take (black level off,
+scaled by the white level, the right view's gain applied, sRGB-encoded, grey copied to R, G and B)
+and :func:`from_model` turns the output back (decoded to linear, black level back on, one
+channel for grey views). :func:`encoding_findings` warns when the views look linear but are
+declared display-encoded, or the reverse.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+
+from dualpixel.errors import ParameterError
+from dualpixel.inference.view_checks import ViewFinding, views_from_sum
+from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
+
+__all__ = [
+    "ENCODINGS", "ViewEncoding", "deblur_encoded", "encoding_findings", "flat_field_gain",
+    "from_model",
+    "to_model", "view_encoding_from_files",
+]
+
+#: "srgb": display values (photographs, the DPDD); "linear": raw sensor values.
+ENCODINGS = ("srgb", "linear")
+#: Views whose median lies below this fraction of full scale, with 99 % of values below
+#: :data:`LINEAR_P99`, look like linear raw data.
+LINEAR_MEDIAN = 0.08
+LINEAR_P99 = 0.5
+#: Views declared linear whose median lies above this look display-encoded.
+ENCODED_MEDIAN = 0.3
+
+
+@dataclass(frozen=True)
+class ViewEncoding:
+    """How a DP pair stores light.
+
+    ``encoding``: :data:`ENCODINGS`. For ``"linear"`` views ``black_level`` and ``white_level``
+    are required, in the views' own units (the file's numbers for 8/16-bit files and integer
+    arrays, fractions of 1 for float arrays); ``right_gain`` multiplies the right view (after
+    the black level is taken off) to match the left: a number, or an ``(H, W)`` map from a
+    flat-field capture (:func:`flat_field_gain`).
+    """
+
+    encoding: str = "srgb"
+    black_level: float | None = None
+    white_level: float | None = None
+    right_gain: float | np.ndarray = 1.0
+
+    def __post_init__(self) -> None:
+        if self.encoding not in ENCODINGS:
+            raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, "
+                                 f"got {self.encoding!r}")
+        if self.encoding == "srgb":
+            if (self.black_level is not None or self.white_level is not None
+                    or not np.all(np.asarray(self.right_gain) == 1.0)):
+                raise ParameterError("black_level, white_level and right_gain are for linear "
+                                     "views; pass encoding='linear' (--encoding linear) with them")
+            return
+        if self.black_level is None or self.white_level is None:
+            missing = "black_level" if self.black_level is None else "white_level"
+            raise ParameterError(f"linear views need {missing} (--{missing.replace('_', '-')}): "
+                                 "the raw value of no light and of saturation, from the camera's "
+                                 "metadata (e.g. 1024 and 16383 for 14-bit data with that offset)")
+        black, white = float(self.black_level), float(self.white_level)
+        if not (math.isfinite(black) and math.isfinite(white) and 0 <= black < white):
+            raise ParameterError(f"need 0 <= black_level < white_level, got {black} and {white}")
+        gain = np.asarray(self.right_gain, np.float64)
+        if not np.isfinite(gain).all() or (gain <= 0).any():
+            raise ParameterError("right_gain must be positive and finite")
+
+    @property
+    def linear(self) -> bool:
+        return self.encoding == "linear"
+
+
+def _check_gain_shape(gain: np.ndarray, shape: tuple[int, int]) -> None:
+    if gain.ndim and gain.shape[:2] != shape:
+        raise ParameterError(f"right_gain map {gain.shape[:2]} and views {shape} differ in size")
+
+
+def to_model(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
+             scale: float = 1.0, views_sum: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Views ``(..., H, W, C)`` float in [0, 1] (``C`` 1 or 3) as the models take them:
+    ``(..., H, W, 3)`` display values in [0, 1]. ``scale``: full scale of the views' own units
+    (65535 for 16-bit data read as fractions), by which the levels are divided.
+    ``views_sum``: the views sum to the combined image (a raw A/B split): each is doubled (in
+    linear light for linear views; :func:`~dualpixel.inference.view_checks.views_from_sum`)."""
+    if encoding.linear:
+        black = float(encoding.black_level) / scale
+        white = float(encoding.white_level) / scale
+        gain = np.asarray(encoding.right_gain, np.float32)
+        _check_gain_shape(gain, left.shape[-3:-1])
+        gain = gain[..., None] if gain.ndim == 2 else gain
+        span = white - black
+        factor = 2.0 if views_sum else 1.0
+        left = np.clip((left - black) / span * factor, 0.0, 1.0)
+        right = np.clip((right - black) / span * gain * factor, 0.0, 1.0)
+        left, right = (linear_to_srgb(torch.from_numpy(np.ascontiguousarray(v, np.float32)))
+                       .numpy() for v in (left, right))
+    elif views_sum:
+        left, right = views_from_sum(left, right)
+    if left.shape[-1] == 1:
+        left, right = np.repeat(left, 3, axis=-1), np.repeat(right, 3, axis=-1)
+    return left.astype(np.float32, copy=False), right.astype(np.float32, copy=False)
+
+
+def from_model(output: np.ndarray, encoding: ViewEncoding, channels: int, *,
+               scale: float = 1.0) -> np.ndarray:
+    """A model's output ``(..., 3)`` in display values back in the views' encoding and
+    channel count (grey: the mean of the three channels)."""
+    if channels == 1:
+        output = output.mean(axis=-1, keepdims=True)
+    if encoding.linear:
+        black = float(encoding.black_level) / scale
+        white = float(encoding.white_level) / scale
+        linear = srgb_to_linear(torch.from_numpy(np.ascontiguousarray(output, np.float32)))
+        output = np.clip(linear.numpy() * (white - black) + black, 0.0, 1.0)
+    return output.astype(np.float32, copy=False)
+
+
+def flat_field_gain(left: np.ndarray, right: np.ndarray, *, black_level: float = 0.0,
+                    sigma: float = 16.0) -> np.ndarray:
+    """Gain map ``(H, W)`` that brings the right view to the left's, from a DP capture of a
+    flat, evenly lit surface (DP shading varies smoothly over the frame): the ratio of the
+    views' Gaussian-smoothed values above ``black_level`` (same units as the views)."""
+    if left.shape != right.shape:
+        raise ParameterError(f"flat-field views differ in shape: {left.shape} and {right.shape}")
+    grey = [np.asarray(v, np.float32).reshape(*v.shape[:2], -1).mean(axis=2) - black_level
+            for v in (left, right)]
+    smooth = [cv2.GaussianBlur(g, (0, 0), sigma, borderType=cv2.BORDER_REFLECT) for g in grey]
+    if (smooth[1] <= 0).any() or (smooth[0] <= 0).any():
+        raise ParameterError("flat-field views must lie above the black level everywhere "
+                             "(an evenly lit surface, not clipped to black)")
+    return (smooth[0] / smooth[1]).astype(np.float32)
+
+
+def encoding_findings(left: np.ndarray, right: np.ndarray, encoding: str) -> list[ViewFinding]:
+    """A warning when views ``(H, W, C)`` in [0, 1] look linear (raw) but are declared
+    display-encoded, or the reverse; empty when they look as declared."""
+    values = 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
+    median, p99 = float(np.median(values)), float(np.percentile(values, 99))
+    if encoding == "srgb" and median < LINEAR_MEDIAN and p99 < LINEAR_P99:
+        return [ViewFinding("looks-linear", (
+            f"the views look linear (raw): half their values lie below {100 * median:.1f} % "
+            f"of full scale and 99 % below {100 * p99:.0f} %, as raw sensor data do; if they "
+            "are raw, pass --encoding linear with --black-level and --white-level "
+            "(encoding='linear' in the API)"))]
+    if encoding == "linear" and median > ENCODED_MEDIAN:
+        return [ViewFinding("looks-encoded", (
+            f"the views look display-encoded (median {100 * median:.0f} % of full scale, "
+            "brighter than raw data usually are); if they are ordinary images, drop "
+            "--encoding linear"))]
+    return []
+
+
+def view_encoding_from_files(encoding: str, black_level: float | None, white_level: float | None,
+                             right_gain: float = 1.0,
+                             flat_field: tuple[str | Path, str | Path] | None = None
+                             ) -> ViewEncoding:
+    """A :class:`ViewEncoding` as ``dualpixel deblur`` takes it: the right view's gain a number
+    or, with ``flat_field`` (left and right image files of a flat-field DP capture), the map
+    :func:`flat_field_gain` makes from them (levels in the files' own units)."""
+    from dualpixel.io.images import read_view, read_views
+
+    if flat_field is None:
+        return ViewEncoding(encoding, black_level, white_level, right_gain)
+    if encoding != "linear" or black_level is None:
+        raise ParameterError("--flat-field is for linear views: give --encoding linear with "
+                             "--black-level and --white-level")
+    if right_gain != 1.0:
+        raise ParameterError("give --flat-field or --right-gain, not both")
+    left, right = read_views(*flat_field)
+    scale = 65535.0 if read_view(flat_field[0])[1] == 16 else 255.0
+    gain = flat_field_gain(left, right, black_level=black_level / scale)
+    return ViewEncoding(encoding, black_level, white_level, gain)
+
+
+def deblur_encoded(deblurrer: Callable[[np.ndarray, np.ndarray | None], np.ndarray],
+                   left: np.ndarray, right: np.ndarray, encoding: ViewEncoding | None = None, *,
+                   scale: float = 1.0, views_sum: bool = False) -> np.ndarray:
+    """One pair ``(H, W, C)`` in its own encoding through ``deblurrer`` (a
+    :class:`~dualpixel.inference.Deblurrer`): the output in the same encoding and channels."""
+    encoding = encoding or ViewEncoding()
+    model_left, model_right = to_model(left, right, encoding, scale=scale, views_sum=views_sum)
+    return from_model(deblurrer(model_left, model_right), encoding, left.shape[-1], scale=scale)

@@ -1,0 +1,198 @@
+"""Target-free checks on synthetic DP frames whose answers are known: the identity changes
+nothing, the sharp target gains sharpness and keeps brightness, and each fault a model can
+make (darkening, halos, change where the views agree, invented texture) is seen where it is
+made, and only there."""
+
+import cv2
+import numpy as np
+import pytest
+import torch
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.errors import ParameterError
+from dualpixel.evaluation.target_free import (
+    MAX_BRIGHTNESS_CHANGE,
+    check_deblurred,
+    check_folder,
+    compare_to_reference,
+    markdown_table,
+    read_pairs,
+)
+from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
+
+
+def linear(x):
+    return srgb_to_linear(torch.from_numpy(np.ascontiguousarray(x, np.float32))).numpy()
+
+
+def encoded(x):
+    return linear_to_srgb(torch.from_numpy(np.ascontiguousarray(x, np.float32))).numpy()
+
+
+@pytest.fixture(scope="module")
+def frame():
+    """192x320, no noise or distortion, blurred in linear light as a lens blurs (so the target
+    holds the same light as the views): a near plane in focus (the left 40 %), a textured
+    background 3 m away behind the focus plane (about 2.5 px blur)."""
+    import dualpixel
+
+    rng = np.random.default_rng(4)
+    noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 2.0)
+    rgb = np.clip(0.45 + 1.2 * noise, 0.02, 0.9)
+    depth = np.where(np.arange(320)[None, :] < 128, 1.0, 3.0).repeat(192, 0).astype(np.float32)
+    frame = dualpixel.synthesize(rgb, depth, camera="dslr-840", noise=False, distortion=False,
+                                 light="linear")
+    return {k: np.asarray(v, np.float32) for k, v in frame.items()}
+
+
+def identity(frame):
+    return encoded(0.5 * (linear(frame["left"]) + linear(frame["right"])))
+
+
+def test_the_identity_changes_nothing(frame):
+    report = check_deblurred(frame["left"], frame["right"], identity(frame))
+    assert abs(report.brightness_change) < 1e-4 and report.local_brightness < 1e-4
+    assert report.overshoot < 0.01 and report.halo_share == 0
+    assert report.in_focus_change < 0.05
+    assert report.flat_blocks == 0 and np.isnan(report.invented_texture)  # all textured
+    assert report.sharpness_gain == pytest.approx(1.0, abs=0.01)
+
+
+def test_blocks_are_told_apart_by_the_views(frame):
+    """The near plane (left 40 %) is in focus, the background behind it is not."""
+    report = check_deblurred(frame["left"], frame["right"], identity(frame))
+    assert report.in_focus_blocks >= 6 and report.defocused_blocks >= 8
+    assert report.in_focus_blocks + report.defocused_blocks <= report.blocks
+
+
+def test_the_sharp_target_keeps_brightness_and_gains_sharpness(frame):
+    report = check_deblurred(frame["left"], frame["right"], frame["target"])
+    assert abs(report.brightness_change) < 0.005
+    assert report.sharpness_gain > 1.3
+    # the in-focus plane is the same in the target (blocks at its edge see some background)
+    far_change = 255 * np.sqrt(np.mean((frame["target"] - identity(frame))[:, 160:] ** 2))
+    assert far_change > 8 and report.in_focus_change < 0.2 * far_change
+
+
+@pytest.mark.parametrize("gain", [0.95, 1.03])
+def test_a_gain_in_linear_light_is_measured(frame, gain):
+    output = encoded(np.clip(linear(identity(frame)) * gain, 0, 1))
+    report = check_deblurred(frame["left"], frame["right"], output)
+    assert report.brightness_change == pytest.approx(gain - 1, abs=0.002)
+    assert report.local_brightness == pytest.approx(abs(gain - 1), rel=0.1)
+
+
+def test_linear_views_are_measured_in_their_own_encoding(frame):
+    left, right = linear(frame["left"]), linear(frame["right"])
+    output = 0.5 * (left + right) * 0.9
+    report = check_deblurred(left, right, output, encoding="linear")
+    assert report.brightness_change == pytest.approx(-0.1, abs=0.002)
+    # grey views, one channel
+    grey = check_deblurred(left[..., 1:2], right[..., 1:2], output[..., 1:2], encoding="linear")
+    assert grey.brightness_change == pytest.approx(-0.1, abs=0.002)
+
+
+def test_halos_from_over_sharpening_are_seen(frame):
+    image = identity(frame)
+    sharpened = np.clip(image + 3.0 * (image - cv2.GaussianBlur(image, (0, 0), 3.0)), 0, 1)
+    halo = check_deblurred(frame["left"], frame["right"], sharpened)
+    sharp = check_deblurred(frame["left"], frame["right"], frame["target"])
+    assert halo.overshoot > 3 * sharp.overshoot and halo.overshoot > 1.0
+    assert halo.halo_share > 3 * sharp.halo_share
+
+
+def test_change_counts_only_where_the_views_agree(frame):
+    image = identity(frame)
+    rng = np.random.default_rng(0)
+    blotches = cv2.GaussianBlur(rng.standard_normal(image.shape[:2]).astype(np.float32),
+                                (0, 0), 3.0)[..., None] * 0.2
+    near, far = image.copy(), image.copy()
+    near[:, :110] = np.clip(near[:, :110] + blotches[:, :110], 0, 1)
+    far[:, 150:] = np.clip(far[:, 150:] + blotches[:, 150:], 0, 1)
+    changed_near = check_deblurred(frame["left"], frame["right"], near).in_focus_change
+    changed_far = check_deblurred(frame["left"], frame["right"], far).in_focus_change
+    assert changed_near > 2.0 and changed_far < 0.2
+
+
+def test_texture_invented_on_a_flat_region_is_seen():
+    height, width = 128, 256
+    rng = np.random.default_rng(1)
+    view = np.full((height, width, 3), 0.4, np.float32)
+    texture = cv2.GaussianBlur(rng.standard_normal((height, width)).astype(np.float32), (0, 0),
+                               1.5)
+    view[:, width // 2:] += 0.3 * texture[:, width // 2:, None]  # right half textured
+    view = np.clip(view, 0, 1)
+    blotchy = view.copy()
+    blotchy[:, : width // 2] += 0.03 * cv2.GaussianBlur(
+        rng.standard_normal((height, width // 2)).astype(np.float32), (0, 0), 1.0)[..., None]
+    clean = check_deblurred(view, view, view)
+    made_up = check_deblurred(view, view, np.clip(blotchy, 0, 1))
+    assert clean.flat_blocks >= 10 and clean.invented_texture < 0.01
+    assert made_up.invented_texture > 0.5
+
+
+def test_bad_inputs_are_refused(frame):
+    with pytest.raises(ParameterError, match="encoding"):
+        check_deblurred(frame["left"], frame["right"], frame["target"], encoding="log")
+    with pytest.raises(ParameterError, match="share one shape"):
+        check_deblurred(frame["left"], frame["right"], frame["target"][:, :-1])
+    with pytest.raises(ParameterError, match="at least"):
+        check_deblurred(frame["left"][:40], frame["right"][:40], frame["target"][:40])
+    bad = frame["target"].copy()
+    bad[0, 0, 0] = np.nan
+    with pytest.raises(ParameterError, match="NaN"):
+        check_deblurred(frame["left"], frame["right"], bad)
+
+
+def write_pairs(root, frame, names=("a", "b")):
+    for name in names:
+        (root / name).mkdir(parents=True)
+        for view in ("left", "right"):
+            cv2.imwrite(str(root / name / f"{view}.png"),
+                        np.rint(frame[view][..., ::-1] * 255).astype(np.uint8))
+    return root
+
+
+def test_folders_reference_and_table(frame, tmp_path):
+    root = write_pairs(tmp_path / "pairs", frame)
+    assert [name for name, _, _ in read_pairs(root)] == ["a", "b"]
+
+    def darker(left, right):
+        return encoded(np.clip(0.5 * (linear(left) + linear(right)) * 0.97, 0, 1))
+
+    def mean(left, right):
+        return encoded(0.5 * (linear(left) + linear(right)))
+
+    rows = check_folder(root, {"mean": mean, "darker": darker})
+    assert [(r["pair"], r["method"]) for r in rows] == [
+        ("a", "mean"), ("a", "darker"), ("b", "mean"), ("b", "darker")]
+    findings = compare_to_reference(rows, "mean")
+    assert any("darker changes the brightness by -3" in f for f in findings)
+    assert any("darker local_brightness" in f for f in findings)
+    assert not any(": mean " in f for f in findings)
+    assert MAX_BRIGHTNESS_CHANGE == 0.01
+    table = markdown_table(rows)
+    assert "| a | darker | -3.0" in table and "**mean of 2** | darker" in table
+    with pytest.raises(ParameterError, match="reference"):
+        compare_to_reference(rows, "other")
+
+
+def test_check_model_command(frame, tmp_path, tiny_checkpoint):
+    root = write_pairs(tmp_path / "pairs", frame, names=("one",))
+    out = tmp_path / "report"
+    result = CliRunner().invoke(cli, ["check-model", "--input", str(root), "--checkpoint",
+                                      str(tiny_checkpoint), "--reference", str(tiny_checkpoint),
+                                      "-o", str(out), "--device", "cpu"])
+    assert result.exit_code == 0, result.output
+    csv = (out / "target_free.csv").read_text().splitlines()
+    assert csv[0].startswith("pair,method,brightness_change") and len(csv) == 2
+    assert "Against" in (out / "target_free.md").read_text()
+    wrong = CliRunner().invoke(cli, ["check-model", "--input", str(root), "--reference", "x",
+                                     "-o", str(out)])
+    assert wrong.exit_code == 2 and "--reference" in wrong.output
+    assert "Traceback" not in wrong.output
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    nothing = CliRunner().invoke(cli, ["check-model", "--input", str(empty), "-o", str(out)])
+    assert nothing.exit_code != 0 and "no scene folders" in nothing.output

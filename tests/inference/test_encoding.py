@@ -1,0 +1,157 @@
+"""Phone and raw DP views end to end: green-only (grey) views and linear raw views go in through
+the documented mode and come back in their own encoding and channel count; mistakes get a
+clear error or a warning that names them."""
+
+import warnings
+
+import cv2
+import numpy as np
+import pytest
+import torch
+from click.testing import CliRunner
+
+import dualpixel
+from dualpixel.cli.main import cli
+from dualpixel.errors import ParameterError
+from dualpixel.inference.encoding import (
+    ViewEncoding,
+    encoding_findings,
+    flat_field_gain,
+    from_model,
+    to_model,
+)
+from dualpixel.optics.tone import srgb_to_linear
+
+BLACK, WHITE = 1024, 16383  # 14-bit raw data above a black level, stored in 16-bit PNGs
+
+
+@pytest.fixture(scope="module")
+def raw_pair(behind_focus_frame):
+    """The fixture frame's green channel as raw 16-bit views: linear light, black level 1024,
+    white level 16383, each view a quarter of full scale at most (raw data are dark)."""
+    views = []
+    for key in ("left", "right"):
+        green = srgb_to_linear(torch.from_numpy(np.asarray(behind_focus_frame[key][..., 1],
+                                                           np.float32))).numpy()
+        views.append(np.rint(BLACK + 0.25 * green * (WHITE - BLACK)).astype(np.uint16))
+    return views
+
+
+def test_model_round_trip_keeps_encoding_and_channels(raw_pair):
+    left = raw_pair[0][None, ..., None].astype(np.float32) / 65535
+    encoding = ViewEncoding("linear", BLACK, WHITE)
+    model_left, _ = to_model(left, left, encoding, scale=65535)
+    assert model_left.shape == (*left.shape[:3], 3)
+    assert 0 <= model_left.min() and model_left.max() <= 1
+    back = from_model(model_left, encoding, 1, scale=65535)
+    assert back.shape == left.shape
+    np.testing.assert_allclose(back, left, atol=1e-5)
+
+
+def test_api_grey_linear_views_come_back_grey_and_linear(raw_pair, tiny_checkpoint):
+    left, right = raw_pair
+    out = dualpixel.deblur(left, right, model=tiny_checkpoint, device="cpu",
+                           encoding="linear", black_level=BLACK, white_level=WHITE)
+    assert out.shape == left.shape and out.dtype == np.float32  # (H, W) in, (H, W) out
+    # the same raw values: at least the black level, about as bright as the views' mean
+    assert out.min() >= BLACK / 65535 - 1e-6
+    mean_in = (left.astype(np.float64) + right) / 2 / 65535
+    assert out.mean() == pytest.approx(mean_in.mean(), rel=0.1)
+    # torch (1, H, W) in: (1, H, W) out; and (H, W, 1) numpy: (H, W, 1)
+    as_torch = dualpixel.deblur(torch.from_numpy(left.astype(np.float32) / 65535)[None],
+                                torch.from_numpy(right.astype(np.float32) / 65535)[None],
+                                model=tiny_checkpoint, device="cpu", encoding="linear",
+                                black_level=BLACK / 65535, white_level=WHITE / 65535)
+    assert tuple(as_torch.shape) == (1, *left.shape)
+    np.testing.assert_allclose(as_torch[0].numpy(), out, atol=2e-5)
+    assert dualpixel.deblur(left[..., None], right[..., None], model=tiny_checkpoint,
+                            device="cpu", encoding="linear", black_level=BLACK,
+                            white_level=WHITE).shape == (*left.shape, 1)
+
+
+def test_api_refuses_mixed_or_incomplete_views(raw_pair, tiny_checkpoint):
+    left, right = raw_pair
+    with pytest.raises(ParameterError, match="black_level"):
+        dualpixel.deblur(left, right, model=tiny_checkpoint, encoding="linear", white_level=WHITE)
+    with pytest.raises(ParameterError, match="black_level < white_level"):
+        dualpixel.deblur(left, right, model=tiny_checkpoint, encoding="linear",
+                         black_level=WHITE, white_level=BLACK)
+    with pytest.raises(ParameterError, match="linear views"):
+        dualpixel.deblur(left, right, model=tiny_checkpoint, black_level=BLACK)
+    with pytest.raises(ParameterError, match="channel"):
+        dualpixel.deblur(left, np.repeat(right[..., None], 3, axis=2), model=tiny_checkpoint)
+    with pytest.raises(ParameterError, match="encoding"):
+        ViewEncoding("log")
+
+
+def test_looks_linear_and_looks_encoded_warnings(raw_pair, behind_focus_frame, tiny_checkpoint):
+    left, right = (v[..., None].astype(np.float32) / 65535 for v in raw_pair)
+    assert [f.code for f in encoding_findings(left, right, "srgb")] == ["looks-linear"]
+    assert encoding_findings(left, right, "linear") == []
+    bright = np.asarray(behind_focus_frame["left"], np.float32)
+    assert [f.code for f in encoding_findings(bright, bright, "linear")] == ["looks-encoded"]
+    assert encoding_findings(bright, bright, "srgb") == []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        dualpixel.deblur(raw_pair[0], raw_pair[1], model=tiny_checkpoint, device="cpu")
+    assert any("--encoding linear" in str(w.message) for w in caught)
+
+
+def test_flat_field_gain_evens_out_shading():
+    height, width = 64, 96
+    ramp = np.linspace(0.9, 1.1, width, dtype=np.float32)[None, :].repeat(height, 0)
+    left = np.full((height, width, 1), 0.2, np.float32)
+    right = 0.2 * ramp[..., None]
+    gain = flat_field_gain(left, right, sigma=2.0)
+    np.testing.assert_allclose(gain[:, 10:-10] * ramp[:, 10:-10], 1.0, atol=0.01)
+    with pytest.raises(ParameterError, match="black level"):
+        flat_field_gain(left, right, black_level=0.5)
+
+
+def write_grey16(path, image):
+    assert cv2.imwrite(str(path), image)
+    return path
+
+
+def test_cli_grey_raw_views_written_back_as_grey_raw(raw_pair, tiny_checkpoint, tmp_path):
+    left = write_grey16(tmp_path / "left.png", raw_pair[0])
+    right = write_grey16(tmp_path / "right.png", raw_pair[1])
+    out = tmp_path / "out.png"
+    result = CliRunner().invoke(cli, [
+        "deblur", "--left", str(left), "--right", str(right), "-o", str(out), "--checkpoint",
+        str(tiny_checkpoint), "--device", "cpu", "--encoding", "linear", "--black-level",
+        str(BLACK), "--white-level", str(WHITE)])
+    assert result.exit_code == 0, result.output
+    written = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    assert written.dtype == np.uint16 and written.shape == raw_pair[0].shape
+    assert written.min() >= BLACK - 1
+    # flat-field gain from a capture of an even surface
+    flat = write_grey16(tmp_path / "flat.png", np.full_like(raw_pair[0], 5000))
+    result = CliRunner().invoke(cli, [
+        "deblur", "--left", str(left), "--right", str(right), "-o", str(tmp_path / "o2.png"),
+        "--checkpoint", str(tiny_checkpoint), "--device", "cpu", "--encoding", "linear",
+        "--black-level", str(BLACK), "--white-level", str(WHITE), "--flat-field", str(flat),
+        str(flat)])
+    assert result.exit_code == 0, result.output
+    np.testing.assert_array_equal(cv2.imread(str(tmp_path / "o2.png"), cv2.IMREAD_UNCHANGED),
+                                  written)
+    # declared as display values, the dark raw views give a warning that names the mode
+    result = CliRunner().invoke(cli, [
+        "deblur", "--left", str(left), "--right", str(right), "-o", str(tmp_path / "o3.png"),
+        "--checkpoint", str(tiny_checkpoint), "--device", "cpu"])
+    assert result.exit_code == 0 and "--encoding linear" in result.output
+
+
+def test_cli_bad_phone_inputs_are_clear_errors(raw_pair, tiny_checkpoint, tmp_path):
+    left = write_grey16(tmp_path / "left.png", raw_pair[0])
+    colour = tmp_path / "right.png"
+    cv2.imwrite(str(colour), np.repeat(raw_pair[1][..., None], 3, axis=2))
+    base = ["deblur", "--left", str(left), "--checkpoint", str(tiny_checkpoint), "--device",
+            "cpu", "-o", str(tmp_path / "out.png")]
+    mixed = CliRunner().invoke(cli, [*base, "--right", str(colour)])
+    assert mixed.exit_code != 0 and "right.png" in mixed.output and "grey" in mixed.output
+    no_black = CliRunner().invoke(cli, [*base, "--right", str(left), "--encoding", "linear",
+                                        "--white-level", "16383"])
+    assert no_black.exit_code != 0 and "--black-level" in no_black.output
+    for result in (mixed, no_black):
+        assert "Traceback" not in result.output
