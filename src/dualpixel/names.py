@@ -3,8 +3,9 @@ command line can list them without importing torch (``dualpixel --help`` stays f
 
 from __future__ import annotations
 
-__all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "LIGHT_SPACES", "PRECISIONS", "PSF_BANK_NAMES",
-           "PSF_MODELS", "PSF_SHAPE_SOURCES", "SCENE_LAYOUTS"]
+__all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "ENCODINGS",
+           "LIGHT_SPACES", "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES",
+           "SCENE_LAYOUTS"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -26,3 +27,11 @@ PRECISIONS: tuple[str, ...] = ("auto", "fp32", "bf16", "fp16")
 #: Inference backends (:mod:`dualpixel.inference.onnx_runtime`): PyTorch (any device and
 #: precision) or ONNX Runtime (CPU, float32).
 BACKENDS: tuple[str, ...] = ("torch", "onnxruntime")
+#: Outputs' brightness (:mod:`dualpixel.inference.brightness`): "tied", the output's low-pass
+#: brightness in linear light held at the input's, or "model", as the network gives it.
+BRIGHTNESS_MODES: tuple[str, ...] = ("tied", "model")
+#: What every command and :func:`dualpixel.deblur` use unless told otherwise.
+DEFAULT_BRIGHTNESS = "model"
+#: How DP views store light (:mod:`dualpixel.inference.encoding`): display values ("srgb",
+#: photographs and the DPDD) or raw sensor values ("linear").
+ENCODINGS: tuple[str, ...] = ("srgb", "linear")

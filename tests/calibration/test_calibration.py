@@ -115,3 +115,33 @@ def test_pattern_command(tmp_path):
     from dualpixel.io.images import read_rgb
 
     assert read_rgb(out).shape == (360, 640, 3)
+
+
+def test_fit_psf_writes_a_camera_file_synthesis_takes(shared_dir, tmp_path):
+    """The Pixel 4 camera file of recipes/cameras is made this way (there with the full grid)."""
+    from dualpixel.calibration.camera import load_camera
+
+    folder = shared_dir / "data" / "pixel4-measured-psf"
+    args = ["calibrate", "fit-psf", "--left", str(folder / "left.npy"), "--right",
+            str(folder / "right.npy"), "-o", str(tmp_path / "fit"), "--limit", "3", "--grid",
+            "bank", "--camera", str(tmp_path / "phone.json")]
+    missing = CliRunner().invoke(cli, args)
+    assert missing.exit_code == 2 and "--camera-width" in missing.output
+    result = CliRunner().invoke(cli, [*args, "--camera-width", "2016", "--camera-name", "p4"])
+    assert result.exit_code == 0, result.output
+    camera = load_camera(tmp_path / "phone.json")
+    assert camera.name == "p4" and camera.width == 2016 and camera.light == "linear"
+    assert camera.disparity_ratio == (1.0, 1.0, 1.0) and camera.blocks == 6
+    radii = [float(r.split(",")[6]) for r in
+             (tmp_path / "fit" / "fits.csv").read_text().splitlines()[1:]]
+    assert camera.coc_percentiles["p50"] == pytest.approx(np.median(radii), abs=0.01)
+
+
+def test_the_shipped_pixel4_camera_matches_its_measured_psfs():
+    from pathlib import Path
+
+    from dualpixel.calibration.camera import load_camera
+
+    camera = load_camera(Path(__file__).resolve().parents[2] / "recipes/cameras/pixel4.json")
+    assert camera.light == "linear" and camera.width == 2016
+    assert 9 <= camera.coc_percentiles["p50"] <= 11  # the measured kernels' 10-px radius

@@ -183,10 +183,13 @@ def test_check_model_command(frame, tmp_path, tiny_checkpoint):
     out = tmp_path / "report"
     result = CliRunner().invoke(cli, ["check-model", "--input", str(root), "--checkpoint",
                                       str(tiny_checkpoint), "--reference", str(tiny_checkpoint),
-                                      "-o", str(out), "--device", "cpu"])
+                                      "-o", str(out), "--device", "cpu", "--brightness", "model",
+                                      "--brightness", "tied"])
     assert result.exit_code == 0, result.output
     csv = (out / "target_free.csv").read_text().splitlines()
-    assert csv[0].startswith("pair,method,brightness_change") and len(csv) == 2
+    assert csv[0].startswith("pair,method,brightness_change") and len(csv) == 3
+    tied = next(line for line in csv if "+tied" in line).split(",")
+    assert abs(float(tied[2])) < 0.002  # its brightness change over the frame
     assert "Against" in (out / "target_free.md").read_text()
     wrong = CliRunner().invoke(cli, ["check-model", "--input", str(root), "--reference", "x",
                                      "-o", str(out)])

@@ -338,3 +338,31 @@ def test_linear_light_is_recorded_and_sums_the_views_light(scene_dir, tmp_path):
     assert float((views[2] - (views[0] + views[1]) / 2).abs().max()) > 1e-3
     with pytest.raises(ParameterError, match="light must be one of"):
         SynthConfig(light="log")
+
+
+def test_grey_datasets_store_the_green_channel(scene_dir, tmp_path):
+    """``grey``: every image is the green channel alone, as a phone's DP data; not recorded
+    when off, so datasets made before the setting resume."""
+    assert "grey" not in SynthConfig(**FAST).as_dict()
+    colour, grey = tmp_path / "colour", tmp_path / "grey"
+    synthesize_dataset(scene_dir, "rgbd", colour, SynthConfig(noise=False, **FAST),
+                       progress=False)
+    synthesize_dataset(scene_dir, "rgbd", grey, SynthConfig(noise=False, grey=True, **FAST),
+                       progress=False)
+    assert json.loads((grey / "dataset.json").read_text())["config"]["grey"] is True
+    record = json.loads((grey / "manifest.jsonl").read_text().splitlines()[0])
+    for key in ("left", "right", "combined", "target"):
+        stored = read16(grey / record["outputs"][key])
+        assert stored.ndim == 2
+        rgb = cv2.imread(str(colour / record["outputs"][key]), cv2.IMREAD_UNCHANGED)
+        np.testing.assert_array_equal(stored, rgb[..., 1])  # BGR: green in the middle
+
+
+def test_the_phone_profile_blurs_crops_like_the_phone_frame():
+    from dualpixel.optics.thin_lens import DEFOCUS_PROFILES, coc_radius
+
+    profile = DEFOCUS_PROFILES["phone-2016-crop"]
+    rng = np.random.default_rng(0)
+    far = [abs(float(coc_radius(np.array([1e6]), profile.camera(rng, 1.0, 840))[0]))
+           for _ in range(200)]
+    assert 1.0 <= min(far) and max(far) <= 12.0  # px, whatever the crop's width

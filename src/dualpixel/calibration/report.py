@@ -10,12 +10,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from dualpixel.calibration.camera import DPCamera
 from dualpixel.calibration.psf_fit import PSFFit
 from dualpixel.io.atomic import atomic_path
 from dualpixel.optics.psf import PSFParams, dp_psf
 from dualpixel.viz.figures import save_figure
 
-__all__ = ["model_kernels", "summarise_fits", "write_fit_report"]
+__all__ = ["camera_from_fits", "model_kernels", "summarise_fits", "write_fit_report"]
 
 
 def model_kernels(fit: PSFFit, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -104,3 +105,18 @@ def write_fit_report(fits: list[PSFFit], measured: dict[str, np.ndarray], output
             tmp.write_text(text)
     _figure(fits, measured, output / "figure.png", figure_rows)
     return summary
+
+
+def camera_from_fits(fits: list[PSFFit], *, name: str, width: int,
+                     light: str = "linear") -> DPCamera:
+    """A camera file (:class:`~dualpixel.calibration.camera.DPCamera`) from measured DP PSFs:
+    the most common fitted shape of Eq. 2-4 (:func:`summarise_fits`), the paper's disparity in
+    every channel (the PSFs of one colour channel say nothing of the others), the fitted CoC
+    radii as its blur sizes (px at ``width``, the width of the frames the PSFs were measured
+    in) and ``light`` ("linear" for PSFs measured on raw data)."""
+    mode = _mode(fits)
+    radii = np.array([f.radius for f in fits])
+    percentiles = {f"p{p}": round(float(np.percentile(radii, p)), 2) for p in (10, 25, 50, 75, 90)}
+    return DPCamera(name=name, width=width, disparity_ratio=(1.0, 1.0, 1.0),
+                    psf=PSFParams(*(float(mode[k]) for k in ("n", "alpha", "beta", "kappa"))),
+                    coc_percentiles=percentiles, blocks=len(fits), light=light)

@@ -82,7 +82,20 @@ def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, 
 @click.option("--limit", type=click.IntRange(1), default=None, help="Fit only the first N pairs.")
 @click.option("--grid", type=click.Choice(["paper", "bank"]), default="paper",
               help="paper: the full S2 search; bank: only the 48-PSF bank's values (quick).")
-def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str) -> None:
+@click.option("--camera", "camera_file", type=click.Path(dir_okay=False, path_type=Path),
+              default=None,
+              help="Also write a camera file (for synth --camera) from the fits: the most "
+                   "common shape, the fitted blur sizes.")
+@click.option("--camera-name", default="measured", show_default=True, help="Its label.")
+@click.option("--camera-width", type=click.IntRange(1), default=None,
+              help="Width (px) of the frames the PSFs were measured in (required with "
+                   "--camera).")
+@click.option("--light", type=click.Choice(["linear", "encoded"]), default="linear",
+              show_default=True,
+              help="Where the camera's views are blurred: linear for PSFs measured on raw data.")
+def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str,
+            camera_file: Path | None, camera_name: str, camera_width: int | None,
+            light: str) -> None:
     """Fit our PSF model and Punnappurath et al.'s to measured DP PSFs (S2)."""
     import time
 
@@ -95,6 +108,9 @@ def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str)
     from dualpixel.calibration.report import write_fit_report
     from dualpixel.errors import InputFileError
 
+    if camera_file is not None and camera_width is None:
+        raise click.BadParameter("give the width of the measured frames with --camera",
+                                 param_hint="--camera-width")
     lefts, rights = load_measured_psfs(left, "left"), load_measured_psfs(right, "right")
     if lefts.shape != rights.shape:
         raise InputFileError(right, f"shape {rights.shape} differs from {left.name} {lefts.shape}")
@@ -108,6 +124,12 @@ def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str)
                                      "right": str(right)})
     click.echo((report / "summary.md").read_text())
     click.echo(json.dumps(summary, indent=2))
+    if camera_file is not None:
+        from dualpixel.calibration.report import camera_from_fits
+
+        camera_from_fits(fits, name=camera_name, width=camera_width, light=light).save(
+            camera_file)
+        click.echo(f"wrote {camera_file}")
 
 
 @calibrate.command("fit-distortion", context_settings=CONTEXT)

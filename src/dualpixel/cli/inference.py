@@ -8,7 +8,14 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
-from dualpixel.names import ALIGN_MODE_NAMES, BACKENDS, PRECISIONS
+from dualpixel.names import (
+    ALIGN_MODE_NAMES,
+    BACKENDS,
+    BRIGHTNESS_MODES,
+    DEFAULT_BRIGHTNESS,
+    ENCODINGS,
+    PRECISIONS,
+)
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
@@ -26,6 +33,11 @@ _BACKEND_OPTION = click.option(
 _FLIPS_OPTION = click.option(
     "--flips", is_flag=True,
     help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
+_BRIGHTNESS_OPTION = click.option(
+    "--brightness", type=click.Choice(BRIGHTNESS_MODES), default=DEFAULT_BRIGHTNESS,
+    show_default=True,
+    help="tied: hold the output's low-pass brightness in linear light at the input's (blur "
+         "moves light, it makes none); model: as the network gives it.")
 _MULTISCALE_OPTION = click.option(
     "--multiscale", is_flag=True,
     help="Also deblur at half resolution and take the coarse structure from there (at most "
@@ -58,7 +70,7 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
 @click.option("--views-sum", is_flag=True,
               help="The views sum to the combined image (a raw A/B split): double them, as the "
                    "models take each view at the combined image's brightness.")
-@click.option("--encoding", type=click.Choice(["srgb", "linear"]), default="srgb",
+@click.option("--encoding", type=click.Choice(ENCODINGS), default="srgb",
               show_default=True,
               help="How the views store light: display values (photographs, the DPDD), or "
                    "linear raw values (a phone's DP data; give --black-level and --white-level).")
@@ -86,12 +98,13 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
 @_BACKEND_OPTION
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
+@_BRIGHTNESS_OPTION
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined: Path | None,
            split: str, output: Path, views_sum: bool, encoding: str, black_level: float | None,
            white_level: float | None, right_gain: float, flat_field: tuple[Path, Path] | None,
            strict: bool, checkpoint: str,
            tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
-           backend: str, flips: bool, multiscale: bool) -> None:
+           backend: str, flips: bool, multiscale: bool, brightness: str) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder.
 
     Grey views (a phone's green-only DP data) give a grey output; --encoding linear takes raw
@@ -113,7 +126,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
                             needs_right=model.spec.views == 2, combined=combined)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                           precision="fp16" if half else precision, flips=flips,
-                          multiscale=multiscale, backend=backend)
+                          multiscale=multiscale, backend=backend, brightness=brightness)
     total = sum(len(sequence) for sequence in jobs)
 
     def report(path: Path, finding) -> None:
@@ -172,9 +185,10 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @_BACKEND_OPTION
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
+@_BRIGHTNESS_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, align, tile, overlap,
-                     device, precision, backend, flips, multiscale) -> None:
+                     device, precision, backend, flips, multiscale, brightness) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 
@@ -189,12 +203,14 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         model, resolved = _load(checkpoint, device, backend)
         deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                               precision=precision, flips=flips, multiscale=multiscale,
-                              backend=backend)
+                              backend=backend, brightness=brightness)
         is_path = Path(checkpoint).suffix == ".safetensors" or "/" in str(checkpoint)
         method = (Path(checkpoint).stem if is_path else str(checkpoint)) + (
             "+flips" if flips else "") + (
-            "+multiscale" if multiscale else "")
+            "+multiscale" if multiscale else "") + (
+            "+tied" if brightness == "tied" else "")
         meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale,
+                "brightness": brightness,
                 "precision": deblurrer.numerics.name, "backend": backend}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
@@ -324,20 +340,25 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
                    "brightness or overshoots more is listed.")
 @click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Report folder: target_free.csv and target_free.md.")
-@click.option("--encoding", type=click.Choice(["srgb", "linear"]), default="srgb",
+@click.option("--encoding", type=click.Choice(ENCODINGS), default="srgb",
               show_default=True, help="How the views store light (see deblur --encoding).")
 @click.option("--black-level", type=float, default=None, help="Linear views: see deblur.")
 @click.option("--white-level", type=float, default=None, help="Linear views: see deblur.")
 @click.option("--strict", is_flag=True,
               help="Exit with status 1 when a model does worse than --reference, or changes a "
                    "photograph's brightness by more than 1 %.")
+@click.option("--brightness", "brightness", multiple=True,
+              type=click.Choice(BRIGHTNESS_MODES), default=(DEFAULT_BRIGHTNESS,),
+              show_default=True,
+              help="Brightness mode (see deblur); repeat to check each checkpoint both ways "
+                   "(a tied one is named CHECKPOINT+tied).")
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
 @_PRECISION_OPTION
 def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[str, ...],
                 reference: str | None, output: Path, encoding: str, black_level: float | None,
-                white_level: float | None, strict: bool, tile: int | None, device: str,
-                precision: str) -> None:
+                white_level: float | None, strict: bool, brightness: tuple[str, ...],
+                tile: int | None, device: str, precision: str) -> None:
     """Target-free checks of models on real DP pairs without ground truth: brightness kept,
     no halos, in-focus regions kept, nothing invented, defocused regions sharper."""
     from dualpixel.evaluation.target_free import (
@@ -347,12 +368,13 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
     )
     from dualpixel.inference.encoding import ViewEncoding
 
-    if reference is not None and reference not in checkpoints:
-        raise click.BadParameter(f"{reference!r} is not one of the --checkpoint values",
-                                 param_hint="--reference")
+    names = [c + ("+tied" if mode == "tied" else "") for c in checkpoints for mode in brightness]
+    if reference is not None and reference not in names:
+        raise click.BadParameter(f"{reference!r} is not one of the checked models "
+                                 f"({', '.join(names)})", param_hint="--reference")
     view_encoding = ViewEncoding(encoding, black_level, white_level)
     methods = model_methods(checkpoints, device=device, encoding=view_encoding, tile=tile,
-                            precision=precision)
+                            precision=precision, brightness=brightness)
     rows = []
     for root in inputs:
         rows += check_folder(root, methods, split=split, encoding=encoding, progress=True)

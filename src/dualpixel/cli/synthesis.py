@@ -114,6 +114,9 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               help="Blur the stored (sRGB-encoded) values, as the paper's generator, or linear "
                    "light with the sRGB curve after, as a lens does  [default: the --camera "
                    "file's, else encoded].")
+@click.option("--grey", is_flag=True,
+              help="Store every image as its green channel alone, as a phone's DP data are "
+                   "(the Google Pixel's DP views are one green channel of the raw frame).")
 @click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
 @click.option("--depth-scale", type=float, default=0.001,
@@ -132,7 +135,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
           bit_depth: str,
           noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
           psf_model: str, psf_bank: str, camera_file: Path | None, psf_shapes: str | None,
-          light: str | None,
+          light: str | None, grey: bool,
           split: str, max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
           png_compression: int | None, shard: tuple[int, int] | None) -> None:
@@ -152,7 +155,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
         noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
         camera=None if camera_file is None else load_camera(camera_file).to_dict(),
-        psf_shapes=psf_shapes, light=light,
+        psf_shapes=psf_shapes, light=light, grey=grey,
     )
     summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device,
                                  shard=shard, png_compression=png_compression)

@@ -280,9 +280,11 @@ def read_pairs(root: str | Path, split: str | None = None) -> list[Pair]:
 
 def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
                   encoding: ViewEncoding | None = None, tile: int | None = None,
-                  precision: str = "auto") -> dict[str, Method]:
-    """A :data:`Method` per checkpoint (a registry name or a ``.safetensors`` path): each pair
-    deblurred afresh, in the views' own encoding and channels
+                  precision: str = "auto",
+                  brightness: Iterable[str] = ("model",)) -> dict[str, Method]:
+    """A :data:`Method` per checkpoint (a registry name or a ``.safetensors`` path) and
+    brightness mode (:mod:`dualpixel.inference.brightness`; a tied one is named
+    ``CHECKPOINT+tied``): each pair deblurred afresh, in the views' own encoding and channels
     (:func:`~dualpixel.inference.encoding.deblur_encoded`)."""
     from dualpixel.device import resolve_device
     from dualpixel.inference import Deblurrer
@@ -293,14 +295,16 @@ def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
     methods: dict[str, Method] = {}
     resolved = resolve_device(device)
     for checkpoint in checkpoints:
-        deblurrer = Deblurrer(load_model(resolve_checkpoint(checkpoint), device=resolved),
-                              device=resolved, tile=tile, precision=precision)
+        model = load_model(resolve_checkpoint(checkpoint), device=resolved)
+        for mode in brightness:
+            deblurrer = Deblurrer(model, device=resolved, tile=tile, precision=precision,
+                                  brightness=mode)
 
-        def method(left: np.ndarray, right: np.ndarray, deblurrer=deblurrer) -> np.ndarray:
-            deblurrer.reset()
-            return deblur_encoded(deblurrer, left, right, encoding)
+            def method(left: np.ndarray, right: np.ndarray, deblurrer=deblurrer) -> np.ndarray:
+                deblurrer.reset()
+                return deblur_encoded(deblurrer, left, right, encoding)
 
-        methods[str(checkpoint)] = method
+            methods[str(checkpoint) + ("+tied" if mode == "tied" else "")] = method
     return methods
 
 

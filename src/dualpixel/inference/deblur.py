@@ -41,6 +41,11 @@ import torch
 from dualpixel.data.layout import DPSequence, read_frame
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
+from dualpixel.inference.brightness import (
+    DEFAULT_BRIGHTNESS,
+    check_brightness,
+    tie_brightness,
+)
 from dualpixel.inference.fusion import fused_copy
 from dualpixel.inference.multiscale import (
     FUSION_SIGMA,
@@ -114,6 +119,8 @@ class Deblurrer:
         fusion_sigma: where the two scales are split (Gaussian std, px at full resolution).
         half: deprecated spelling of ``precision="fp16"``.
         backend: ``torch``, or ``onnxruntime`` (CPU, float32; the ``onnx`` extra).
+        brightness: ``"tied"``: the output's low-pass brightness in linear light held at the
+            input's (:mod:`dualpixel.inference.brightness`); ``"model"``: as the network gives it.
     """
 
     model: DeblurNet
@@ -126,8 +133,10 @@ class Deblurrer:
     fusion_sigma: float = FUSION_SIGMA
     half: bool = False
     backend: str = "torch"
+    brightness: str = DEFAULT_BRIGHTNESS
 
     def __post_init__(self) -> None:
+        check_brightness(self.brightness)
         if self.tile is not None:
             if self.overlap is None:
                 self.overlap = default_overlap(self.tile)
@@ -163,12 +172,14 @@ class Deblurrer:
     @torch.inference_mode()
     def __call__(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
         """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3)."""
-        if not self.multiscale:
-            return self._ensemble(left, right, scale=0)
-        small = [None if v is None else half_resolution(v) for v in (left, right)]
         out = self._ensemble(left, right, scale=0)
-        coarse = self._ensemble(*small, scale=1)
-        return fuse_scales(out, coarse, self.fusion_sigma)
+        if self.multiscale:
+            small = [None if v is None else half_resolution(v) for v in (left, right)]
+            coarse = self._ensemble(*small, scale=1)
+            out = fuse_scales(out, coarse, self.fusion_sigma)
+        if self.brightness == "tied":
+            out = tie_brightness(out, left, right)
+        return out
 
     def _ensemble(self, left: np.ndarray, right: np.ndarray | None, scale: int) -> np.ndarray:
         """The mean output over the flips, run as batches of members."""

@@ -24,6 +24,7 @@ import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.inference.view_checks import ViewFinding, views_from_sum
+from dualpixel.names import ENCODINGS
 from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
 
 __all__ = [
@@ -32,8 +33,6 @@ __all__ = [
     "to_model", "view_encoding_from_files",
 ]
 
-#: "srgb": display values (photographs, the DPDD); "linear": raw sensor values.
-ENCODINGS = ("srgb", "linear")
 #: Views whose median lies below this fraction of full scale, with 99 % of values below
 #: :data:`LINEAR_P99`, look like linear raw data.
 LINEAR_MEDIAN = 0.08

@@ -217,7 +217,9 @@ def focus_from_depth(depth: np.ndarray, percentile: float = FOCUS_PERCENTILE) ->
 #: Defocus profiles. "dslr-840": a full-frame DSLR with a fast lens at a half-resolution DPDD frame
 #: (840 px wide; the Canon EOS 5D Mark IV of the DPDD benchmark): backgrounds far behind the
 #: subject blur by 3-20 px radius, near occluders by up to 30 px; "dslr-840-mild": 2-12 px, 20 px;
-#: "dslr-1680-crop": dslr-840's blur at full resolution (6-40 px, 60 px) in frames of any width.
+#: "dslr-1680-crop": dslr-840's blur at full resolution (6-40 px, 60 px) in frames of any width;
+#: "phone-2016-crop": a phone's main camera at the size of its DP data (the Google Pixel 4's
+#: green-channel DP frame, 2016 px wide): 1-12 px, 16 px, in frames of any width.
 DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
     profile.name: profile
     for profile in (
@@ -230,5 +232,10 @@ DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
                        "dslr-840 at full resolution (1680 px wide, twice the blur in pixels), "
                        "for frames that are crops of such a photograph: the CoC does not scale "
                        "with the frame width", scale_with_width=False),
+        DefocusProfile("phone-2016-crop", 2016, (1.0, 12.0), 16.0,
+                       "phone main camera (f/1.7, small pixels: DP disparity of a few px) at "
+                       "the size of its DP data, 2016 px wide (Google Pixel 4; its measured "
+                       "PSFs have a 10-px radius), for frames that are crops of such a capture",
+                       scale_with_width=False),
     )
 }

@@ -104,6 +104,9 @@ class SynthConfig:
     # Ours: where the blur happens (dualpixel.optics.tone): "encoded" (the paper's) or
     # "linear"; None: the camera's, else "encoded".
     light: str | None = None
+    # Ours: store every image as its green channel alone (grey PNGs), as a phone's DP data are
+    # (the Google Pixel's DP views are one green channel of the raw frame).
+    grey: bool = False
 
     def __post_init__(self) -> None:
         known = (*CAMERA_PRESETS, *DEFOCUS_PROFILES)
@@ -149,6 +152,8 @@ class SynthConfig:
         for key in ("light", "psf_shapes"):  # as recorded before the settings existed
             if data[key] is None:
                 del data[key]
+        if not data["grey"]:
+            del data["grey"]
         return data
 
 
@@ -261,6 +266,9 @@ def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
     else:  # (left + right) / 2 of the stored integers, rounded up
         combined = ((left.astype(np.uint32) + right + 1) >> 1).astype(left.dtype)
     target = _quantise(result.target, config.bit_depth)
+    if config.grey:  # the green channel alone
+        left, right, combined, target = (image[..., 1] for image in (left, right, combined,
+                                                                     target))
     # The encoders release the GIL: the frame's files are written side by side, and all of them
     # are in place before its manifest line (the frame's commit) is returned.
     writes = [_writer_pool().submit(write_png, paths[name], data, bit_depth=config.bit_depth,
