@@ -376,8 +376,10 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
     methods = model_methods(checkpoints, device=device, encoding=view_encoding, tile=tile,
                             precision=precision, brightness=brightness)
     rows = []
-    for root in inputs:
-        rows += check_folder(root, methods, split=split, encoding=encoding, progress=True)
+    for root in inputs:  # pairs named by their folder too when several are checked
+        prefix = f"{root.resolve().name}/" if len(inputs) > 1 else ""
+        rows += check_folder(root, methods, split=split, encoding=encoding, progress=True,
+                             prefix=prefix)
     findings = write_target_free_report(rows, output, reference=reference)
     click.echo((output / "target_free.md").read_text())
     click.echo(f"reports in {output}")

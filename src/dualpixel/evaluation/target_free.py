@@ -37,6 +37,7 @@ import torch
 from dualpixel.data.statistics import block_disparity_map, block_sums
 from dualpixel.errors import ParameterError
 from dualpixel.filters import gradient_magnitude
+from dualpixel.inference.brightness import is_palette_image, smooth
 from dualpixel.inference.encoding import ENCODINGS, ViewEncoding
 from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
 
@@ -121,19 +122,6 @@ def block_size(width: int) -> int:
     return 64 if width >= 1280 else 32
 
 
-def _smooth(image: np.ndarray, sigma: float) -> np.ndarray:
-    smoothed = cv2.GaussianBlur(np.ascontiguousarray(image, np.float32), (0, 0), sigma,
-                                borderType=cv2.BORDER_REFLECT)
-    return smoothed.reshape(image.shape)
-
-
-def _palette_image(image: np.ndarray) -> bool:
-    """Whether ``image`` holds at most 256 distinct colours (a GIF frame's palette)."""
-    levels = np.rint(np.asarray(image) * 255).astype(np.int32).reshape(-1, image.shape[-1])
-    codes = levels @ (256 ** np.arange(levels.shape[1]))
-    return np.unique(codes).size <= 256
-
-
 def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
                     encoding: str = "srgb", noise_sigma: float = NOISE_SIGMA,
                     palette: bool | None = None) -> TargetFreeReport:
@@ -162,19 +150,20 @@ def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
     lin_in = 0.5 * (to_linear(left) + to_linear(right))  # the combined image
     pictures = [left, right, lin_in if encoding == "linear" else _convert(lin_in, False), output]
     if noise_sigma > 0:  # noise and dither that the model removes are no change to judge
-        pictures = [_smooth(v, noise_sigma) for v in pictures]
+        pictures = [smooth(v, noise_sigma) for v in pictures]
     if encoding == "srgb":
         shown_left, shown_right, shown_in, shown_out = pictures
     else:
         shown_left, shown_right, shown_in, shown_out = (_convert(v, False) for v in pictures)
     if palette is None:
-        palette = _palette_image(left)
+        palette = is_palette_image(left)
     if palette:  # dither added to the stored values: smoothed there, then linearised
-        lin_in, lin_out = _convert(shown_in, True), _convert(shown_out, True)
+        lin_in = 0.5 * (_convert(shown_left, True) + _convert(shown_right, True))
+        lin_out = _convert(shown_out, True)
     else:  # camera noise is added in linear light: smoothing there keeps every mean
         lin_out = to_linear(output)
         if noise_sigma > 0:
-            lin_in, lin_out = _smooth(lin_in, noise_sigma), _smooth(lin_out, noise_sigma)
+            lin_in, lin_out = smooth(lin_in, noise_sigma), smooth(lin_out, noise_sigma)
 
     # brightness: over the frame, and locally (Gaussian of half a block), in linear light
     mean_in = max(float(lin_in.mean()), 1e-6)
@@ -310,9 +299,10 @@ def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
 
 def check_folder(root: str | Path, methods: dict[str, Method],
                  *, split: str | None = None, encoding: str = "srgb",
-                 progress: bool = False) -> list[dict[str, Any]]:
+                 progress: bool = False, prefix: str = "") -> list[dict[str, Any]]:
     """One row per pair and method: ``{"pair", "method", **TargetFreeReport}``, pairs from
-    :func:`read_pairs`, each method called as ``method(left, right)``."""
+    :func:`read_pairs` (named ``prefix`` + their name), each method called as
+    ``method(left, right)``."""
     from tqdm import tqdm
 
     pairs = read_pairs(root, split)
@@ -323,7 +313,7 @@ def check_folder(root: str | Path, methods: dict[str, Method],
         for name, left, right in pairs:
             for method, deblur in methods.items():
                 report = check_deblurred(left, right, deblur(left, right), encoding=encoding)
-                rows.append({"pair": name, "method": method, **report.as_dict()})
+                rows.append({"pair": prefix + name, "method": method, **report.as_dict()})
                 steps.update()
     return rows
 

@@ -23,12 +23,16 @@ from dualpixel.names import BRIGHTNESS_MODES, DEFAULT_BRIGHTNESS
 from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
 
 __all__ = [
-    "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "TIE_SIGMA", "check_brightness", "tie_brightness",
+    "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "DITHER_SIGMA", "TIE_SIGMA", "check_brightness",
+    "is_palette_image", "smooth", "tie_brightness",
 ]
 
 #: Gaussian std (px) of the low-pass held: twice the largest CoC radius of the training data's
 #: DSLR profile at 840 px (30 px), so no blur the network removes is wider than it.
 TIE_SIGMA = 64.0
+#: Gaussian std (px) that smooths a palette image's dither in its stored values before they are
+#: linearised: dither added there averages out there, and would brighten the linear mean.
+DITHER_SIGMA = 1.0
 #: Linear light added to both low-passes, so black regions keep a gain of about one.
 _FLOOR = 1e-4
 
@@ -40,24 +44,58 @@ def check_brightness(mode: str) -> str:
     return mode
 
 
+def is_palette_image(image: np.ndarray) -> bool:
+    """Whether ``image`` (``(H, W, C)`` in [0, 1]) holds at most 256 distinct colours, as a GIF
+    frame does (its palette's dither was added to the stored values)."""
+    levels = np.rint(np.asarray(image) * 255).astype(np.int64).reshape(-1, image.shape[-1])
+    codes = levels @ (256 ** np.arange(levels.shape[1]))
+    if np.unique(codes[:: max(1, codes.size // 20000)]).size > 256:  # most photographs: quick
+        return False
+    return np.unique(codes).size <= 256
+
+
+def smooth(image: np.ndarray, sigma: float) -> np.ndarray:
+    """A Gaussian of ``sigma`` px over ``(H, W, C)`` (or ``(H, W)``), borders reflected."""
+    smoothed = cv2.GaussianBlur(np.ascontiguousarray(image, np.float32), (0, 0), sigma,
+                                borderType=cv2.BORDER_REFLECT)
+    return smoothed.reshape(image.shape)
+
+
 def _linear(image: np.ndarray) -> np.ndarray:
     return srgb_to_linear(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
 
 
 def _low_pass(grey: np.ndarray, sigma: float) -> np.ndarray:
-    return cv2.GaussianBlur(grey, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    """Gaussian of ``sigma`` px, computed on a grid ``sigma / 16`` times coarser (area-averaged)
+    and interpolated back: within 0.3 % of the full-size filter for so wide a Gaussian, and
+    about 10x faster."""
+    factor = max(1, int(sigma // 16))
+    height, width = grey.shape
+    if factor == 1 or min(height, width) < 4 * factor:
+        return cv2.GaussianBlur(grey, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    small = cv2.resize(grey, (max(1, round(width / factor)), max(1, round(height / factor))),
+                       interpolation=cv2.INTER_AREA)
+    small = cv2.GaussianBlur(small, (0, 0), sigma / factor, borderType=cv2.BORDER_REFLECT)
+    return cv2.resize(small, (width, height), interpolation=cv2.INTER_LINEAR)
 
 
 def tie_brightness(output: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,
                    sigma: float = TIE_SIGMA) -> np.ndarray:
     """``output`` ``(H, W, 3)`` display (sRGB) values in [0, 1], scaled in linear light so that
     its Gaussian low-pass (std ``sigma`` px) of the channel mean equals that of the input, the
-    mean of ``left`` and ``right`` in linear light (``left`` alone for a one-view model)."""
+    mean of ``left`` and ``right`` in linear light (``left`` alone for a one-view model).
+    For palette images (:func:`is_palette_image`) both sides are measured after a Gaussian of
+    :data:`DITHER_SIGMA` px in the stored values."""
     if not (math.isfinite(sigma) and sigma > 0):
         raise ParameterError(f"sigma must be a positive number of pixels, got {sigma}")
-    linear_in = _linear(left) if right is None else 0.5 * (_linear(left) + _linear(right))
+    views = [v for v in (left, right) if v is not None]
+    measured = output
+    if is_palette_image(views[0]):  # both sides measured alike, after the dither's smoothing
+        views = [smooth(v, DITHER_SIGMA) for v in views]
+        measured = smooth(output, DITHER_SIGMA)
+    linear_in = sum(_linear(v) for v in views) / len(views)
     linear_out = _linear(output)
     gain = ((_low_pass(linear_in.mean(axis=2), sigma) + _FLOOR)
-            / (_low_pass(linear_out.mean(axis=2), sigma) + _FLOOR))
+            / (_low_pass(_linear(measured).mean(axis=2), sigma) + _FLOOR))
     tied = np.clip(linear_out * gain[..., None], 0.0, 1.0)
     return linear_to_srgb(torch.from_numpy(tied)).numpy()
