@@ -155,3 +155,45 @@ def test_cli_bad_phone_inputs_are_clear_errors(raw_pair, tiny_checkpoint, tmp_pa
     assert no_black.exit_code != 0 and "--black-level" in no_black.output
     for result in (mixed, no_black):
         assert "Traceback" not in result.output
+
+
+def test_pixel_dp_import_turns_the_views_and_writes_the_dpdd_layout(raw_pair, tiny_checkpoint,
+                                                                     tmp_path):
+    """Captures stored as the public Pixel DP releases store them: one folder per capture,
+    16-bit grey left/right PNGs, the DP baseline vertical."""
+    stored = [np.rot90(v, -1) for v in raw_pair]  # as the phone stores them: turned clockwise
+    captures = []
+    for index, names in enumerate((("result_leftPd_center.png", "result_rightPd_center.png"),
+                                   ("left.png", "right.png"))):
+        folder = tmp_path / "release" / f"capture{index}"
+        folder.mkdir(parents=True)
+        for name, view in zip(names, stored):
+            write_grey16(folder / name, np.ascontiguousarray(view))
+        captures.append(folder)
+    out = tmp_path / "dpdd"
+    result = CliRunner().invoke(cli, ["import-pixel-dp", *map(str, captures), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    left = cv2.imread(str(out / "test_l/source/capture0.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(left, raw_pair[0])  # turned back: baseline horizontal
+    combined = cv2.imread(str(out / "test_c/source/capture1.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_allclose(combined, (raw_pair[0].astype(float) + raw_pair[1]) / 2, atol=1)
+    deblurred = CliRunner().invoke(cli, [
+        "deblur", "--input", str(out), "-o", str(tmp_path / "sharp"), "--checkpoint",
+        str(tiny_checkpoint), "--device", "cpu", "--encoding", "linear", "--black-level",
+        str(BLACK), "--white-level", str(WHITE)])
+    assert deblurred.exit_code == 0, deblurred.output
+    sharp = cv2.imread(str(tmp_path / "sharp" / "capture0.png"), cv2.IMREAD_UNCHANGED)
+    assert sharp.dtype == np.uint16 and sharp.shape == raw_pair[0].shape
+    # a folder without a right view, a colour view: errors naming the folder or file
+    lonely = tmp_path / "lonely"
+    lonely.mkdir()
+    write_grey16(lonely / "left.png", raw_pair[0])
+    bad = CliRunner().invoke(cli, ["import-pixel-dp", str(lonely), "-o", str(tmp_path / "x")])
+    assert bad.exit_code != 0 and "lonely" in bad.output and "right" in bad.output
+    colour = tmp_path / "colour"
+    colour.mkdir()
+    cv2.imwrite(str(colour / "left.png"), np.zeros((8, 8, 3), np.uint16))
+    write_grey16(colour / "right.png", np.zeros((8, 8), np.uint16))
+    bad = CliRunner().invoke(cli, ["import-pixel-dp", str(colour), "-o", str(tmp_path / "y")])
+    assert bad.exit_code != 0 and "colour image" in bad.output
+    assert not (tmp_path / "y" / "test_l" / "source" / "colour.png").exists()

@@ -387,4 +387,26 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
         raise SystemExit(1)
 
 
-COMMANDS = (check_model, deblur, evaluate_command, niqe, export, import_keras, import_dpraw)
+@click.command("import-pixel-dp", cls=DPCommand, context_settings=CONTEXT)
+@click.argument("captures", nargs=-1, required=True,
+                type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="DPDD-layout folder: SPLIT_l/source, SPLIT_r/source, SPLIT_c/source.")
+@click.option("--split", default="test", help="Split name of the folders written.")
+@click.option("--rotate", type=click.Choice(["ccw", "cw", "none"]), default="ccw",
+              show_default=True,
+              help="Turn the views so the DP baseline is horizontal (the Pixel releases store "
+                   "it vertical: ccw).")
+def import_pixel_dp(captures: tuple[Path, ...], output: Path, split: str, rotate: str) -> None:
+    """Google Pixel DP captures (one folder each, with a left and a right 16-bit grey PNG, e.g.
+    result_leftPd_center.png) into a DPDD-layout folder for 'dualpixel deblur --input'."""
+    from dualpixel.io.pixel_dp import import_pixel_dp as run_import
+
+    results = run_import(list(captures), output, split=split, rotate=rotate, progress=True)
+    click.echo(f"wrote {len(results)} capture(s) to {output}; deblur them (raw values: give "
+               f"the black and white level) with: dualpixel deblur --input {output} --split "
+               f"{split} --encoding linear --black-level B --white-level W -o OUTPUT_FOLDER")
+
+
+COMMANDS = (check_model, deblur, evaluate_command, niqe, export, import_keras, import_dpraw,
+            import_pixel_dp)
