@@ -5,13 +5,16 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TextIO
 
 from dualpixel.errors import OutputFileError
 
-__all__ = ["PARTIAL_GLOB", "PARTIAL_MARKER", "atomic_path", "check_writable", "remove_partials"]
+__all__ = ["PARTIAL_GLOB", "PARTIAL_MARKER", "atomic_path", "check_writable", "open_for_append",
+           "remove_partials"]
 
 #: Marker in the names of :func:`atomic_path`'s temporary files: hidden, then
 #: ``.<stem>.dualpixel-partial-<random><suffix>``. Cleanup matches only this project's marker, so a
@@ -88,3 +91,21 @@ def remove_partials(folder: str | Path) -> int:
             leftover.unlink(missing_ok=True)
             removed += 1
     return removed
+
+
+def open_for_append(path: str | Path) -> TextIO:
+    """``path`` opened to append text (created if missing), never through a symbolic link: a
+    link planted in an output folder would have us write into the file it points to."""
+    path = Path(path)
+    try:
+        descriptor = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW
+                             | os.O_CLOEXEC, 0o644)
+    except OSError as error:
+        if path.is_symlink():
+            raise OutputFileError(path, "is a symbolic link; the tool never writes through "
+                                        "a link (remove it)") from None
+        raise _output_error(path, error) from None
+    if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+        os.close(descriptor)
+        raise OutputFileError(path, "is not a regular file")
+    return os.fdopen(descriptor, "a", encoding="utf-8")

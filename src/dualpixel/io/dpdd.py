@@ -16,6 +16,7 @@ from pathlib import Path
 
 from dualpixel.errors import InputFileError
 from dualpixel.io.images import IMAGE_SUFFIXES
+from dualpixel.io.paths import check_plain_name
 
 __all__ = ["ROLES", "frame_paths", "list_files", "read_manifest", "role_folder"]
 
@@ -30,7 +31,9 @@ ROLES: dict[str, tuple[str, str]] = {
 
 
 def role_folder(root: str | Path, split: str, role: str) -> Path:
-    """The folder of one role (``left``, ``right``, ``combined``, ``target``, ``defocus``)."""
+    """The folder of one role (``left``, ``right``, ``combined``, ``target``, ``defocus``);
+    ``split`` must be a plain name (``--split ../x`` would leave ``root``)."""
+    check_plain_name(split, "split")
     view, sub = ROLES[role]
     return Path(root) / f"{split}_{view}" / sub
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import stat
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -28,7 +29,17 @@ def folder_lock(folder: str | Path, command: str) -> Iterator[Path]:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / LOCK_NAME
-    handle = open(path, "a+", encoding="utf-8")  # held open: the lock lives with it
+    try:  # never through a link: a planted link would have us truncate what it points to
+        descriptor = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    except OSError as error:
+        if path.is_symlink():
+            raise OutputFileError(path, "is a symbolic link; the lock file is never opened "
+                                        "through a link (remove it)") from None
+        raise OutputFileError(path, f"cannot be opened ({error.strerror})") from None
+    if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+        os.close(descriptor)
+        raise OutputFileError(path, "is not a regular file (remove it)")
+    handle = os.fdopen(descriptor, "r+", encoding="utf-8")  # held open: the lock lives with it
     try:
         try:
             fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)

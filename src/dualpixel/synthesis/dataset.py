@@ -39,7 +39,7 @@ from tqdm import tqdm
 from dualpixel import __version__
 from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError, check_range
-from dualpixel.io.atomic import atomic_path, remove_partials
+from dualpixel.io.atomic import atomic_path, open_for_append, remove_partials
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.dpdd import frame_paths, read_manifest
 from dualpixel.io.images import check_png_compression, quantise, save_npy, write_png
@@ -509,7 +509,7 @@ def _synthesize_locked(root: Path, jobs: list, input_dir, fmt, config: SynthConf
     already = sum(job.key in done for job in jobs)
     bar = tqdm(total=len(jobs), initial=already, desc="synthesising frames", unit="frame",
                disable=not progress)
-    with open(manifest_path, "a", encoding="utf-8") as manifest:
+    with open_for_append(manifest_path) as manifest:
         jobs_args = [(job, root, fmt, config, device, png_compression) for job in pending]
         records = (completed(run_job, jobs_args, workers) if workers > 1
                    else _pipelined(jobs_args))

@@ -36,6 +36,7 @@ from typing import Any
 
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.documents import read_mapping
+from dualpixel.io.paths import check_plain_name
 
 __all__ = ["Phase", "Recipe", "load_recipe", "plan_text", "reproduce"]
 
@@ -100,6 +101,16 @@ def _mapping(path: Path, where: str, value: Any) -> dict[str, Any]:
     return value
 
 
+def _plain(path: Path, where: str, name: Any) -> str:
+    """A name that becomes a folder or file name in the run folder: one plain name."""
+    try:
+        return check_plain_name(str(name), "name")
+    except ParameterError:
+        raise _fail(path, where, f"{str(name)[:80]!r} must be a plain name (letters, digits, "
+                                 "'-', '_'; no '/', '..' or absolute path): it names a folder "
+                                 "of the run") from None
+
+
 def load_recipe(path: str | Path) -> Recipe:
     """Read and check a recipe's structure (the settings are checked by :func:`check_recipe`)."""
     path = Path(path)
@@ -120,7 +131,7 @@ def load_recipe(path: str | Path) -> Recipe:
             raise _fail(path, f"data step {k + 1}", "expected {name, scenes: {...}} or {name, "
                         "synth: {...}}" + (f"; unknown key(s) {', '.join(extra)}" if extra
                                           else ""))
-        steps.append(DataStep(str(item["name"]), kinds[0],
+        steps.append(DataStep(_plain(path, f"data step {k + 1}", item["name"]), kinds[0],
                               dict(_mapping(path, f"data step {item['name']}", item[kinds[0]]))))
     names = [s.name for s in steps]
     if len(set(names)) != len(names):
@@ -138,7 +149,7 @@ def load_recipe(path: str | Path) -> Recipe:
         init = str(item.get("init", "none" if k == 0 else "previous"))
         if k == 0 and init == "previous":
             raise _fail(path, f"phase {item['name']}", "init: previous, but it is the first phase")
-        phases.append(Phase(str(item["name"]),
+        phases.append(Phase(_plain(path, f"phase {k + 1}", item["name"]),
                             dict(_mapping(path, f"phase {item['name']}", item.get("set") or {})),
                             init))
     if len({p.name for p in phases}) != len(phases):
@@ -147,14 +158,20 @@ def load_recipe(path: str | Path) -> Recipe:
     unknown = sorted(set(ship) - {"name", "doc", "phase"})
     if unknown:
         raise _fail(path, "ship", f"unknown key(s) {', '.join(unknown)}")
+    if "name" in ship:
+        _plain(path, "ship", ship["name"])
     evaluate = []
     for k, item in enumerate(raw.get("evaluate") or []):
         item = dict(_mapping(path, f"evaluate entry {k + 1}", item))
         unknown = sorted(set(item) - {"name", "dataset", "split"})
         if unknown or "name" not in item or "dataset" not in item:
             raise _fail(path, f"evaluate entry {k + 1}", "expected {name, dataset, split}")
+        _plain(path, f"evaluate entry {k + 1}", item["name"])
+        if "split" in item:
+            _plain(path, f"evaluate entry {k + 1} split", item["split"])
         evaluate.append(item)
-    recipe = Recipe(path, str(raw["name"]), str(raw.get("description", "")), steps,
+    recipe = Recipe(path, _plain(path, "recipe", raw["name"]), str(raw.get("description", "")),
+                    steps,
                     dict(_mapping(path, "train", raw.get("train") or {})), phases, ship, evaluate)
     check_recipe(recipe)
     return recipe

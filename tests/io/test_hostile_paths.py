@@ -1,0 +1,74 @@
+"""Names that become paths stay plain, and nothing is written through a planted link (#55)."""
+
+import os
+
+import pytest
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.errors import InputFileError, OutputFileError, ParameterError
+from dualpixel.io.atomic import open_for_append
+from dualpixel.io.dpdd import role_folder
+from dualpixel.io.lock import LOCK_NAME, folder_lock
+from dualpixel.training.recipe import load_recipe
+
+RECIPE = """
+name: tiny
+data:
+  - name: {step}
+    scenes: {{sequences: 1, frames: 1, width: 64, height: 48, layout: photo, seed: 1}}
+phases:
+  - name: {phase}
+ship: {{name: {ship}}}
+evaluate:
+  - {{name: {evaluate}, dataset: {step}, split: test}}
+"""
+
+
+@pytest.mark.parametrize("field", ["step", "phase", "ship", "evaluate"])
+@pytest.mark.parametrize("bad", ["../../x", "/tmp/abs", "..", "a/b"])
+def test_recipe_names_that_would_leave_the_run_folder_are_refused(tmp_path, field, bad):
+    names = {"step": "scenes", "phase": "one", "ship": "model", "evaluate": "held-out"}
+    names[field] = f"'{bad}'"
+    path = tmp_path / "recipe.yaml"
+    path.write_text(RECIPE.format(**names))
+    with pytest.raises(InputFileError, match="plain name"):
+        load_recipe(path)
+
+
+def test_split_names_stay_plain(tmp_path):
+    assert role_folder(tmp_path, "test", "left") == tmp_path / "test_l" / "source"
+    for bad in ("../x", "/abs", ".."):
+        with pytest.raises(ParameterError, match="split"):
+            role_folder(tmp_path, bad, "left")
+    result = CliRunner().invoke(cli, ["deblur", "--input", str(tmp_path), "--split", "../x",
+                                      "-o", str(tmp_path / "out")])
+    assert result.exit_code != 0 and "split" in result.output
+    assert "Traceback" not in result.output
+
+
+def test_the_lock_is_never_taken_through_a_link(tmp_path):
+    precious = tmp_path / "precious.txt"
+    precious.write_text("keep me")
+    folder = tmp_path / "out"
+    folder.mkdir()
+    os.symlink(precious, folder / LOCK_NAME)
+    with pytest.raises(OutputFileError, match="symbolic link"):
+        with folder_lock(folder, "test"):
+            pass
+    assert precious.read_text() == "keep me"
+    (folder / LOCK_NAME).unlink()
+    with folder_lock(folder, "test") as lock:  # a plain lock file still works
+        assert "pid" in lock.read_text()
+
+
+def test_appending_never_writes_through_a_link(tmp_path):
+    precious = tmp_path / "precious.txt"
+    precious.write_text("keep me")
+    os.symlink(precious, tmp_path / "manifest.jsonl")
+    with pytest.raises(OutputFileError, match="symbolic link"):
+        open_for_append(tmp_path / "manifest.jsonl")
+    assert precious.read_text() == "keep me"
+    with open_for_append(tmp_path / "fresh.jsonl") as handle:
+        handle.write("line\n")
+    assert (tmp_path / "fresh.jsonl").read_text() == "line\n"
