@@ -72,3 +72,25 @@ def test_appending_never_writes_through_a_link(tmp_path):
     with open_for_append(tmp_path / "fresh.jsonl") as handle:
         handle.write("line\n")
     assert (tmp_path / "fresh.jsonl").read_text() == "line\n"
+
+
+def test_documents_are_bounded_in_depth_and_alias_expansion(tmp_path):
+    from dualpixel.io.documents import read_mapping
+
+    bomb = ["a: &a ['x', 'x', 'x', 'x', 'x', 'x', 'x', 'x', 'x', 'x']"]
+    for level in range(1, 9):
+        previous = chr(ord("a") + level - 1)
+        name = chr(ord("a") + level)
+        bomb.append(f"{name}: &{name} [{', '.join(['*' + previous] * 10)}]")
+    (tmp_path / "bomb.yaml").write_text("\n".join(bomb) + "\n")
+    with pytest.raises(InputFileError, match="aliases are expanded"):
+        read_mapping(tmp_path / "bomb.yaml", "recipe", syntax="yaml")
+    (tmp_path / "deep.json").write_text('{"a": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    with pytest.raises(InputFileError, match="nested"):
+        read_mapping(tmp_path / "deep.json", "camera file")
+    (tmp_path / "deep.yaml").write_text("a: " + "[" * 100 + "]" * 100 + "\n")
+    with pytest.raises(InputFileError, match="nested more than"):
+        read_mapping(tmp_path / "deep.yaml", "config", syntax="yaml")
+    (tmp_path / "ok.yaml").write_text("a: &x [1, 2]\nb: *x\n")
+    assert read_mapping(tmp_path / "ok.yaml", "config", syntax="yaml") == {"a": [1, 2],
+                                                                            "b": [1, 2]}
