@@ -94,3 +94,33 @@ def test_documents_are_bounded_in_depth_and_alias_expansion(tmp_path):
     (tmp_path / "ok.yaml").write_text("a: &x [1, 2]\nb: *x\n")
     assert read_mapping(tmp_path / "ok.yaml", "config", syntax="yaml") == {"a": [1, 2],
                                                                             "b": [1, 2]}
+
+
+def test_truncated_images_are_refused(tmp_path):
+    import cv2
+    import numpy as np
+
+    from dualpixel.io.images import read_rgb
+
+    rng = np.random.default_rng(0)
+    image = rng.integers(0, 256, (64, 80, 3), dtype=np.uint8)
+    for suffix in (".png", ".jpg"):
+        whole = tmp_path / f"whole{suffix}"
+        cv2.imwrite(str(whole), image)
+        assert read_rgb(whole).shape == (64, 80, 3)
+        cut = tmp_path / f"cut{suffix}"
+        cut.write_bytes(whole.read_bytes()[: int(whole.stat().st_size * 0.6)])
+        with pytest.raises(InputFileError, match="truncated"):
+            read_rgb(cut)
+
+
+def test_tiles_too_small_for_the_network_warn(refined_model):
+    from dualpixel.inference import Deblurrer
+
+    with pytest.warns(UserWarning, match="too little context"):
+        Deblurrer(refined_model, tile=64)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Deblurrer(refined_model, tile=256)

@@ -33,6 +33,7 @@ recurrent state.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,6 +58,11 @@ from dualpixel.inference.onnx_runtime import OnnxRuntimeNet, check_backend
 from dualpixel.inference.precision import Precision, resolve_precision
 from dualpixel.inference.tiling import MAX_BATCH, TileGrid, deblur_tiled
 from dualpixel.models.unet import DeblurNet
+
+#: Smallest tile and overlap (px) whose output matches whole-frame deblurring closely: below
+#: them a tile's border sees too little of the image, and outputs change by tens of levels.
+MIN_FAITHFUL_TILE = 128
+MIN_FAITHFUL_OVERLAP = 32
 
 __all__ = [
     "BATCH_PIXELS", "Deblurrer", "deblur_sequence", "default_overlap", "frame_tensor",
@@ -141,6 +147,12 @@ class Deblurrer:
             if self.overlap is None:
                 self.overlap = default_overlap(self.tile)
             TileGrid(self.tile, self.overlap)  # refuse a bad tile or overlap now
+            if self.tile < MIN_FAITHFUL_TILE or self.overlap < MIN_FAITHFUL_OVERLAP:
+                warnings.warn(
+                    f"tile {self.tile} px with overlap {self.overlap} px gives the network too "
+                    f"little context: the output can differ from whole-frame deblurring by tens "
+                    f"of levels near tile edges; use a tile of at least {MIN_FAITHFUL_TILE} px "
+                    f"and an overlap of at least {MIN_FAITHFUL_OVERLAP} px", stacklevel=2)
         self.device = torch.device(self.device)
         precision = "fp16" if self.half else self.precision
         check_backend(self.backend)

@@ -66,6 +66,26 @@ def image_size(path: str | Path) -> tuple[int, int]:
     return height, width
 
 
+#: How a complete file of each format ends (PNG: the IEND chunk; JPEG: the EOI marker).
+_FILE_ENDINGS = {".png": b"IEND\xaeB`\x82", ".jpg": b"\xff\xd9", ".jpeg": b"\xff\xd9"}
+
+
+def _check_complete(path: Path) -> None:
+    """Refuse a PNG or JPEG cut short (a copy or download that stopped): decoders fill the
+    missing rows with grey and only print a warning."""
+    ending = _FILE_ENDINGS.get(path.suffix.lower())
+    if ending is None:
+        return
+    with open(path, "rb") as handle:
+        handle.seek(0, 2)
+        size = handle.tell()
+        handle.seek(max(0, size - 4096))
+        tail = handle.read().rstrip(b"\x00")  # some writers pad JPEGs with zeros
+    if not tail.endswith(ending) and ending not in tail:
+        raise InputFileError(path, "is truncated (the file ends before its image data does); "
+                                   "copy or export it again")
+
+
 def _check_decodable(path: Path) -> None:
     """Refuse, with the numbers, a file whose declared size cannot be decoded in the memory
     available (a decompression bomb, or a photo too large for this machine)."""
@@ -103,6 +123,7 @@ def _imread(path: Path, kind: str = "image") -> np.ndarray:
         article = "an" if kind[0] in "aeiou" else "a"
         raise InputFileError(path, f"cannot be decoded as {article} {kind} "
                                    "(corrupt or unsupported format)")
+    _check_complete(path)  # decoded, but maybe with the missing rows filled in grey
     return data
 
 
