@@ -199,3 +199,23 @@ def test_check_model_command(frame, tmp_path, tiny_checkpoint):
     empty.mkdir()
     nothing = CliRunner().invoke(cli, ["check-model", "--input", str(empty), "-o", str(out)])
     assert nothing.exit_code != 0 and "no scene folders" in nothing.output
+
+
+def test_eval_runs_the_view_checks(shared_dir, tmp_path):
+    """Swapped views score lower; eval now says why, as deblur does (issue #55)."""
+    import json
+    import shutil
+
+    scene = tmp_path / "swapped" / "scene_02"
+    scene.mkdir(parents=True)
+    source = shared_dir / "data" / "canon-dp-real" / "scene_02"
+    shutil.copy(source / "view0.png", scene / "view1.png")
+    shutil.copy(source / "view1.png", scene / "view0.png")
+    shutil.copy(source / "target.png", scene / "target.png")
+    out = tmp_path / "eval"
+    result = CliRunner().invoke(cli, ["eval", "--dataset", str(tmp_path / "swapped"),
+                                      "--no-model", "--no-niqe", "--figures", "0", "-o",
+                                      str(out)])
+    assert result.exit_code == 0, result.output
+    findings = json.loads((out / "summary.json").read_text())["view_findings"]
+    assert [f["code"] for f in findings] == ["swapped"]

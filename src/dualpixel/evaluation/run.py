@@ -76,6 +76,7 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
             sequences, others = discover_dp_dataset(dataset, request.split), {}
         else:
             sequences, others = discover_scene_folders(dataset)
+        meta["view_findings"] = _view_findings(sequences)
         examples = examples_from_sequences(sequences, others, request.compare or {})
         if any(example.defocus is not None for example in examples):
             breakdown = BlurBreakdown()
@@ -99,6 +100,28 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
 
         render_blur_breakdown(breakdown, output / "by_blur.png")
     return output / "summary.md"
+
+
+def _view_findings(sequences) -> list[dict[str, str]]:
+    """The checks ``deblur`` runs (:func:`~dualpixel.inference.view_checks.check_views`) on the
+    first pair of every sequence, each finding also given as a warning: swapped or half-bright
+    views would otherwise just score lower."""
+    import warnings
+
+    from dualpixel.data.layout import read_frame
+    from dualpixel.inference.view_checks import check_views
+    from dualpixel.io.images import read_rgb
+
+    found = []
+    for sequence in sequences:
+        first = sequence.frames[0]
+        frame = read_frame(first)
+        combined = read_rgb(first.combined) if first.combined is not None else None
+        for finding in check_views(frame["left"], frame["right"], combined=combined):
+            found.append({"example": sequence.name, "code": finding.code,
+                          "message": finding.message})
+            warnings.warn(f"{first.left}: {finding.message}", stacklevel=2)
+    return found
 
 
 def draw_comparisons(examples, outputs, results, method: str, output: Path) -> None:
