@@ -6,7 +6,6 @@ made, and only there."""
 import cv2
 import numpy as np
 import pytest
-import torch
 from click.testing import CliRunner
 
 from dualpixel.cli.main import cli
@@ -19,15 +18,8 @@ from dualpixel.evaluation.target_free import (
     markdown_table,
     read_pairs,
 )
-from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
-
-
-def linear(x):
-    return srgb_to_linear(torch.from_numpy(np.ascontiguousarray(x, np.float32))).numpy()
-
-
-def encoded(x):
-    return linear_to_srgb(torch.from_numpy(np.ascontiguousarray(x, np.float32))).numpy()
+from dualpixel.optics.tone import linear_to_srgb_array as encoded
+from dualpixel.optics.tone import srgb_to_linear_array as linear
 
 
 @pytest.fixture(scope="module")

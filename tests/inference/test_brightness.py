@@ -5,21 +5,13 @@ way of deblurring."""
 import cv2
 import numpy as np
 import pytest
-import torch
 
 import dualpixel
 from dualpixel.errors import ParameterError
 from dualpixel.inference import Deblurrer
 from dualpixel.inference.brightness import tie_brightness
-from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
-
-
-def linear(x):
-    return srgb_to_linear(torch.from_numpy(np.ascontiguousarray(x, np.float32))).numpy()
-
-
-def encoded(x):
-    return linear_to_srgb(torch.from_numpy(np.ascontiguousarray(x, np.float32))).numpy()
+from dualpixel.optics.tone import linear_to_srgb_array as encoded
+from dualpixel.optics.tone import srgb_to_linear_array as linear
 
 
 @pytest.fixture(scope="module")

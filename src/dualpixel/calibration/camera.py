@@ -31,14 +31,13 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import torch
 
 from dualpixel.data.statistics import block_sums
 from dualpixel.errors import InputFileError, ParameterError, check_range
 from dualpixel.io.documents import read_mapping
 from dualpixel.optics.crosstalk import check_disparity_ratio
 from dualpixel.optics.psf import PSFParams, dp_psf
-from dualpixel.optics.tone import check_light, srgb_to_linear
+from dualpixel.optics.tone import check_light, srgb_to_linear_array
 
 __all__ = [
     "BlockFits",
@@ -245,10 +244,6 @@ class CameraCalibration:
     linear_share: float = 0.0
 
 
-def _linear(image: np.ndarray) -> np.ndarray:
-    return srgb_to_linear(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
-
-
 def linear_light_share(encoded: list[BlockFits], linear: list[BlockFits], min_radius: float,
                        max_radius: float) -> float:
     """The share of blocks usable in both fits (all channels together) that the fit in linear
@@ -370,7 +365,8 @@ def calibrate_camera(
     winner = int(np.argmin([s for _, s in scores]))
     fits = all_fits[winner]
     # where the blur happens: the winning shape fitted again in linear light
-    linear_fits = [fit_blocks(_linear(left), _linear(right), _linear(target), scores[winner][0],
+    linear_fits = [fit_blocks(srgb_to_linear_array(left), srgb_to_linear_array(right),
+                              srgb_to_linear_array(target), scores[winner][0],
                               radii, patch=patch) for _, left, right, target in frames]
     share = linear_light_share(fits, linear_fits, min_radius, max_radius)
     light = "linear" if share > 0.5 else "encoded"

@@ -32,14 +32,13 @@ from typing import Any
 
 import cv2
 import numpy as np
-import torch
 
 from dualpixel.data.statistics import block_disparity_map, block_sums
 from dualpixel.errors import ParameterError
 from dualpixel.filters import gradient_magnitude
 from dualpixel.inference.brightness import is_palette_image, smooth
 from dualpixel.inference.encoding import ENCODINGS, ViewEncoding
-from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
+from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
     "TargetFreeReport", "check_deblurred", "check_folder", "check_model",
@@ -112,11 +111,6 @@ def _check_images(left: np.ndarray, right: np.ndarray, output: np.ndarray) -> No
                              f"{output.shape} must share one shape")
 
 
-def _convert(image: np.ndarray, to_linear: bool) -> np.ndarray:
-    tensor = torch.from_numpy(np.ascontiguousarray(image, np.float32))
-    return (srgb_to_linear(tensor) if to_linear else linear_to_srgb(tensor)).numpy()
-
-
 def block_size(width: int) -> int:
     """Block side (px) of the checks: 32 below 1280 px wide, 64 from there."""
     return 64 if width >= 1280 else 32
@@ -146,20 +140,21 @@ def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
     if left.shape[0] < 2 * patch or left.shape[1] < 4 * patch:
         raise ParameterError(f"images must be at least {4 * patch}x{2 * patch} px for the "
                              f"target-free checks, got {left.shape[1]}x{left.shape[0]}")
-    to_linear = (lambda v: _convert(v, True)) if encoding == "srgb" else np.asarray
+    to_linear = srgb_to_linear_array if encoding == "srgb" else np.asarray
     lin_in = 0.5 * (to_linear(left) + to_linear(right))  # the combined image
-    pictures = [left, right, lin_in if encoding == "linear" else _convert(lin_in, False), output]
+    pictures = [left, right, lin_in if encoding == "linear" else linear_to_srgb_array(lin_in),
+                output]
     if noise_sigma > 0:  # noise and dither that the model removes are no change to judge
         pictures = [smooth(v, noise_sigma) for v in pictures]
     if encoding == "srgb":
         shown_left, shown_right, shown_in, shown_out = pictures
     else:
-        shown_left, shown_right, shown_in, shown_out = (_convert(v, False) for v in pictures)
+        shown_left, shown_right, shown_in, shown_out = (linear_to_srgb_array(v) for v in pictures)
     if palette is None:
         palette = is_palette_image(left)
     if palette:  # dither added to the stored values: smoothed there, then linearised
-        lin_in = 0.5 * (_convert(shown_left, True) + _convert(shown_right, True))
-        lin_out = _convert(shown_out, True)
+        lin_in = 0.5 * (srgb_to_linear_array(shown_left) + srgb_to_linear_array(shown_right))
+        lin_out = srgb_to_linear_array(shown_out)
     else:  # camera noise is added in linear light: smoothing there keeps every mean
         lin_out = to_linear(output)
         if noise_sigma > 0:

@@ -16,11 +16,10 @@ import math
 
 import cv2
 import numpy as np
-import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.names import BRIGHTNESS_MODES, DEFAULT_BRIGHTNESS
-from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
+from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
     "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "DITHER_SIGMA", "TIE_SIGMA", "check_brightness",
@@ -61,10 +60,6 @@ def smooth(image: np.ndarray, sigma: float) -> np.ndarray:
     return smoothed.reshape(image.shape)
 
 
-def _linear(image: np.ndarray) -> np.ndarray:
-    return srgb_to_linear(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
-
-
 def _low_pass(grey: np.ndarray, sigma: float) -> np.ndarray:
     """Gaussian of ``sigma`` px, computed on a grid ``sigma / 16`` times coarser (area-averaged)
     and interpolated back: within 0.3 % of the full-size filter for so wide a Gaussian, and
@@ -93,9 +88,9 @@ def tie_brightness(output: np.ndarray, left: np.ndarray, right: np.ndarray | Non
     if is_palette_image(views[0]):  # both sides measured alike, after the dither's smoothing
         views = [smooth(v, DITHER_SIGMA) for v in views]
         measured = smooth(output, DITHER_SIGMA)
-    linear_in = sum(_linear(v) for v in views) / len(views)
-    linear_out = _linear(output)
+    linear_in = sum(srgb_to_linear_array(v) for v in views) / len(views)
+    linear_out = srgb_to_linear_array(output)
     gain = ((_low_pass(linear_in.mean(axis=2), sigma) + _FLOOR)
-            / (_low_pass(_linear(measured).mean(axis=2), sigma) + _FLOOR))
+            / (_low_pass(srgb_to_linear_array(measured).mean(axis=2), sigma) + _FLOOR))
     tied = np.clip(linear_out * gain[..., None], 0.0, 1.0)
-    return linear_to_srgb(torch.from_numpy(tied)).numpy()
+    return linear_to_srgb_array(tied)

@@ -20,17 +20,15 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.inference.view_checks import ViewFinding, views_from_sum
 from dualpixel.names import ENCODINGS
-from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
+from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
     "ENCODINGS", "ViewEncoding", "deblur_encoded", "encoding_findings", "flat_field_gain",
-    "from_model",
-    "to_model", "view_encoding_from_files",
+    "from_model", "to_model", "view_encoding_from_files",
 ]
 
 #: Views whose median lies below this fraction of full scale, with 99 % of values below
@@ -106,8 +104,7 @@ def to_model(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
         factor = 2.0 if views_sum else 1.0
         left = np.clip((left - black) / span * factor, 0.0, 1.0)
         right = np.clip((right - black) / span * gain * factor, 0.0, 1.0)
-        left, right = (linear_to_srgb(torch.from_numpy(np.ascontiguousarray(v, np.float32)))
-                       .numpy() for v in (left, right))
+        left, right = linear_to_srgb_array(left), linear_to_srgb_array(right)
     elif views_sum:
         left, right = views_from_sum(left, right)
     if left.shape[-1] == 1:
@@ -124,8 +121,7 @@ def from_model(output: np.ndarray, encoding: ViewEncoding, channels: int, *,
     if encoding.linear:
         black = float(encoding.black_level) / scale
         white = float(encoding.white_level) / scale
-        linear = srgb_to_linear(torch.from_numpy(np.ascontiguousarray(output, np.float32)))
-        output = np.clip(linear.numpy() * (white - black) + black, 0.0, 1.0)
+        output = np.clip(srgb_to_linear_array(output) * (white - black) + black, 0.0, 1.0)
     return output.astype(np.float32, copy=False)
 
 

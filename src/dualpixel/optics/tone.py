@@ -8,7 +8,8 @@ which of the two explains a camera's pairs (:mod:`dualpixel.calibration.camera`)
 
 The transfer function is sRGB's (IEC 61966-2-1), applied to values in [0, 1].
 
->>> import torch
+>>> import numpy as np
+import torch
 >>> round(float(linear_to_srgb(srgb_to_linear(torch.tensor(0.5)))), 6)
 0.5
 """
@@ -17,12 +18,14 @@ from __future__ import annotations
 
 from typing import Literal
 
+import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.names import LIGHT_SPACES
 
-__all__ = ["LIGHT_SPACES", "Light", "check_light", "linear_to_srgb", "srgb_to_linear"]
+__all__ = ["LIGHT_SPACES", "Light", "check_light", "linear_to_srgb", "linear_to_srgb_array",
+           "srgb_to_linear", "srgb_to_linear_array"]
 
 Light = Literal["encoded", "linear"]  # LIGHT_SPACES
 
@@ -44,3 +47,13 @@ def linear_to_srgb(values: torch.Tensor) -> torch.Tensor:
     values = values.clamp(0.0, 1.0)
     return torch.where(values <= 0.0031308, 12.92 * values,
                        1.055 * values.clamp_min(0.0031308) ** (1.0 / 2.4) - 0.055)
+
+
+def srgb_to_linear_array(image: np.ndarray) -> np.ndarray:
+    """:func:`srgb_to_linear` for a NumPy array (any shape): float32 linear light."""
+    return srgb_to_linear(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
+
+
+def linear_to_srgb_array(image: np.ndarray) -> np.ndarray:
+    """:func:`linear_to_srgb` for a NumPy array (any shape): float32 sRGB-encoded values."""
+    return linear_to_srgb(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
