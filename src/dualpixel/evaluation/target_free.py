@@ -257,7 +257,7 @@ def read_pairs(root: str | Path, split: str | None = None) -> list[Pair]:
     pairs = []
     for sequence in discover_any(root, split, require_target=False):
         frame = sequence.frames[0]
-        left, right = read_views(frame.left, frame.right)
+        left, right, _ = read_views(frame.left, frame.right)
         pairs.append((sequence.name, left, right))
     return pairs
 

@@ -20,7 +20,13 @@ from dualpixel.inference.deblur import Deblurrer
 from dualpixel.inference.encoding import ViewEncoding, encoding_findings, from_model, to_model
 from dualpixel.inference.view_checks import ViewFinding, check_views
 from dualpixel.io.atomic import check_writable
-from dualpixel.io.images import check_image_path, read_rgb_with_depth, read_view, write_png
+from dualpixel.io.images import (
+    check_image_path,
+    read_rgb_with_depth,
+    read_view,
+    read_views,
+    write_png,
+)
 from dualpixel.io.metadata import read_metadata
 
 __all__ = ["DeblurJob", "plan_deblur_jobs", "run_deblur_jobs"]
@@ -152,15 +158,10 @@ def _check_first_frame(job: DeblurJob, left: np.ndarray, right: np.ndarray, bits
 def _read_pair(job: DeblurJob) -> tuple[np.ndarray, np.ndarray | None, int, int]:
     """The job's views with their own channels (1 or 3) and bit depths; a clear error when
     they differ in size or channels."""
-    left, bits = read_view(job.left)
     if job.right is None:
+        left, bits = read_view(job.left)
         return left, None, bits, bits
-    right, right_bits = read_view(job.right)
-    _same_size(job.right, right, job.left, left.shape[:2] + right.shape[2:])
-    if right.shape[2] != left.shape[2]:
-        kinds = {1: "grey (one channel)", 3: "colour (RGB)"}
-        raise InputFileError(job.right, f"is {kinds[right.shape[2]]} but the left view "
-                                        f"{job.left} is {kinds[left.shape[2]]}")
+    left, right, (bits, right_bits) = read_views(job.left, job.right)
     return left, right, bits, right_bits
 
 

@@ -184,18 +184,20 @@ def read_view(path: str | Path) -> tuple[np.ndarray, int]:
     return read_rgb_with_depth(path)
 
 
-def read_views(left: str | Path, right: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Both views of a pair (:func:`read_view`); a clear error when they differ in size or in
-    channels (a grey view given with a colour one)."""
-    (left_image, _), (right_image, _) = read_view(left), read_view(right)
-    if left_image.shape[:2] != right_image.shape[:2]:
-        raise InputFileError(right, f"{right_image.shape[1]}x{right_image.shape[0]} px, but the "
-                             f"left view {left} is {left_image.shape[1]}x{left_image.shape[0]}")
+def read_views(left: str | Path, right: str | Path
+               ) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """Both views of a pair (:func:`read_view`) and their bit depths; a clear error naming the
+    right view when they differ in size or in channels (a grey view given with a colour one)."""
+    (left_image, left_bits), (right_image, right_bits) = read_view(left), read_view(right)
+    (height, width), (left_height, left_width) = right_image.shape[:2], left_image.shape[:2]
+    if (height, width) != (left_height, left_width):
+        raise InputFileError(right, f"size differs from {Path(left).name} ({width}x{height} vs "
+                                    f"{left_width}x{left_height})")
     if left_image.shape[2] != right_image.shape[2]:
         kinds = {1: "grey (one channel)", 3: "colour (RGB)"}
         raise InputFileError(right, f"is {kinds[right_image.shape[2]]} but the left view {left} "
                              f"is {kinds[left_image.shape[2]]}: give both views of one capture")
-    return left_image, right_image
+    return left_image, right_image, (left_bits, right_bits)
 
 
 def decode_synthia_depth(bgr: np.ndarray, *, max_depth: float = 250.0) -> np.ndarray:
