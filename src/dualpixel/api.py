@@ -146,9 +146,9 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         outputs.append(deblurrer(lefts[index], None if rights is None else rights[index]))
     result = restore_layout(from_model(np.stack(outputs), view_encoding, channels, scale=scale),
                             layout)
-    grey_2d = np.ndim(left) == 2 if not type(left).__module__.startswith("PIL.") else False
-    return result[..., 0, :, :] if grey_2d and layout == "torch" else (
-        result[..., 0] if grey_2d else result)
+    if not type(left).__module__.startswith("PIL.") and np.ndim(left) == 2:  # (H, W) in
+        return result[0] if layout == "torch" else result[..., 0]
+    return result
 
 
 def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
