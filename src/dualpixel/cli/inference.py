@@ -33,6 +33,12 @@ _BACKEND_OPTION = click.option(
 _FLIPS_OPTION = click.option(
     "--flips", is_flag=True,
     help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
+# Options that the import commands share.
+_IMPORT_OUTPUT_OPTION = click.option(
+    "--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+    help="DPDD-layout folder: SPLIT_l/source, SPLIT_r/source, SPLIT_c/source.")
+_IMPORT_SPLIT_OPTION = click.option("--split", default="test",
+                                    help="Split name of the folders written.")
 _BRIGHTNESS_OPTION = click.option(
     "--brightness", type=click.Choice(BRIGHTNESS_MODES), default=DEFAULT_BRIGHTNESS,
     show_default=True,
@@ -306,9 +312,8 @@ def import_keras(weights: Path, model: str, output: Path) -> None:
 @click.command("import-dpraw", cls=DPCommand, context_settings=CONTEXT)
 @click.argument("raws", nargs=-1, required=True,
                 type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="DPDD-layout folder: SPLIT_l/source, SPLIT_r/source, SPLIT_c/source.")
-@click.option("--split", default="test", help="Split name of the folders written.")
+@_IMPORT_OUTPUT_OPTION
+@_IMPORT_SPLIT_OPTION
 @click.option("--a-view", type=click.Choice(["auto", "left", "right"]), default="auto",
               help="Which view the A sub-pixels give; auto decides per file by the direction "
                    "in which defocused regions shift.")
@@ -390,9 +395,8 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
 @click.command("import-pixel-dp", cls=DPCommand, context_settings=CONTEXT)
 @click.argument("captures", nargs=-1, required=True,
                 type=click.Path(file_okay=False, exists=True, path_type=Path))
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="DPDD-layout folder: SPLIT_l/source, SPLIT_r/source, SPLIT_c/source.")
-@click.option("--split", default="test", help="Split name of the folders written.")
+@_IMPORT_OUTPUT_OPTION
+@_IMPORT_SPLIT_OPTION
 @click.option("--rotate", type=click.Choice(["ccw", "cw", "none"]), default="ccw",
               show_default=True,
               help="Turn the views so the DP baseline is horizontal (the Pixel releases store "
