@@ -8,8 +8,7 @@ which of the two explains a camera's pairs (:mod:`dualpixel.calibration.camera`)
 
 The transfer function is sRGB's (IEC 61966-2-1), applied to values in [0, 1].
 
->>> import numpy as np
-import torch
+>>> import torch
 >>> round(float(linear_to_srgb(srgb_to_linear(torch.tensor(0.5)))), 6)
 0.5
 """
