@@ -72,7 +72,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
            precision: str = "auto", views_sum: bool = False,
            backend: str = "torch", encoding: str = "srgb", black_level: float | None = None,
            white_level: float | None = None, right_gain: float | np.ndarray = 1.0,
-           brightness: str | None = None) -> np.ndarray | torch.Tensor:
+           brightness: str | None = None,
+           overshoot: str | None = None) -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD), or ``views_sum=True`` for views that sum to it (a raw A/B split; they
     are doubled). :func:`check_views` tells the usual mistakes. ``model``: a name, a checkpoint
@@ -84,7 +85,9 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     ``backend``: ``torch``, or ``onnxruntime`` (CPU, fp32; :mod:`dualpixel.inference.onnx_runtime`).
     ``brightness``: ``"tied"`` holds the output's low-pass brightness in linear light at the
     input's, ``"model"`` leaves it as the network gives it; None: the package's default
-    (:mod:`dualpixel.inference.brightness`).
+    (:mod:`dualpixel.inference.brightness`). ``overshoot``: ``"limited"`` keeps the output
+    within the input's local range (no halos), ``"model"`` leaves it; None: the package's
+    default (:mod:`dualpixel.inference.overshoot`).
 
     Phone and raw views (:mod:`dualpixel.inference.encoding`): grey views (one channel, such as
     a Pixel's green-only DP data) come back grey, in the layout they came in. ``encoding``:
@@ -139,7 +142,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     rights = None if rights is None else rights_in
     deblurrer = Deblurrer(net, device=resolved, tile=tile, flips=flips,
                           multiscale=multiscale, precision=precision, backend=backend,
-                          **({} if brightness is None else {"brightness": brightness}))
+                          **({} if brightness is None else {"brightness": brightness}),
+                          **({} if overshoot is None else {"overshoot": overshoot}))
     outputs = []
     for index in range(len(lefts)):
         deblurrer.reset()  # a batch holds independent pairs

@@ -3,9 +3,10 @@ command line can list them without importing torch (``dualpixel --help`` stays f
 
 from __future__ import annotations
 
-__all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "ENCODINGS",
-           "LIGHT_SPACES", "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES",
-           "SCENE_LAYOUTS"]
+__all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS",
+           "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "OVERSHOOT_MODES", "PRECISIONS",
+           "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "SCENE_LAYOUTS",
+           "output_modes_suffix"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -32,6 +33,22 @@ BACKENDS: tuple[str, ...] = ("torch", "onnxruntime")
 BRIGHTNESS_MODES: tuple[str, ...] = ("tied", "model")
 #: What every command and :func:`dualpixel.deblur` use unless told otherwise.
 DEFAULT_BRIGHTNESS = "model"
+#: Outputs' range (:mod:`dualpixel.inference.overshoot`): "limited", clipped to the input's
+#: local range near every pixel, or "model", as the network gives it.
+OVERSHOOT_MODES: tuple[str, ...] = ("limited", "model")
+#: What every command and :func:`dualpixel.deblur` use unless told otherwise.
+DEFAULT_OVERSHOOT = "model"
 #: How DP views store light (:mod:`dualpixel.inference.encoding`): display values ("srgb",
 #: photographs and the DPDD) or raw sensor values ("linear").
 ENCODINGS: tuple[str, ...] = ("srgb", "linear")
+
+
+def output_modes_suffix(brightness: str, overshoot: str) -> str:
+    """How results name a model run with these output modes: ``+limited`` for a limited
+    overshoot, then ``+tied`` for a tied brightness (the order they are applied in).
+
+    >>> output_modes_suffix("tied", "limited"), output_modes_suffix("model", "model")
+    ('+limited+tied', '')
+    """
+    limited = "+limited" if overshoot == "limited" else ""
+    return limited + ("+tied" if brightness == "tied" else "")

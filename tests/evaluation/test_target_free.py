@@ -16,6 +16,7 @@ from dualpixel.evaluation.target_free import (
     check_folder,
     compare_to_reference,
     markdown_table,
+    model_methods,
     read_pairs,
 )
 from dualpixel.optics.tone import linear_to_srgb_array as encoded
@@ -176,12 +177,17 @@ def test_check_model_command(frame, tmp_path, tiny_checkpoint):
     result = CliRunner().invoke(cli, ["check-model", "--input", str(root), "--checkpoint",
                                       str(tiny_checkpoint), "--reference", str(tiny_checkpoint),
                                       "-o", str(out), "--device", "cpu", "--brightness", "model",
-                                      "--brightness", "tied"])
+                                      "--brightness", "tied", "--overshoot", "model",
+                                      "--overshoot", "limited"])
     assert result.exit_code == 0, result.output
     csv = (out / "target_free.csv").read_text().splitlines()
-    assert csv[0].startswith("pair,method,brightness_change") and len(csv) == 3
-    tied = next(line for line in csv if "+tied" in line).split(",")
-    assert abs(float(tied[2])) < 0.002  # its brightness change over the frame
+    assert csv[0].startswith("pair,method,brightness_change") and len(csv) == 5
+    rows = {line.split(",")[1].removeprefix(str(tiny_checkpoint)): line.split(",")
+            for line in csv[1:]}
+    assert sorted(rows) == ["", "+limited", "+limited+tied", "+tied"]
+    assert abs(float(rows["+tied"][2])) < 0.002  # its brightness change over the frame
+    # the limit never adds overshoot (column 6); one network pass serves all four modes
+    assert float(rows["+limited"][5]) <= float(rows[""][5])
     assert "Against" in (out / "target_free.md").read_text()
     wrong = CliRunner().invoke(cli, ["check-model", "--input", str(root), "--reference", "x",
                                      "-o", str(out)])
@@ -191,6 +197,21 @@ def test_check_model_command(frame, tmp_path, tiny_checkpoint):
     empty.mkdir()
     nothing = CliRunner().invoke(cli, ["check-model", "--input", str(empty), "-o", str(out)])
     assert nothing.exit_code != 0 and "no scene folders" in nothing.output
+
+
+def test_the_modes_of_a_checkpoint_share_its_network_pass(frame, tiny_checkpoint):
+    from dualpixel.inference import Deblurrer
+    from dualpixel.models import load_model
+
+    left, right = frame["left"], frame["right"]
+    methods = model_methods([str(tiny_checkpoint)], device="cpu", precision="fp32",
+                            brightness=("model", "tied"), overshoot=("model", "limited"))
+    model = load_model(tiny_checkpoint)
+    for name, method in methods.items():
+        limit = "limited" if "+limited" in name else "model"
+        tie = "tied" if "+tied" in name else "model"
+        alone = Deblurrer(model, precision="fp32", brightness=tie, overshoot=limit)
+        np.testing.assert_allclose(method(left, right), alone(left, right), atol=1e-6)
 
 
 def test_eval_runs_the_view_checks(shared_dir, tmp_path):

@@ -13,8 +13,11 @@ from dualpixel.names import (
     BACKENDS,
     BRIGHTNESS_MODES,
     DEFAULT_BRIGHTNESS,
+    DEFAULT_OVERSHOOT,
     ENCODINGS,
+    OVERSHOOT_MODES,
     PRECISIONS,
+    output_modes_suffix,
 )
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
@@ -44,6 +47,11 @@ _BRIGHTNESS_OPTION = click.option(
     show_default=True,
     help="tied: hold the output's low-pass brightness in linear light at the input's (blur "
          "moves light, it makes none); model: as the network gives it.")
+_OVERSHOOT_OPTION = click.option(
+    "--overshoot", type=click.Choice(OVERSHOOT_MODES), default=DEFAULT_OVERSHOOT,
+    show_default=True,
+    help="limited: keep the output within the input's range near each pixel (no halos beside "
+         "edges); model: as the network gives it.")
 _MULTISCALE_OPTION = click.option(
     "--multiscale", is_flag=True,
     help="Also deblur at half resolution and take the coarse structure from there (at most "
@@ -105,12 +113,14 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
 @_BRIGHTNESS_OPTION
+@_OVERSHOOT_OPTION
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined: Path | None,
            split: str, output: Path, views_sum: bool, encoding: str, black_level: float | None,
            white_level: float | None, right_gain: float, flat_field: tuple[Path, Path] | None,
            strict: bool, checkpoint: str,
            tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
-           backend: str, flips: bool, multiscale: bool, brightness: str) -> None:
+           backend: str, flips: bool, multiscale: bool, brightness: str,
+           overshoot: str) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder.
 
     Grey views (a phone's green-only DP data) give a grey output; --encoding linear takes raw
@@ -132,7 +142,8 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
                             needs_right=model.spec.views == 2, combined=combined)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                           precision="fp16" if half else precision, flips=flips,
-                          multiscale=multiscale, backend=backend, brightness=brightness)
+                          multiscale=multiscale, backend=backend, brightness=brightness,
+                          overshoot=overshoot)
     total = sum(len(sequence) for sequence in jobs)
 
     def report(path: Path, finding) -> None:
@@ -192,9 +203,11 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
 @_BRIGHTNESS_OPTION
+@_OVERSHOOT_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, align, tile, overlap,
-                     device, precision, backend, flips, multiscale, brightness) -> None:
+                     device, precision, backend, flips, multiscale, brightness,
+                     overshoot) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 
@@ -209,14 +222,13 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         model, resolved = _load(checkpoint, device, backend)
         deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                               precision=precision, flips=flips, multiscale=multiscale,
-                              backend=backend, brightness=brightness)
+                              backend=backend, brightness=brightness, overshoot=overshoot)
         is_path = Path(checkpoint).suffix == ".safetensors" or "/" in str(checkpoint)
         method = (Path(checkpoint).stem if is_path else str(checkpoint)) + (
             "+flips" if flips else "") + (
-            "+multiscale" if multiscale else "") + (
-            "+tied" if brightness == "tied" else "")
+            "+multiscale" if multiscale else "") + output_modes_suffix(brightness, overshoot)
         meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale,
-                "brightness": brightness,
+                "brightness": brightness, "overshoot": overshoot,
                 "precision": deblurrer.numerics.name, "backend": backend}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
@@ -357,13 +369,18 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
               show_default=True,
               help="Brightness mode (see deblur); repeat to check each checkpoint both ways "
                    "(a tied one is named CHECKPOINT+tied).")
+@click.option("--overshoot", "overshoot", multiple=True,
+              type=click.Choice(OVERSHOOT_MODES), default=(DEFAULT_OVERSHOOT,),
+              show_default=True,
+              help="Overshoot mode (see deblur); repeat to check each checkpoint both ways "
+                   "(a limited one is named CHECKPOINT+limited).")
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
 @_PRECISION_OPTION
 def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[str, ...],
                 reference: str | None, output: Path, encoding: str, black_level: float | None,
                 white_level: float | None, strict: bool, brightness: tuple[str, ...],
-                tile: int | None, device: str, precision: str) -> None:
+                overshoot: tuple[str, ...], tile: int | None, device: str, precision: str) -> None:
     """Target-free checks of models on real DP pairs without ground truth: brightness kept,
     no halos, in-focus regions kept, nothing invented, defocused regions sharper."""
     from dualpixel.evaluation.target_free import (
@@ -373,13 +390,14 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
     )
     from dualpixel.inference.encoding import ViewEncoding
 
-    names = [c + ("+tied" if mode == "tied" else "") for c in checkpoints for mode in brightness]
+    names = [c + output_modes_suffix(tie, limit) for c in checkpoints for limit in overshoot
+             for tie in brightness]
     if reference is not None and reference not in names:
         raise click.BadParameter(f"{reference!r} is not one of the checked models "
                                  f"({', '.join(names)})", param_hint="--reference")
     view_encoding = ViewEncoding(encoding, black_level, white_level)
     methods = model_methods(checkpoints, device=device, encoding=view_encoding, tile=tile,
-                            precision=precision, brightness=brightness)
+                            precision=precision, brightness=brightness, overshoot=overshoot)
     rows = []
     for root in inputs:  # pairs named by their folder too when several are checked
         prefix = f"{root.resolve().name}/" if len(inputs) > 1 else ""

@@ -38,6 +38,7 @@ from dualpixel.errors import ParameterError
 from dualpixel.filters import gradient_magnitude
 from dualpixel.inference.brightness import is_palette_image, smooth
 from dualpixel.inference.encoding import ENCODINGS, ViewEncoding
+from dualpixel.names import output_modes_suffix
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
@@ -262,14 +263,34 @@ def read_pairs(root: str | Path, split: str | None = None) -> list[Pair]:
     return pairs
 
 
+class _LastOutput:
+    """The network's output for the last pair it was given, so that the output modes of one
+    checkpoint share one pass of the network."""
+
+    def __init__(self, deblurrer) -> None:
+        self.deblurrer = deblurrer
+        self.views: tuple[np.ndarray, np.ndarray] | None = None
+        self.output: np.ndarray | None = None
+
+    def __call__(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        if self.views is None or not all(np.array_equal(a, b)
+                                         for a, b in zip(self.views, (left, right))):
+            self.deblurrer.reset()
+            self.views, self.output = (left, right), self.deblurrer.network_output(left, right)
+        return self.output
+
+
 def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
                   encoding: ViewEncoding | None = None, tile: int | None = None,
-                  precision: str = "auto",
-                  brightness: Iterable[str] = ("model",)) -> dict[str, Method]:
-    """A :data:`Method` per checkpoint (a registry name or a ``.safetensors`` path) and
-    brightness mode (:mod:`dualpixel.inference.brightness`; a tied one is named
-    ``CHECKPOINT+tied``): each pair deblurred afresh, in the views' own encoding and channels
-    (:func:`~dualpixel.inference.encoding.deblur_encoded`)."""
+                  precision: str = "auto", brightness: Iterable[str] = ("model",),
+                  overshoot: Iterable[str] = ("model",)) -> dict[str, Method]:
+    """A :data:`Method` per checkpoint (a registry name or a ``.safetensors`` path), overshoot
+    mode (:mod:`dualpixel.inference.overshoot`) and brightness mode
+    (:mod:`dualpixel.inference.brightness`), named ``CHECKPOINT`` plus
+    :func:`~dualpixel.names.output_modes_suffix` (``+limited``, ``+tied``): each pair deblurred
+    afresh, in the views' own encoding and channels
+    (:func:`~dualpixel.inference.encoding.deblur_encoded`); the modes of one checkpoint share
+    its network's output."""
     from dualpixel.device import resolve_device
     from dualpixel.inference import Deblurrer
     from dualpixel.inference.encoding import deblur_encoded
@@ -280,15 +301,20 @@ def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
     resolved = resolve_device(device)
     for checkpoint in checkpoints:
         model = load_model(resolve_checkpoint(checkpoint), device=resolved)
-        for mode in brightness:
-            deblurrer = Deblurrer(model, device=resolved, tile=tile, precision=precision,
-                                  brightness=mode)
+        deblurrer = Deblurrer(model, device=resolved, tile=tile, precision=precision)
+        last = _LastOutput(deblurrer)
+        for limit in overshoot:
+            for tie in brightness:
+                def finished(left: np.ndarray, right: np.ndarray, tie=tie, limit=limit,
+                             deblurrer=deblurrer, last=last) -> np.ndarray:
+                    return deblurrer.finish(last(left, right), left, right, brightness=tie,
+                                            overshoot=limit)
 
-            def method(left: np.ndarray, right: np.ndarray, deblurrer=deblurrer) -> np.ndarray:
-                deblurrer.reset()
-                return deblur_encoded(deblurrer, left, right, encoding)
+                def method(left: np.ndarray, right: np.ndarray,
+                           finished=finished) -> np.ndarray:
+                    return deblur_encoded(finished, left, right, encoding)
 
-            methods[str(checkpoint) + ("+tied" if mode == "tied" else "")] = method
+                methods[str(checkpoint) + output_modes_suffix(tie, limit)] = method
     return methods
 
 

@@ -5,9 +5,10 @@ so a defocused capture holds, in linear light and over any region wider than its
 light as the sharp scene. A network trained on synthetic data can still brighten or darken its
 output (by about 1 % over a frame on real photographs: its training frames were blurred in the
 stored values, where the sharp target is brighter than the blurred input). :func:`tie_brightness`
-removes that: it scales the output in linear light so that its low-pass (a Gaussian of ``sigma``
-px, wider than the largest blur, so the detail the network restores is untouched) equals the
-input's, the views' mean. One gain per pixel, the same for R, G and B, so colours are kept.
+removes that: it scales the output in linear light so that its low-pass (a Gaussian of
+:func:`tie_sigma` px, 1/35 of the frame width: as wide as the largest blur of the training data,
+so the detail the network restores is kept) equals the input's, the views' mean. One gain per
+pixel, the same for R, G and B, so colours are kept.
 """
 
 from __future__ import annotations
@@ -22,18 +23,22 @@ from dualpixel.names import BRIGHTNESS_MODES, DEFAULT_BRIGHTNESS
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
-    "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "DITHER_SIGMA", "TIE_SIGMA", "check_brightness",
-    "is_palette_image", "smooth", "tie_brightness",
+    "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "DITHER_SIGMA", "check_brightness",
+    "is_palette_image", "smooth", "tie_brightness", "tie_sigma",
 ]
 
-#: Gaussian std (px) of the low-pass held: twice the largest CoC radius of the training data's
-#: DSLR profile at 840 px (30 px), so no blur the network removes is wider than it.
-TIE_SIGMA = 64.0
 #: Gaussian std (px) that smooths a palette image's dither in its stored values before they are
 #: linearised: dither added there averages out there, and would brighten the linear mean.
 DITHER_SIGMA = 1.0
 #: Linear light added to both low-passes, so black regions keep a gain of about one.
 _FLOOR = 1e-4
+
+
+def tie_sigma(width: int) -> float:
+    """Gaussian std (px) of the low-pass held for a frame ``width`` px wide: 1/35 of it (24 px
+    at 840 px, the scale of the largest CoC radius of the training data's DSLR profile there,
+    30 px). A wider one leaves local shifts of brightness; no narrower one is needed."""
+    return width / 35.0
 
 
 def check_brightness(mode: str) -> str:
@@ -75,12 +80,15 @@ def _low_pass(grey: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def tie_brightness(output: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,
-                   sigma: float = TIE_SIGMA) -> np.ndarray:
+                   sigma: float | None = None) -> np.ndarray:
     """``output`` ``(H, W, 3)`` display (sRGB) values in [0, 1], scaled in linear light so that
-    its Gaussian low-pass (std ``sigma`` px) of the channel mean equals that of the input, the
+    its Gaussian low-pass (std ``sigma`` px, default :func:`tie_sigma`) of the channel mean
+    equals that of the input, the
     mean of ``left`` and ``right`` in linear light (``left`` alone for a one-view model).
     For palette images (:func:`is_palette_image`) both sides are measured after a Gaussian of
     :data:`DITHER_SIGMA` px in the stored values."""
+    if sigma is None:
+        sigma = tie_sigma(output.shape[1])
     if not (math.isfinite(sigma) and sigma > 0):
         raise ParameterError(f"sigma must be a positive number of pixels, got {sigma}")
     views = [v for v in (left, right) if v is not None]

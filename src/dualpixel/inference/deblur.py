@@ -55,6 +55,7 @@ from dualpixel.inference.multiscale import (
     half_resolution,
 )
 from dualpixel.inference.onnx_runtime import OnnxRuntimeNet, check_backend
+from dualpixel.inference.overshoot import DEFAULT_OVERSHOOT, check_overshoot, limit_overshoot
 from dualpixel.inference.precision import Precision, resolve_precision
 from dualpixel.inference.tiling import MAX_BATCH, TileGrid, deblur_tiled
 from dualpixel.models.unet import DeblurNet
@@ -127,6 +128,8 @@ class Deblurrer:
         backend: ``torch``, or ``onnxruntime`` (CPU, float32; the ``onnx`` extra).
         brightness: ``"tied"``: the output's low-pass brightness in linear light held at the
             input's (:mod:`dualpixel.inference.brightness`); ``"model"``: as the network gives it.
+        overshoot: ``"limited"``: the output kept within the input's local range (no halos;
+            :mod:`dualpixel.inference.overshoot`), before any tie; ``"model"``: as it comes.
     """
 
     model: DeblurNet
@@ -140,9 +143,11 @@ class Deblurrer:
     half: bool = False
     backend: str = "torch"
     brightness: str = DEFAULT_BRIGHTNESS
+    overshoot: str = DEFAULT_OVERSHOOT
 
     def __post_init__(self) -> None:
         check_brightness(self.brightness)
+        check_overshoot(self.overshoot)
         if self.tile is not None:
             if self.overlap is None:
                 self.overlap = default_overlap(self.tile)
@@ -181,15 +186,28 @@ class Deblurrer:
         """Forget the recurrent state (start of a new sequence)."""
         self._states: dict = {}  # by (scale, batch of members)
 
-    @torch.inference_mode()
     def __call__(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
         """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3)."""
+        return self.finish(self.network_output(left, right), left, right)
+
+    @torch.inference_mode()
+    def network_output(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
+        """The next frame as the network gives it (flips and scales fused), before the output
+        modes of :meth:`finish`."""
         out = self._ensemble(left, right, scale=0)
         if self.multiscale:
             small = [None if v is None else half_resolution(v) for v in (left, right)]
             coarse = self._ensemble(*small, scale=1)
             out = fuse_scales(out, coarse, self.fusion_sigma)
-        if self.brightness == "tied":
+        return out
+
+    def finish(self, out: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,
+               brightness: str | None = None, overshoot: str | None = None) -> np.ndarray:
+        """``out`` of :meth:`network_output` for these views with the output modes applied:
+        the overshoot limit, then the brightness tie (``None``: this deblurrer's modes)."""
+        if check_overshoot(overshoot or self.overshoot) == "limited":
+            out = limit_overshoot(out, left, right)
+        if check_brightness(brightness or self.brightness) == "tied":
             out = tie_brightness(out, left, right)
         return out
 

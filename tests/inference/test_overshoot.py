@@ -1,0 +1,100 @@
+"""The overshoot limit: rims beyond the input's local range are cut, a steeper edge within it is
+kept, grey views keep their shape, and the option reaches every way of deblurring."""
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import dualpixel
+from dualpixel.cli.main import cli
+from dualpixel.errors import ParameterError
+from dualpixel.evaluation.target_free import check_deblurred
+from dualpixel.inference import Deblurrer
+from dualpixel.inference.brightness import tie_brightness
+from dualpixel.inference.overshoot import combined_view, limit_overshoot, overshoot_radius
+from dualpixel.io.images import read_rgb, write_png
+from dualpixel.models import save_model
+from dualpixel.optics.tone import srgb_to_linear_array
+
+
+@pytest.fixture(scope="module")
+def edge():
+    """A vertical step edge (0.2 | 0.7) blurred by a box of 9 px, as a DP pair with equal views;
+    the sharp step; and a "deblurred" output that over-sharpens it: the step plus a rim of 0.15
+    on both sides."""
+    sharp = np.full((96, 256, 3), 0.2, np.float32)
+    sharp[:, 128:] = 0.7
+    blurred = cv2.blur(sharp, (9, 1), borderType=cv2.BORDER_REFLECT)
+    rim = sharp.copy()
+    rim[:, 122:128] -= 0.15
+    rim[:, 128:134] += 0.15
+    return blurred, sharp, np.clip(rim, 0, 1)
+
+
+def test_a_rim_beyond_the_local_range_is_cut_and_a_steeper_edge_kept(edge):
+    blurred, sharp, rim = edge
+    limited = limit_overshoot(rim, blurred, blurred, radius=8, margin=2.0)
+    # the rim is gone: nothing beyond the range of the blurred edge's two sides (plus 2 levels)
+    assert limited.min() >= 0.2 - 2 / 255 - 1e-6 and limited.max() <= 0.7 + 2 / 255 + 1e-6
+    assert np.abs(limited - sharp).max() <= 2 / 255 + 1e-5
+    # the sharp step lies within that range: the limit leaves it as it is
+    np.testing.assert_array_equal(limit_overshoot(sharp, blurred, blurred, radius=8), sharp)
+    # and the target-free check sees the halo go
+    before = check_deblurred(blurred, blurred, rim, noise_sigma=0)
+    after = check_deblurred(blurred, blurred, limited, noise_sigma=0)
+    assert before.overshoot > 10 and after.overshoot < 1
+
+
+def test_the_range_is_the_views_mean_in_linear_light_and_grey_stays_grey(edge):
+    blurred, _, rim = edge
+    left, right = np.clip(blurred * 1.2, 0, 1), blurred * 0.8
+    combined = combined_view(left, right)
+    linear = srgb_to_linear_array
+    np.testing.assert_allclose(linear(combined), 0.5 * (linear(left) + linear(right)), atol=1e-5)
+    grey = limit_overshoot(rim[..., :1], blurred[..., :1], blurred[..., :1], radius=8)
+    assert grey.shape == (96, 256, 1)
+    np.testing.assert_allclose(grey[..., 0], limit_overshoot(rim, blurred, blurred,
+                                                             radius=8)[..., 0])
+    # the default window grows with the frame: 13 px at 840 px wide
+    assert overshoot_radius(840) == 13 and overshoot_radius(1620) == 25
+
+
+def test_bad_settings_are_refused(edge, refined_model):
+    blurred, _, rim = edge
+    with pytest.raises(ParameterError, match="radius"):
+        limit_overshoot(rim, blurred, blurred, radius=-1)
+    with pytest.raises(ParameterError, match="margin"):
+        limit_overshoot(rim, blurred, blurred, margin=float("nan"))
+    with pytest.raises(ParameterError, match="overshoot"):
+        Deblurrer(refined_model, overshoot="none")
+
+
+def test_the_option_reaches_the_deblurrer_the_api_and_the_commands(edge, refined_model,
+                                                                    tmp_path):
+    blurred, _, _ = edge
+    left, right = blurred, np.roll(blurred, 1, axis=1)
+    plain = Deblurrer(refined_model, precision="fp32")(left, right)
+    limited = Deblurrer(refined_model, precision="fp32", overshoot="limited")(left, right)
+    np.testing.assert_allclose(limited, limit_overshoot(plain, left, right), atol=1e-6)
+    both = Deblurrer(refined_model, precision="fp32", overshoot="limited",
+                     brightness="tied")(left, right)
+    np.testing.assert_allclose(both, tie_brightness(limited, left, right), atol=1e-6)
+    api = dualpixel.deblur(left, right, model=refined_model, device="cpu", precision="fp32",
+                           overshoot="limited")
+    np.testing.assert_allclose(api, limited, atol=1e-6)
+
+    checkpoint = tmp_path / "model.safetensors"
+    save_model(checkpoint, refined_model)
+    write_png(tmp_path / "left.png", left)
+    write_png(tmp_path / "right.png", right)
+    out = tmp_path / "out.png"
+    result = CliRunner().invoke(cli, ["deblur", "--left", str(tmp_path / "left.png"), "--right",
+                                  str(tmp_path / "right.png"), "--checkpoint", str(checkpoint),
+                                  "--precision", "fp32", "--overshoot", "limited", "-o",
+                                  str(out)])
+    assert result.exit_code == 0, result.output
+    stored = [read_rgb(tmp_path / name) for name in ("left.png", "right.png")]
+    reference = limit_overshoot(Deblurrer(refined_model, precision="fp32")(*stored), *stored)
+    written = read_rgb(out)
+    assert np.abs(written - reference).max() <= 1.5 / 255
