@@ -124,3 +124,106 @@ def test_tiles_too_small_for_the_network_warn(refined_model):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         Deblurrer(refined_model, tile=256)
+
+
+@pytest.fixture()
+def inputs(tmp_path, tiny_checkpoint):
+    """Views, a combined image, a DPDD folder, an RGB-D pair and a checkpoint, with their bytes."""
+    import numpy as np
+
+    from dualpixel.io.images import write_png
+
+    rng = np.random.default_rng(0)
+    image = rng.random((48, 64, 3)).astype(np.float32)
+    for name in ("left.png", "right.png", "combined.png", "scene/rgb.png",
+                 "dpdd/test_l/source/a.png", "dpdd/test_r/source/a.png",
+                 "dpdd/test_c/source/a.png", "dpdd/test_c/target/a.png"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        write_png(tmp_path / name, image)
+    np.save(tmp_path / "scene" / "depth.npy", np.full((48, 64), 2.0, np.float32))
+    checkpoint = tmp_path / "model.safetensors"
+    checkpoint.write_bytes(tiny_checkpoint.read_bytes())
+    (tmp_path / "link.png").symlink_to(tmp_path / "left.png")
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    return tmp_path, before
+
+
+@pytest.mark.parametrize("args, says", [
+    (["deblur", "--left", "{d}/left.png", "--right", "{d}/right.png", "--combined",
+      "{d}/combined.png", "-o", "{d}/combined.png"], "is the input --combined"),
+    (["deblur", "--left", "{d}/left.png", "--right", "{d}/right.png", "-o", "{d}/link.png"],
+     "is the input --left"),
+    (["deblur", "--input", "{d}/dpdd", "-o", "{d}/dpdd/test_c/target"],
+     "lies inside the input folder --input"),
+    (["export", "--checkpoint", "{d}/model.safetensors", "-o", "{d}/model.safetensors"],
+     "is the input --checkpoint"),
+    (["demo", "--rgb", "{d}/scene/rgb.png", "--depth", "{d}/scene/depth.npy", "-o",
+      "{d}/scene"], "holds the input --rgb"),
+    (["stats", "{d}/dpdd", "--json", "{d}/dpdd/stats.json"], "inside the input folder DATASETS"),
+    (["niqe", "fit", "--images", "{d}/scene", "-o", "{d}/scene/model.npz"],
+     "inside the input folder --input"),
+])
+def test_an_output_that_is_or_holds_an_input_is_refused_before_any_work(inputs, args, says):
+    folder, before = inputs
+    result = CliRunner().invoke(cli, [a.format(d=folder) for a in args])
+    assert result.exit_code == 2, result.output
+    assert says in result.output and "inputs are never outputs" in result.output
+    assert "Traceback" not in result.output
+    after = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    assert after == before  # nothing written, nothing replaced
+
+
+def test_outputs_apart_in_the_library(tmp_path):
+    from dualpixel.io.paths import check_outputs_apart
+
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "a.png").write_bytes(b"x")
+    check_outputs_apart({"--input": [tmp_path / "in"]}, {"--output": tmp_path / "out"})
+    check_outputs_apart({"--input": [tmp_path / "missing"]}, {"--output": tmp_path / "missing"})
+    with pytest.raises(ParameterError, match="holds the input --input"):
+        check_outputs_apart({"--input": [tmp_path / "in" / "a.png"]}, {"-o": tmp_path})
+
+
+def test_an_interrupted_scenes_folder_is_not_taken_as_finished(tmp_path, monkeypatch):
+    import json
+
+    from dualpixel.synthesis import scenes
+
+    config = scenes.SceneConfig(width=64, height=48, frames=1, layout="photo")
+    write = scenes._write_sequence
+
+    def killed_at_the_second(folder, k, *args):
+        if k == 1:
+            raise KeyboardInterrupt
+        write(folder, k, *args)
+
+    monkeypatch.setattr(scenes, "_write_sequence", killed_at_the_second)
+    with pytest.raises(KeyboardInterrupt):
+        scenes.write_scene_folder(tmp_path / "scenes", 2, config, progress=False)
+    monkeypatch.undo()
+    description = json.loads((tmp_path / "scenes" / scenes.SCENES_DESCRIPTION).read_text())
+    assert description["status"] == "incomplete"
+    result = CliRunner().invoke(cli, ["synth", "--input", str(tmp_path / "scenes"), "-o",
+                                      str(tmp_path / "dataset")])
+    assert result.exit_code == 1 and "unfinished" in result.output, result.output
+    assert not (tmp_path / "dataset").exists()
+    scenes.write_scene_folder(tmp_path / "scenes", 2, config, progress=False)  # the rerun ends it
+    description = json.loads((tmp_path / "scenes" / scenes.SCENES_DESCRIPTION).read_text())
+    assert description["status"] == "complete" and description["sequences"] == 2
+
+
+@pytest.mark.parametrize("key, value", [
+    ("iterations_per_epoch", "1e12"), ("iterations_per_epoch", "1000000000000"),
+    ("patch_size", "100000"), ("epochs", "0"), ("seed", "-1"), ("seed", str(2**70)),
+    ("seed", "1.5"), ("seed", "10**23"), ("workers", "100000"),
+])
+def test_values_that_size_work_are_bounded_before_any(tmp_path, key, value):
+    from dualpixel.training import load_config
+
+    overrides = {"synthetic_data": str(tmp_path), key: value}
+    with pytest.raises(ParameterError, match=key):
+        load_config(None, overrides)
+    result = CliRunner().invoke(cli, ["train", "--set", f"synthetic_data={tmp_path}", "--set",
+                                      f"{key}={value}", "-o", str(tmp_path / "run")])
+    assert result.exit_code == 2 and key in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "run").exists()

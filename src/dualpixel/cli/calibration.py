@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
+from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, OutputPath, parse_size
 from dualpixel.names import PSF_BANK_NAMES
 
 
@@ -20,7 +20,7 @@ from dualpixel.names import PSF_BANK_NAMES
 @click.option("--radius-fraction", type=float, default=0.1,
               help="Disk radius as a fraction of the spacing (disks).")
 @click.option("--square", type=int, default=None, help="Square side (squares; default spacing/2).")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True)
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True)
 def pattern(kind: str, size: tuple[int, int], spacing: int, radius_fraction: float,
             square: int | None, output: Path) -> None:
     """Write a calibration target to show full-screen on a display."""
@@ -59,7 +59,7 @@ def calibrate() -> None:
 @click.option("--lam", type=float, default=0.1, help="Weight of the l1 term.")
 @click.option("--smoothness", type=float, default=0.1,
               help="Extra ||grad E||^2 weight (ours; 0 = the supplement's objective).")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True,
               help=".npz with left, right, combined (N, K, K) and centres.")
 def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, kernel_size: int,
                  lam: float, smoothness: float, output: Path) -> None:
@@ -77,12 +77,12 @@ def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, 
               help="Measured left PSFs: .npy (N, S, S), or the .npz of estimate-psf.")
 @click.option("--right", type=click.Path(dir_okay=False, path_type=Path), required=True)
 @click.option("--output", "-o", "--report", "report",
-              type=click.Path(file_okay=False, path_type=Path), required=True,
+              type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="Folder for fits.csv, summary.json/.md and figure.png (--report: old name).")
 @click.option("--limit", type=click.IntRange(1), default=None, help="Fit only the first N pairs.")
 @click.option("--grid", type=click.Choice(["paper", "bank"]), default="paper",
               help="paper: the full S2 search; bank: only the 48-PSF bank's values (quick).")
-@click.option("--camera", "camera_file", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--camera", "camera_file", type=OutputPath(dir_okay=False, path_type=Path),
               default=None,
               help="Also write a camera file (for synth --camera) from the fits: the most "
                    "common shape, the fitted blur sizes.")
@@ -137,7 +137,7 @@ def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str,
               help="In-focus capture of the square pattern, centred and cropped to it.")
 @click.option("--pattern", "pattern_path", type=click.Path(dir_okay=False, path_type=Path),
               required=True, help="The pattern image that was displayed.")
-@click.option("--working-width", type=click.IntRange(16), default=480,
+@click.option("--working-width", type=click.IntRange(16, 4096), default=480,
               help="Search resolution (width).")
 def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int) -> None:
     """Fit division-model coefficients c1, c2, c3 (S3)."""
@@ -157,9 +157,9 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
               help="Real DP pairs with sharp targets: a DPDD-layout folder or a folder of scene "
                    "folders (view0/view1/target.png); repeat for more.")
 @click.option("--split", default=None, help="Split of DPDD-layout folders [default: test].")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True,
               help="camera.json to write (for `dualpixel synth --camera`).")
-@click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--figure", type=OutputPath(dir_okay=False, path_type=Path), default=None,
               help="PNG: the fitted kernels beside the views, and blur against disparity per "
                    "channel.")
 @click.option("--name", default=None, help="Label of the camera [default: the input's name].")

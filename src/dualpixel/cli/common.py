@@ -12,12 +12,15 @@ Error contract of the ``dualpixel`` command (README "What the commands guarantee
 from __future__ import annotations
 
 import errno
+from pathlib import Path
 
 import click
 
 from dualpixel.errors import DualPixelError, ParameterError
+from dualpixel.io.paths import check_outputs_apart
 
-__all__ = ["CONTEXT", "DPCommand", "DPGroup", "float_list", "parse_size"]
+__all__ = ["CONTEXT", "MAX_SIDE", "DPCommand", "DPGroup", "OutputPath", "float_list",
+           "parse_size"]
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "show_default": True}
 
@@ -45,11 +48,41 @@ def _report(error: BaseException, ctx: click.Context) -> click.ClickException:
     return click.ClickException(_os_error_message(error))
 
 
+class OutputPath(click.Path):
+    """A path the command writes (a file or folder option). Every other path option, and a
+    checkpoint given as an existing file, is an input: :class:`DPCommand` refuses an output that
+    is an input, holds one or lies inside an input folder, before any work."""
+
+
+#: Options whose string value is an input file when it names one (a checkpoint, not a tag).
+_FILE_OR_NAME_OPTIONS = ("checkpoint", "checkpoints", "niqe_model")
+
+
+def _paths_of(ctx: click.Context) -> tuple[dict[str, list[Path]], dict[str, Path]]:
+    """The inputs and outputs of a parsed command line, by option (``--left``)."""
+    inputs: dict[str, list[Path]] = {}
+    outputs: dict[str, Path] = {}
+    for param in ctx.command.params:
+        value = ctx.params.get(param.name)
+        if value is None or not isinstance(param, (click.Option, click.Argument)):
+            continue
+        option = param.opts[0] if isinstance(param, click.Option) else param.human_readable_name
+        values = value if isinstance(value, (tuple, list)) else (value,)
+        if isinstance(param.type, OutputPath):
+            outputs[option] = Path(values[0])
+        elif isinstance(param.type, click.Path) or param.name in _FILE_OR_NAME_OPTIONS:
+            inputs[option] = [Path(v) for v in values if isinstance(v, (str, Path))
+                              and Path(v).exists()]
+    return inputs, outputs
+
+
 class DPCommand(click.Command):
-    """A command whose library errors end in one clear message (see the module docstring)."""
+    """A command whose library errors end in one clear message (see the module docstring),
+    and whose outputs are never its inputs (:class:`OutputPath`)."""
 
     def invoke(self, ctx: click.Context):
         try:
+            check_outputs_apart(*_paths_of(ctx))
             return super().invoke(ctx)
         except (DualPixelError, MemoryError, OSError) as error:
             raise _report(error, ctx) from error
@@ -82,6 +115,10 @@ def float_list(_ctx, param, value: str | None) -> list[float] | None:
     return numbers
 
 
+#: Largest side (px) an option may ask a command to make: 16384 (a 64 MP frame is 9248 px wide).
+MAX_SIDE = 16384
+
+
 def parse_size(_ctx, param, value: str) -> tuple[int, int]:
     """Parse ``WIDTHxHEIGHT`` into positive integers (a click callback)."""
     try:
@@ -89,6 +126,7 @@ def parse_size(_ctx, param, value: str) -> tuple[int, int]:
     except ValueError:
         raise click.BadParameter(f"expected WIDTHxHEIGHT, e.g. 320x240, got {value!r}",
                                  param=param) from None
-    if width < 1 or height < 1:
-        raise click.BadParameter(f"width and height must be >= 1, got {value!r}", param=param)
+    if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE):
+        raise click.BadParameter(f"width and height must be between 1 and {MAX_SIDE}, got "
+                                 f"{value!r}", param=param)
     return width, height

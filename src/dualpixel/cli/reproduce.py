@@ -6,12 +6,12 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand
+from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.argument("recipe_path", metavar="RECIPE", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="Run folder: data/, phases/, ship/, eval/ (a rerun resumes it).")
 @click.option("--until", default=None, metavar="PHASE",
               help="Stop after this phase (its weights: OUTPUT/phases/PHASE/last.safetensors).")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, float_list, parse_size
+from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath, float_list, parse_size
 from dualpixel.names import (
     LIGHT_SPACES,
     PSF_BANK_NAMES,
@@ -17,7 +17,7 @@ from dualpixel.names import (
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path),
               default=Path("psf_figure.png"), help="PNG figure to write.")
 @click.option("--radii", default="-12,-6,-2,2,6,12", callback=float_list,
               help="Signed CoC radii in pixels (comma-separated).")
@@ -25,7 +25,7 @@ from dualpixel.names import (
 @click.option("--alpha", type=float, default=0.4, help="Cutoff factor, D_o = alpha * 2|r|.")
 @click.option("--beta", type=float, default=0.2, help="Minimum of the rescaled Butterworth term.")
 @click.option("--kappa", type=float, default=0.14, help="Gaussian smoothing std per pixel of r.")
-@click.option("--save", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--save", type=OutputPath(dir_okay=False, path_type=Path), default=None,
               help="Also store the kernels as .npz (left, right, combined, radii, ...).")
 def psf(output: Path, radii: list[float], order: float, alpha: float, beta: float,
         kappa: float, save: Path | None) -> None:
@@ -48,7 +48,7 @@ def psf(output: Path, radii: list[float], order: float, alpha: float, beta: floa
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="RGB-D folder to write (one subfolder per sequence).")
 @click.option("--sequences", type=click.IntRange(1), default=2, help="Number of sequences.")
 @click.option("--frames", type=click.IntRange(1), default=4, help="Frames per sequence.")
@@ -79,7 +79,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               required=True, help="SYNTHIA-SF root or RGB-D folder.")
 @click.option("--format", "fmt", type=click.Choice(["synthia", "rgbd"]), default="rgbd",
               help="Input layout.")
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path),
               required=True, help="Dataset folder (DPDD layout).")
 @click.option("--cameras", default="set0,set1,set2,set3,set4",
               help="Camera presets set0..set4 and/or defocus profiles relative to the frame "
@@ -178,7 +178,7 @@ def _shard(param, value: str | None) -> tuple[int, int] | None:
 @click.command("merge-shards", cls=DPCommand, context_settings=CONTEXT)
 @click.argument("shards", nargs=-1, required=True,
                 type=click.Path(file_okay=False, exists=True, path_type=Path))
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="New dataset folder: the same files as one `synth` run without --shard.")
 def merge_shards_command(shards: tuple[Path, ...], output: Path) -> None:
     """Join the folders of `synth --shard K/N` (all N of them) into one dataset."""
@@ -192,7 +192,7 @@ def merge_shards_command(shards: tuple[Path, ...], output: Path) -> None:
 @click.option("--input", "--dataset", "dataset",
               type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Dataset folder written by `dualpixel synth`.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path),
               default=Path("preview.png"), help="PNG contact sheet to write.")
 @click.option("--rows", type=click.IntRange(1), default=5, help="Sequences to show.")
 def preview(dataset: Path, output: Path, rows: int) -> None:
@@ -215,9 +215,9 @@ def preview(dataset: Path, output: Path, rows: int) -> None:
 @click.option("--limit", type=click.IntRange(1), default=None,
               help="At most this many frames per dataset, spread evenly over its sequences.")
 @click.option("--patch", type=click.IntRange(16), default=64, help="Block size in pixels.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), default=None,
               help="Histogram figure (PNG) of all datasets side by side.")
-@click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--json", "json_path", type=OutputPath(dir_okay=False, path_type=Path),
               default=None, help="Write the percentiles as JSON too.")
 @click.option("--disparity-ratio", "max_radius", type=click.FloatRange(1.0, 60.0), default=None,
               metavar="MAX_RADIUS",

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand
+from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -57,7 +57,7 @@ def _overrides(_ctx, _param, values: tuple[str, ...]) -> dict[str, str]:
               default=None, help="YAML/JSON config (keys of dualpixel.training.TrainConfig).")
 @click.option("--set", "overrides", multiple=True, callback=_overrides, metavar="KEY=VALUE",
               help="Override a config key (repeatable), e.g. --set epochs=10.")
-@click.option("--output", "-o", type=click.Path(file_okay=False, path_type=Path), required=True,
+@click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="Run folder: config, checkpoints, history, TensorBoard logs.")
 @click.option("--resume", is_flag=True, help="Continue the run in --output after its last epoch.")
 @click.option("--progress/--no-progress", default=True, help="Show a progress bar.")

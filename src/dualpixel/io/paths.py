@@ -1,12 +1,14 @@
-"""Paths read from files and options stay inside their folders (one check, used everywhere)."""
+"""Paths read from files and options stay inside their folders, and no output is an input
+(one check each, used everywhere)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from dualpixel.errors import InputFileError, ParameterError
 
-__all__ = ["check_plain_name", "contained"]
+__all__ = ["check_outputs_apart", "check_plain_name", "contained"]
 
 
 def contained(root: str | Path, relative: str | Path, source: str | Path) -> Path:
@@ -25,3 +27,26 @@ def check_plain_name(name: str, option: str) -> str:
         raise ParameterError(f"{option} must be a plain name (letters, digits, '-', '_'), "
                              f"got {name!r}")
     return name
+
+
+def check_outputs_apart(inputs: Mapping[str, Iterable[str | Path]],
+                        outputs: Mapping[str, str | Path]) -> None:
+    """Refuse, before any work, an output that is an input, a folder that holds one, or a path
+    inside an input folder (symlinks resolved: a link to an input is that input).
+    ``inputs`` and ``outputs`` are keyed by the option that names them (e.g. ``--left``);
+    inputs that do not exist are skipped (their readers say so)."""
+    existing = [(option, Path(path), Path(path).resolve()) for option, paths in inputs.items()
+                for path in paths if Path(path).exists()]
+    for out_option, out in outputs.items():
+        target = Path(out).resolve()
+        for option, given, source in existing:
+            if target == source:
+                problem = f"is the input {option} ({given})"
+            elif source.is_relative_to(target):
+                problem = f"is a folder that holds the input {option} ({given})"
+            elif source.is_dir() and target.is_relative_to(source):
+                problem = f"lies inside the input folder {option} ({given})"
+            else:
+                continue
+            raise ParameterError(f"{out_option} {out} {problem}: inputs are never outputs; "
+                                 "write elsewhere")

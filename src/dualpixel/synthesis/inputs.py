@@ -86,6 +86,9 @@ def discover_sequences(
             for p in folders
         ]
     if fmt == "rgbd":
+        from dualpixel.synthesis.scenes import check_scenes_complete
+
+        check_scenes_complete(root)
         if (root / "rgb").is_dir():
             return [_pair(root.name, split, root / "rgb", root / "depth")]
         folders = sorted(p for p in root.iterdir() if (p / "rgb").is_dir())

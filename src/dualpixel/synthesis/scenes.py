@@ -280,14 +280,13 @@ SCENES_DESCRIPTION = "scenes.json"
 def _check_or_write_description(root: Path, settings: dict) -> None:
     """Refuse a folder holding scenes made with other settings (kept frames would not match)."""
     from dualpixel.errors import InputFileError
-    from dualpixel.io.atomic import atomic_path
     from dualpixel.io.documents import read_mapping
     from dualpixel.io.run_folder import differing_settings
 
     path = root / SCENES_DESCRIPTION
     if path.is_file():
         existing = read_mapping(path, "scenes description (remove the folder and rerun)")
-        differ = differing_settings(settings, existing)
+        differ = differing_settings(settings, existing, ignore=("status", "sequences"))
         if differ:
             raise InputFileError(root, "holds scenes made with other settings (differs in "
                                        f"{', '.join(differ)}); choose another output folder")
@@ -296,8 +295,32 @@ def _check_or_write_description(root: Path, settings: dict) -> None:
         raise InputFileError(root, f"holds sequences without a {SCENES_DESCRIPTION} (made by "
                                    "something else); choose another output folder")
     root.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(settings, indent=2, sort_keys=True) + "\n")
+    _write_description(root, settings, "incomplete")
+
+
+def _write_description(root: Path, settings: dict, status: str, sequences: int = 0) -> None:
+    """The folder's settings with its completion mark: ``status`` "incomplete" until every
+    sequence is written (:func:`check_scenes_complete`)."""
+    from dualpixel.io.atomic import atomic_path
+
+    record = {**settings, "status": status, **({"sequences": sequences} if sequences else {})}
+    with atomic_path(root / SCENES_DESCRIPTION) as tmp:
+        tmp.write_text(json.dumps(record, indent=2, sort_keys=True) + "\n")
+
+
+def check_scenes_complete(root: str | Path) -> None:
+    """Refuse a folder of :func:`write_scene_folder` whose writing was interrupted (its
+    description says "incomplete"); folders of other tools, without a description, pass."""
+    from dualpixel.errors import InputFileError
+    from dualpixel.io.documents import read_mapping
+
+    path = Path(root) / SCENES_DESCRIPTION
+    if path.is_file():
+        status = read_mapping(path, "scenes description").get("status", "complete")
+        if status != "complete":
+            raise InputFileError(root, "is an unfinished `dualpixel scenes` folder (its "
+                                       "writing was interrupted); rerun the same `dualpixel "
+                                       "scenes` command to finish it")
 
 
 def write_scene_folder(
@@ -322,15 +345,19 @@ def write_scene_folder(
         settings = asdict(config)
         if not settings["relief"]:  # as recorded before the setting existed
             del settings["relief"]
-        _check_or_write_description(root, {"config": settings, "seed": seed})
+        description = {"config": settings, "seed": seed}
+        _check_or_write_description(root, description)
         remove_partials(root)  # temporary files of writes a kill interrupted
         missing = [(folder, k, names, config, seed) for k, folder in enumerate(folders)
                    if not all((folder / "depth" / f"{n}.npy").is_file()
                               and (folder / "rgb" / f"{n}.png").is_file() for n in names)]
+        if missing:
+            _write_description(root, description, "incomplete")
         with tqdm(total=sequences, initial=sequences - len(missing), desc="rendering scenes",
                   unit="seq", disable=not progress) as bar:
             for _ in completed(_write_sequence, missing, workers):
                 bar.update()
+        _write_description(root, description, "complete", sequences)
     return folders
 
 

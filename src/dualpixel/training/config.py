@@ -109,12 +109,10 @@ class TrainConfig:
             check_plain_name(getattr(self, key), key)
         if self.real_data is None and self.synthetic_data is None:
             raise ParameterError("give real_data, synthetic_data or both")
-        positive = ("patch_size", "real_batch", "sequence_batch", "sequence_frames", "epochs",
-                    "lr_halve_every", "iterations_per_epoch", "val_limit", "threads")
-        for name in positive:
+        for name, most in _COUNT_LIMITS.items():  # they size work and memory: bounded
             value = getattr(self, name)
-            if value is not None and value < 1:
-                raise ParameterError(f"{name} must be >= 1, got {value}")
+            if value is not None and not 1 <= value <= most:
+                raise ParameterError(f"{name} must be between 1 and {most}, got {value}")
         # every float finite and in its range: a run must not train to NaN and exit 0
         for name, low, high in (("width", 0.0, 16.0), ("lstm_dropout", 0.0, 1.0),
                                 ("learning_rate", 0.0, 1.0), ("lambda_x", 0.0, 1e3),
@@ -123,9 +121,10 @@ class TrainConfig:
         if self.width <= 0 or self.lstm_dropout >= 1:
             raise ParameterError(f"width must be > 0 and lstm_dropout < 1, got {self.width} and "
                                  f"{self.lstm_dropout}")
-        for name in ("workers", "log_images", "seed"):
-            if getattr(self, name) < 0:
-                raise ParameterError(f"{name} must be >= 0, got {getattr(self, name)}")
+        for name, most in (("workers", 256), ("log_images", 64), ("seed", 2**63 - 1)):
+            if not 0 <= getattr(self, name) <= most:
+                raise ParameterError(f"{name} must be between 0 and {most}, got "
+                                     f"{getattr(self, name)}")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ParameterError(f"lr_schedule must be one of {', '.join(LR_SCHEDULES)}, "
                                  f"got {self.lr_schedule!r}")
@@ -162,6 +161,13 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+
+#: Largest value of each count a config may ask for (work and memory grow with them; an
+#: epoch's batch list is built in memory).
+_COUNT_LIMITS = {"patch_size": 8192, "real_batch": 4096, "sequence_batch": 4096,
+                 "sequence_frames": 256, "epochs": 100_000, "lr_halve_every": 10_000_000,
+                 "iterations_per_epoch": 1_000_000, "val_limit": 10_000_000, "threads": 1024}
 
 
 def _coerce(name: str, annotation: Any, value: Any) -> Any:
