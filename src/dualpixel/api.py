@@ -38,6 +38,9 @@ def load_model(name_or_path: str | Path = DEFAULT_CHECKPOINT, *, device: str = "
     from dualpixel.models import load_model as load_checkpoint
     from dualpixel.weights import resolve_checkpoint
 
+    if not isinstance(name_or_path, (str, Path)):
+        raise ParameterError("load_model takes a model name (list_models()) or a checkpoint "
+                             f"path, got {type(name_or_path).__name__}")
     return load_checkpoint(resolve_checkpoint(name_or_path), device=resolve_device(device))
 
 
@@ -111,6 +114,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         to_model,
     )
     from dualpixel.inference.onnx_runtime import backend_device
+    from dualpixel.models.unet import DeblurNet
 
     view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain)
     channels, scale = min(image_channels(left), 3), full_scale(left)
@@ -130,6 +134,9 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
                                  "both views as read from one capture")
     resolved = backend_device(backend, device)
     net = load_model(model, device=str(resolved)) if isinstance(model, (str, Path)) else model
+    if not isinstance(net, DeblurNet):
+        raise ParameterError("model must be a name (dualpixel models), a checkpoint path or a "
+                             f"network from load_model, got {type(model).__name__}")
     if right is None and net.spec.views == 2:
         raise ParameterError(f"this model ({net.spec.name}) needs both views; give right")
     if views_sum and rights is None:

@@ -227,3 +227,24 @@ def test_values_that_size_work_are_bounded_before_any(tmp_path, key, value):
                                       f"{key}={value}", "-o", str(tmp_path / "run")])
     assert result.exit_code == 2 and key in result.output and "Traceback" not in result.output
     assert not (tmp_path / "run").exists()
+
+
+def test_the_api_refuses_what_is_not_a_model_or_an_image(tiny_checkpoint):
+    import numpy as np
+    import torch
+
+    import dualpixel
+
+    view = np.full((32, 48, 3), 0.5, np.float32)
+    with pytest.raises(ParameterError, match="load_model takes"):
+        dualpixel.load_model(5)
+    with pytest.raises(ParameterError, match="model must be"):
+        dualpixel.deblur(view, view, model=object())
+    with pytest.raises(ParameterError, match="meta tensor"):
+        dualpixel.deblur(torch.zeros(3, 32, 48, device="meta"), torch.zeros(3, 32, 48))
+    with pytest.raises(ParameterError, match=r"\[0, 1\]"):
+        dualpixel.deblur(np.full_like(view, 1.4), view, model=tiny_checkpoint)
+    # half-precision tensors are images too: read exactly, answered as float32
+    half = torch.full((3, 32, 48), 0.5, dtype=torch.bfloat16)
+    out = dualpixel.deblur(half, half, model=tiny_checkpoint, device="cpu")
+    assert out.dtype == torch.float32 and out.shape == (3, 32, 48)

@@ -88,7 +88,13 @@ def as_image_batch(image: Any, name: str = "image",
     if type(image).__module__.startswith("PIL."):
         array, layout = _from_pil(image, name)[None], "numpy"
     elif type(image).__module__.startswith("torch"):
+        import torch
+
+        if image.is_meta:
+            raise ParameterError(f"{name}: a meta tensor holds no values")
         tensor = image.detach().cpu()
+        if tensor.dtype in (torch.bfloat16, torch.float16):
+            tensor = tensor.float()  # NumPy has no bfloat16; float32 holds both exactly
         if tensor.ndim == 3 and tensor.shape[0] in _CHANNELS:
             tensor, layout = tensor[None], "torch"
         elif tensor.ndim == 4 and tensor.shape[1] in _CHANNELS:
@@ -154,6 +160,6 @@ def full_scale(image: Any) -> float:
     (and 16-bit PIL images), 1 for floats."""
     if type(image).__module__.startswith("PIL."):
         return 65535.0 if image.mode.startswith("I") else 255.0 if image.mode != "F" else 1.0
-    dtype = str(getattr(image, "dtype", np.asarray(image).dtype))
+    dtype = str(image.dtype) if hasattr(image, "dtype") else str(np.asarray(image).dtype)
     return {"uint8": 255.0, "torch.uint8": 255.0, "uint16": 65535.0,
             "torch.uint16": 65535.0}.get(dtype, 1.0)

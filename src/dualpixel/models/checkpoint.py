@@ -17,7 +17,7 @@ import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save
 
-from dualpixel.errors import InputFileError
+from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.atomic import atomic_path
 from dualpixel.models.registry import build_model, model_spec
 from dualpixel.models.unet import DeblurNet
@@ -152,6 +152,8 @@ def load_weights(model: torch.nn.Module, path: str | Path, *,
 
 def load_model(path: str | Path, *, device: str | torch.device = "cpu") -> DeblurNet:
     """Rebuild the network a checkpoint describes, load its weights, and put it in eval mode."""
+    if not isinstance(path, (str, Path)):
+        raise ParameterError(f"load_model takes a checkpoint path, got {type(path).__name__}")
     meta = read_metadata(path)
     model = build_from_metadata(meta)
     load_weights(model, path)
