@@ -248,3 +248,21 @@ def test_the_api_refuses_what_is_not_a_model_or_an_image(tiny_checkpoint):
     half = torch.full((3, 32, 48), 0.5, dtype=torch.bfloat16)
     out = dualpixel.deblur(half, half, model=tiny_checkpoint, device="cpu")
     assert out.dtype == torch.float32 and out.shape == (3, 32, 48)
+
+
+@pytest.mark.parametrize("compare, says", [
+    (["input={d}"], "name of the input's row"),
+    (["model={d}"], "name of the model's row"),
+    (["../x={d}"], "plain name"),
+    (["a={d}", "a={d}"], "given twice"),
+])
+def test_eval_compare_names_stay_apart_from_the_rows(tmp_path, compare, says):
+    for name in ("pred", "target"):
+        (tmp_path / name).mkdir()
+    args = ["eval", "--pred", str(tmp_path / "pred"), "--target", str(tmp_path / "target"),
+            "-o", str(tmp_path / "report")]
+    for item in compare:
+        args += ["--compare", item.format(d=tmp_path)]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2 and says in result.output, result.output
+    assert "Traceback" not in result.output

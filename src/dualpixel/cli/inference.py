@@ -162,6 +162,8 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
         name, sep, folder = item.partition("=")
         if not sep or not Path(folder).is_dir():
             raise click.BadParameter(f"expected NAME=FOLDER with an existing folder, got {item!r}")
+        if name in result:
+            raise click.BadParameter(f"{name!r} is given twice; each method needs its own name")
         result[name] = Path(folder)
     return result
 

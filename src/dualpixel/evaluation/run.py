@@ -21,6 +21,7 @@ from dualpixel.evaluation.niqe import resolve_niqe_model
 from dualpixel.io.atomic import check_writable
 from dualpixel.io.dpdd import role_folder
 from dualpixel.io.images import read_rgb, write_png
+from dualpixel.io.paths import check_plain_name
 
 __all__ = ["EvaluationRequest", "draw_comparisons", "run_evaluation"]
 
@@ -62,6 +63,12 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
         f"{request.niqe_model or 'builtin'} ({niqe.source})"
     if request.align is not None:
         meta["align"] = check_align_mode(request.align)
+    for name in request.compare or {}:  # rows of the reports, named like no other
+        check_plain_name(name, "--compare name")
+        if name in ("input", method):
+            raise ParameterError(f"--compare name {name!r} is the name of the "
+                                 f"{'input' if name == 'input' else 'model'}'s row; choose "
+                                 "another")
     breakdown: BlurBreakdown | None = None
     if request.pred is not None or request.target is not None:
         if request.pred is None or request.target is None or request.dataset is not None:
