@@ -26,6 +26,7 @@ from dualpixel.inference import Deblurrer
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import read_depth, read_rgb, write_png
 from dualpixel.models import load_model
+from dualpixel.progress import progress_bar
 from dualpixel.viz.comparison import render_comparison
 from dualpixel.viz.html_report import Figure, Report, write_html_report
 from dualpixel.viz.maps import render_colour_map, write_views_gif
@@ -129,7 +130,7 @@ def run_demo(
     model = load_model(checkpoint_path, device=device)
     mode = "pair" if left is not None else "rgbd" if rgb is not None else "procedural"
     count = 1 if mode != "procedural" else frames
-    bar = tqdm(total=2 * count + 3, desc="demo", unit="step", disable=not progress)
+    bar = progress_bar(total=2 * count + 3, desc="demo", unit="step", enabled=progress)
     recipe = None
     if mode == "pair":
         left_image, right_image = read_rgb(left), read_rgb(right)

@@ -322,9 +322,8 @@ def calibrate_camera(
             ``skip_misaligned`` such frames are left out with a warning instead.
         ParameterError: fewer than :data:`MIN_BLOCKS` usable blocks over all frames.
     """
-    from tqdm import tqdm
-
     from dualpixel.data.statistics import noise_level
+    from dualpixel.progress import progress_bar
 
     check_range("patch", patch, 8)
     radius_step = max_radius / 48 if radius_step is None else radius_step
@@ -351,8 +350,8 @@ def calibrate_camera(
         raise ParameterError("every frame's target is misaligned with its views")
     frames = aligned
     scores, all_fits = [], []
-    bar = tqdm(total=len(psf_candidates) * len(frames), desc="calibrating camera",
-               disable=not progress)
+    bar = progress_bar(total=len(psf_candidates) * len(frames), desc="calibrating camera",
+                       enabled=progress)
     for params in psf_candidates:
         fits = []
         for _, left, right, target in frames:

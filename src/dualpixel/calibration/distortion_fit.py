@@ -74,7 +74,7 @@ def fit_distortion(
         initial_step: step of the first local level.
         progress: show a progress bar (one step per search level, with the correlation).
     """
-    from tqdm import tqdm
+    from dualpixel.progress import progress_bar
 
     check_range("working_width", working_width, 16)
     check_range("blur", blur, 0.0)
@@ -100,7 +100,7 @@ def fit_distortion(
                 cache[key] = float(_ncc(warped, target))
         return cache[key]
 
-    bar = tqdm(total=levels + 1, desc="fitting distortion", unit="level", disable=not progress)
+    bar = progress_bar(total=levels + 1, desc="fitting distortion", unit="level", enabled=progress)
     best = max(((c1, 0.0, 0.0) for c1 in np.linspace(*c1_range, 41)), key=score)
     bar.update()
     step = initial_step

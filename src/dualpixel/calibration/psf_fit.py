@@ -29,7 +29,6 @@ import torch
 import torch.nn.functional as F
 from scipy import ndimage
 from scipy.signal import correlate2d
-from tqdm import tqdm
 
 from dualpixel.calibration.psf_estimation import derivative_filters
 from dualpixel.errors import ParameterError
@@ -40,6 +39,7 @@ from dualpixel.optics.psf import (
     punnappurath_left_psf,
     split_views,
 )
+from dualpixel.progress import progress_bar
 
 __all__ = [
     "BANK_SEARCH_GRID",
@@ -217,7 +217,8 @@ def fit_psf_models(
     ours = _Scorer(target, grid.refine_top)
     betas = torch.tensor(grid.beta, dtype=torch.float64)
     combos = [(n, a) for n in grid.n for a in grid.alpha]
-    for n, a in tqdm(combos, desc="fitting our PSF model", unit="(n,alpha)", disable=not progress):
+    for n, a in progress_bar(combos, desc="fitting our PSF model", unit="(n,alpha)",
+                             enabled=progress):
         terms = butterworth_disk_terms(radii, n, a, size)
         for kappa in grid.kappa:
             ours.add(_our_left_kernels(terms, radii, betas, kappa),

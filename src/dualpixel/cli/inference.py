@@ -134,6 +134,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     from dualpixel.inference import Deblurrer
     from dualpixel.inference.encoding import view_encoding_from_files
     from dualpixel.inference.jobs import plan_deblur_jobs, run_deblur_jobs
+    from dualpixel.progress import progress_bar
 
     view_encoding = view_encoding_from_files(encoding, black_level, white_level, right_gain,
                                              flat_field)
@@ -151,7 +152,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
 
     run = run_deblur_jobs(deblurrer, jobs, views_sum=views_sum, strict=strict, report=report,
                           encoding=view_encoding)
-    for _ in tqdm(run, total=total, desc="deblurring", unit="frame"):
+    for _ in progress_bar(run, total=total, desc="deblurring", unit="frame"):
         pass
     click.echo(f"wrote {total} frame(s) to {output}")
 

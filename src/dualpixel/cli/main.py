@@ -4,6 +4,8 @@ library so a notebook user can call it directly. Errors: see :mod:`dualpixel.cli
 
 from __future__ import annotations
 
+import os
+
 import click
 
 from dualpixel import __version__
@@ -25,16 +27,10 @@ def cli(quiet: bool) -> None:
 
 
 def _silence_progress_bars() -> None:
-    """Every progress bar of the library is a tqdm bar: disable them all for this process."""
-    from tqdm import tqdm
-
-    original = tqdm.__init__
-
-    def quiet_init(self, *args, **kwargs):
-        kwargs["disable"] = True
-        original(self, *args, **kwargs)
-
-    tqdm.__init__ = quiet_init
+    """Every progress bar of the library is a tqdm bar that follows tqdm's environment
+    (:func:`dualpixel.progress.progress_bar`): ``TQDM_DISABLE`` silences them, in worker
+    processes too."""
+    os.environ["TQDM_DISABLE"] = "1"
 
 
 for _module in (synthesis, training, reproduce, inference, calibration, demo):

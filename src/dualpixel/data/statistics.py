@@ -236,7 +236,7 @@ def dataset_statistics(
 ) -> DatasetStatistics:
     """Pool :func:`frame_statistics` over the frames of a dataset (at most ``limit`` frames, taken
     evenly across sequences)."""
-    from tqdm import tqdm
+    from dualpixel.progress import progress_bar
 
     if limit is not None and limit < 1:
         raise ParameterError(f"limit must be >= 1, got {limit}")
@@ -246,7 +246,7 @@ def dataset_statistics(
         frames = [frames[int(i)] for i in np.linspace(0, len(frames) - 1, limit).round()]
     pooled: dict[str, list] = {"disparity": [], "blur": [], "noise": [], "gradient": []}
     size = (sequences[0].height, sequences[0].width)
-    for paths in tqdm(frames, desc=f"statistics of {Path(root).name}", disable=not progress):
+    for paths in progress_bar(frames, desc=f"statistics of {Path(root).name}", enabled=progress):
         images = read_frame(paths)
         combined = None
         if paths.combined is not None:

@@ -19,7 +19,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from dualpixel.data.layout import DPSequence
 from dualpixel.errors import InputFileError
@@ -29,6 +28,7 @@ from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.evaluation.niqe import NIQEModel, niqe
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
+from dualpixel.progress import progress_bar
 
 __all__ = [
     "EvalExample",
@@ -152,7 +152,7 @@ def evaluate(
     examples have defocus maps; ``align`` ("translation" or "affine") adds scores after
     registering each output to its target."""
     results, current = [], None
-    for example in tqdm(examples, desc="evaluating", unit="image", disable=not progress):
+    for example in progress_bar(examples, desc="evaluating", unit="image", enabled=progress):
         known = categories or {}
         category = known.get(example.sequence, known.get(example.name, ""))
         if categories and not category:
@@ -268,7 +268,7 @@ def evaluate_folders(
     if not target_files:
         raise InputFileError(targets, "no images found")
     results = []
-    for target_path in tqdm(target_files, desc="evaluating", unit="image"):
+    for target_path in progress_bar(target_files, desc="evaluating", unit="image"):
         name = str(target_path.relative_to(targets).with_suffix(""))
         found = [Path(predictions) / f"{name}{s}" for s in IMAGE_SUFFIXES]
         found = [p for p in found if p.is_file()]

@@ -214,9 +214,8 @@ _BUILTIN = "niqe_builtin.npz"
 
 def fit_niqe_folder(folder: str | Path, *, progress: bool = False) -> NIQEModel:
     """Fit a model from every image under ``folder`` (recursively); errors name the file."""
-    from tqdm import tqdm
-
     from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
+    from dualpixel.progress import progress_bar
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -226,7 +225,7 @@ def fit_niqe_folder(folder: str | Path, *, progress: bool = False) -> NIQEModel:
         raise InputFileError(folder, f"no images found ({', '.join(IMAGE_SUFFIXES)})")
 
     def images():
-        for path in tqdm(files, desc="fitting NIQE", unit="image", disable=not progress):
+        for path in progress_bar(files, desc="fitting NIQE", unit="image", enabled=progress):
             image = read_rgb(path)
             if min(image.shape[:2]) < BLOCK:
                 raise InputFileError(path, f"NIQE needs images of at least {BLOCK}x{BLOCK} "

@@ -324,12 +324,12 @@ def check_folder(root: str | Path, methods: dict[str, Method],
     """One row per pair and method: ``{"pair", "method", **TargetFreeReport}``, pairs from
     :func:`read_pairs` (named ``prefix`` + their name), each method called as
     ``method(left, right)``."""
-    from tqdm import tqdm
+    from dualpixel.progress import progress_bar
 
     pairs = read_pairs(root, split)
     rows = []
-    steps = tqdm(total=len(pairs) * len(methods), desc="target-free checks", unit="output",
-                 disable=not progress)
+    steps = progress_bar(total=len(pairs) * len(methods), desc="target-free checks", unit="output",
+                         enabled=progress)
     with steps:
         for name, left, right in pairs:
             for method, deblur in methods.items():

@@ -33,6 +33,7 @@ import numpy as np
 from dualpixel.data.statistics import defocus_shift_counts
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.images import quantise
+from dualpixel.optics.tone import linear_to_srgb_array
 
 __all__ = [
     "DualPixelRaw",
@@ -144,12 +145,6 @@ def split_dual_pixel(raw: DualPixelRaw) -> tuple[np.ndarray, np.ndarray, np.ndar
         combined.astype(np.float32)
 
 
-def _srgb(linear: np.ndarray) -> np.ndarray:
-    """The sRGB transfer curve (IEC 61966-2-1) on values in [0, 1]."""
-    return np.where(linear <= 0.0031308, 12.92 * linear,
-                    1.055 * np.power(np.maximum(linear, 0.0031308), 1 / 2.4) - 0.055)
-
-
 def develop_mosaic(mosaic: np.ndarray, pattern: str,
                    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> np.ndarray:
     """A linear ``(H, W)`` mosaic in [0, 1] to an sRGB-encoded ``(H, W, 3)`` float32 image
@@ -163,7 +158,7 @@ def develop_mosaic(mosaic: np.ndarray, pattern: str,
     balanced = mosaic * _per_site(site_gain, mosaic.shape)
     levels = quantise(balanced, 16)
     rgb = cv2.cvtColor(levels, _DEMOSAIC[pattern]).astype(np.float32) / 65535.0
-    return _srgb(rgb).astype(np.float32)
+    return linear_to_srgb_array(rgb)
 
 
 def develop_views(raw: DualPixelRaw, *, a_view: str = "auto") -> DualPixelViews:
@@ -197,11 +192,10 @@ def import_dual_pixel_raws(
     ``{split}_c/source``; 16-bit, the file's orientation in EXIF), ready for ``dualpixel deblur
     --input``. Each file's three images are written atomically once it is developed; a bad file
     stops the import with an error naming it. Returns each source with its views."""
-    from tqdm import tqdm
-
     from dualpixel.io.atomic import check_writable
     from dualpixel.io.images import check_image_path, write_png
     from dualpixel.io.metadata import ImageMetadata
+    from dualpixel.progress import progress_bar
 
     output = Path(output)
     names = [Path(p).stem for p in paths]
@@ -212,7 +206,7 @@ def import_dual_pixel_raws(
     for folder in folders.values():
         check_writable(folder / f"probe{suffix}")
     results = []
-    for path in tqdm(paths, desc="developing", unit="file", disable=not progress):
+    for path in progress_bar(paths, desc="developing", unit="file", enabled=progress):
         raw = read_dual_pixel_raw(path)  # one at a time: 30 MP frames are large
         views = develop_views(raw, a_view=a_view)
         metadata = ImageMetadata.from_orientation(raw.orientation)

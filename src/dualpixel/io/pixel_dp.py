@@ -74,11 +74,10 @@ def import_pixel_dp(captures: list[str | Path], output: str | Path, *, split: st
     turned by ``rotate`` (:data:`ROTATIONS`), at their own bit depth; the combined image is
     their mean. Everything is checked before the first file is written. Returns
     ``(name, left file, right file)`` per capture."""
-    from tqdm import tqdm
-
     from dualpixel.io.atomic import check_writable
     from dualpixel.io.images import write_png
     from dualpixel.io.paths import check_plain_name
+    from dualpixel.progress import progress_bar
 
     if rotate not in ROTATIONS:
         raise ParameterError(f"rotate must be one of {', '.join(ROTATIONS)}, got {rotate!r}")
@@ -96,9 +95,9 @@ def import_pixel_dp(captures: list[str | Path], output: str | Path, *, split: st
         _read_pair(left_path, right_path)
     results = []
     turn = ROTATIONS[rotate]
-    for name, (left_path, right_path) in tqdm(list(zip(names, pairs, strict=True)),
-                                              desc="importing", unit="capture",
-                                              disable=not progress):
+    for name, (left_path, right_path) in progress_bar(list(zip(names, pairs, strict=True)),
+                                                      desc="importing", unit="capture",
+                                                      enabled=progress):
         left, right, bits = _read_pair(left_path, right_path)
         left, right = np.rot90(left, turn), np.rot90(right, turn)
         for role, image in (("l", left), ("r", right), ("c", 0.5 * (left + right))):

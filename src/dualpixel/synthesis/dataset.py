@@ -34,7 +34,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from dualpixel import __version__
 from dualpixel.device import resolve_device
@@ -57,6 +56,7 @@ from dualpixel.optics.thin_lens import (
     focus_from_depth,
 )
 from dualpixel.parallel import completed
+from dualpixel.progress import progress_bar
 from dualpixel.synthesis.frame import (
     SequenceRecipe,
     camera_settings,
@@ -398,7 +398,7 @@ def _merge_locked(out: Path, jobs: list, records: dict, owner: dict, config: Syn
             contained(out, relative, manifest)
     description = _description(config, first["input"], first["format"], len(jobs), out)
     _write_json(out / "dataset.json", description)  # "incomplete" until the end
-    for job in tqdm(jobs, desc="merging shards", unit="frame", disable=not progress):
+    for job in progress_bar(jobs, desc="merging shards", unit="frame", enabled=progress):
         for relative in records[job.key]["outputs"].values():
             with atomic_path(out / relative) as tmp:
                 shutil.copyfile(owner[job.key] / relative, tmp)
@@ -507,8 +507,8 @@ def _synthesize_locked(root: Path, jobs: list, input_dir, fmt, config: SynthConf
     if limit is not None:
         pending = pending[:limit]
     already = sum(job.key in done for job in jobs)
-    bar = tqdm(total=len(jobs), initial=already, desc="synthesising frames", unit="frame",
-               disable=not progress)
+    bar = progress_bar(total=len(jobs), initial=already, desc="synthesising frames", unit="frame",
+                       enabled=progress)
     with open_for_append(manifest_path) as manifest:
         jobs_args = [(job, root, fmt, config, device, png_compression) for job in pending]
         records = (completed(run_job, jobs_args, workers) if workers > 1

@@ -332,10 +332,9 @@ def write_scene_folder(
     with the focus distance (read by defocus profiles). Sequence k uses seed ``(seed, k)``, so the
     folder is the same whatever ``workers`` (parallel processes); files are written atomically
     and existing complete sequences are kept."""
-    from tqdm import tqdm
-
     from dualpixel.io.atomic import remove_partials
     from dualpixel.io.lock import folder_lock
+    from dualpixel.progress import progress_bar
 
     check_range("workers", workers, low=1)
     root = Path(output)
@@ -353,8 +352,8 @@ def write_scene_folder(
                               and (folder / "rgb" / f"{n}.png").is_file() for n in names)]
         if missing:
             _write_description(root, description, "incomplete")
-        with tqdm(total=sequences, initial=sequences - len(missing), desc="rendering scenes",
-                  unit="seq", disable=not progress) as bar:
+        with progress_bar(total=sequences, initial=sequences - len(missing),
+                          desc="rendering scenes", unit="seq", enabled=progress) as bar:
             for _ in completed(_write_sequence, missing, workers):
                 bar.update()
         _write_description(root, description, "complete", sequences)

@@ -52,6 +52,7 @@ from dualpixel.models.checkpoint import load_model, load_weights, read_metadata,
 from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
 from dualpixel.models.widen import widen_network
+from dualpixel.progress import progress_bar
 from dualpixel.training.config import TrainConfig, load_config, save_config
 from dualpixel.training.losses import DeblurLoss
 
@@ -465,8 +466,8 @@ class Trainer:
             )))
         totals: dict[str, float] = {}
         started = time.perf_counter()
-        bar = tqdm(range(self.iterations), desc=f"epoch {epoch + 1}/{config.epochs}",
-                   disable=not (self.progress and self.main), leave=False)
+        bar = progress_bar(range(self.iterations), desc=f"epoch {epoch + 1}/{config.epochs}",
+                           enabled=self.progress and self.main, leave=False)
         for iteration in bar:
             kind = kinds[iteration % len(kinds)]
             item = {k: v.to(device, non_blocking=True)
