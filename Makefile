@@ -1,6 +1,7 @@
 # One entry point for a fresh machine: `make demo` (the main job) and `make test` (the suite).
 # Setting up is part of both: a virtual environment with the CPU build of torch pinned for this
-# machine (torch==2.13.0) and the package with its test extras.
+# machine (torch==2.13.0) and the package with its test extras, at the versions the suite was
+# last run with (constraints.txt).
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
@@ -11,11 +12,11 @@ OUT    ?= demo-output
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet torch==2.13.0
-	$(BIN)/python -m pip install --quiet -e ".[test]"
+	$(BIN)/python -m pip install --quiet -e ".[test]" -c constraints.txt
 	touch $(STAMP)
 
 # Synthesis + deblurring with the shipped model + evaluation, as an HTML report in $(OUT)/.
