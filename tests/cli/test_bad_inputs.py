@@ -252,3 +252,15 @@ def test_eval_names_a_defocus_map_of_the_wrong_size(files, tmp_path, tiny_synthe
     assert_clear(invoke("eval", "--dataset", copy, "--split", "train", "--checkpoint",
                         files / "tiny.safetensors", "--output", tmp_path / "r", "--no-niqe"),
                  1, bad.name, "defocus map is (5, 5)")
+
+
+def test_export_without_the_onnx_extra_names_it(tmp_path, monkeypatch, tiny_checkpoint):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name in ("onnx", "onnxscript") else real(name, *a))
+    result = CliRunner().invoke(cli, ["export", "--checkpoint", str(tiny_checkpoint), "-o",
+                                      str(tmp_path / "m.onnx")])
+    assert result.exit_code == 2 and "dualpixel[onnx]" in result.output, result.output
+    assert "Traceback" not in result.output and not (tmp_path / "m.onnx").exists()

@@ -287,7 +287,7 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
     """Export a checkpoint to ONNX, or as a half-precision safetensors checkpoint."""
     import torch
 
-    from dualpixel.inference.onnx_export import export_onnx
+    from dualpixel.inference.onnx_export import check_export_packages, export_onnx
     from dualpixel.models import read_metadata, save_model
     from dualpixel.weights import resolve_checkpoint
 
@@ -296,6 +296,8 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
         raise click.BadParameter(f"a {fmt} export is written to a {suffix} file, got {output}",
                                  param_hint="--output")
     width, height = parse_size(None, None, size)
+    if fmt == "onnx":
+        check_export_packages()  # before loading anything
     model, _ = _load(checkpoint, "cpu")
     if fmt == "safetensors-fp16":
         extra = read_metadata(resolve_checkpoint(checkpoint))["extra"]

@@ -51,6 +51,16 @@ def state_shape(model: DeblurNet, height: int, width: int, batch: int = 1
     return (batch, model.lstm.hidden_channels, pad(height), pad(width))
 
 
+def check_export_packages() -> None:
+    """Refuse an ONNX export without the packages torch's exporter needs, naming the extra."""
+    from importlib.util import find_spec
+
+    missing = [name for name in ("onnx", "onnxscript") if find_spec(name) is None]
+    if missing:
+        raise ParameterError(f"ONNX export needs {', '.join(missing)}: pip install "
+                             "'dualpixel[onnx]' (or --format safetensors-fp16)")
+
+
 def export_onnx(
     model: DeblurNet, path: str | Path, *, height: int, width: int, step: bool = False,
     opset: int = 18, dynamic: bool = True, batch: int = 1,
@@ -60,6 +70,7 @@ def export_onnx(
     traced at batch 1 keeps it at 1)."""
     if batch < 1:
         raise ParameterError(f"batch must be >= 1, got {batch}")
+    check_export_packages()
     model = model.cpu().eval()
     x = torch.rand(batch, model.shape.in_channels, height, width)
     if step:
