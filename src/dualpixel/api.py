@@ -156,7 +156,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         deblurrer.reset()  # a batch holds independent pairs
         outputs.append(deblurrer(lefts[index], None if rights is None else rights[index]))
     result = restore_layout(from_model(np.stack(outputs), view_encoding, channels, scale=scale),
-                            layout)
+                            layout, like=left)
     if not type(left).__module__.startswith("PIL.") and np.ndim(left) == 2:  # (H, W) in
         return result[0] if layout == "torch" else result[..., 0]
     return result
@@ -228,7 +228,7 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     result: dict[str, Any] = {}
     for key in ("left", "right", "combined", "target"):
         hwc = getattr(frame, key).permute(1, 2, 0).float().cpu().numpy()[None]
-        result[key] = restore_layout(hwc, layout)
+        result[key] = restore_layout(hwc, layout, like=rgb)
     defocus = frame.defocus.float().cpu()
-    result["defocus"] = defocus if layout.startswith("torch") else defocus.numpy()
+    result["defocus"] = defocus.to(rgb.device) if layout.startswith("torch") else defocus.numpy()
     return result

@@ -132,8 +132,9 @@ def as_image_batch(image: Any, name: str = "image",
     return to_unit_float(array, name, dtype), layout
 
 
-def restore_layout(images: np.ndarray, layout: str) -> Any:
-    """float32 ``(N, H, W, C)`` images back in the layout :func:`as_image_batch` reported."""
+def restore_layout(images: np.ndarray, layout: str, like: Any = None) -> Any:
+    """float32 ``(N, H, W, C)`` images back in the layout :func:`as_image_batch` reported;
+    tensors on the device of ``like`` (the tensor they came from: CUDA in, CUDA out)."""
     if layout == "numpy":
         return images[0]
     if layout == "numpy-batch":
@@ -141,6 +142,8 @@ def restore_layout(images: np.ndarray, layout: str) -> Any:
     import torch
 
     tensor = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2)
+    if isinstance(like, torch.Tensor):
+        tensor = tensor.to(like.device)
     return tensor[0] if layout == "torch" else tensor
 
 
