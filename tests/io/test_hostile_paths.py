@@ -266,3 +266,18 @@ def test_eval_compare_names_stay_apart_from_the_rows(tmp_path, compare, says):
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 2 and says in result.output, result.output
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("marker", ["[1, 2]", "[" * 100_000, "\xff\xfe binary"])
+def test_a_run_folder_with_a_hostile_recipe_record_is_refused(tmp_path, marker):
+    recipe = tmp_path / "recipe.yaml"
+    recipe.write_text(RECIPE.format(step="scenes", phase="one", ship="model",
+                                    evaluate="held-out")
+                      + "train: {model: rdpd, width: 0.125, synthetic_data: scenes}\n")
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "recipe.json").write_bytes(marker.encode("utf-8", "surrogateescape")
+                                      if marker.isascii() else marker.encode("latin-1"))
+    result = CliRunner().invoke(cli, ["reproduce", str(recipe), "--output", str(run)])
+    assert result.exit_code == 1 and "recipe.json" in result.output, result.output
+    assert "Traceback" not in result.output and not (run / "data").exists()

@@ -105,3 +105,52 @@ def test_a_crafted_state_file_runs_no_code(tiny_synthetic_dataset, tmp_path):
     train(config, fresh, progress=False)
     result = train(longer, fresh, resume=True, progress=False)
     assert result.step == 6 and len(result.history) == 2
+
+
+def _non_mapping(state):
+    return [1, 2, 3]
+
+
+def _no_optimizer(state):
+    del state["optimizer"]
+    return state
+
+
+def _wrong_shape(state):
+    name = next(iter(state["model"]))
+    state["model"][name] = torch.zeros(7, 7)
+    return state
+
+
+def _epoch_text(state):
+    state["epoch"] = "one"
+    return state
+
+
+@pytest.mark.parametrize("spoil, says", [
+    (_non_mapping, "not a mapping"), (_no_optimizer, "no 'optimizer' entry"),
+    (_wrong_shape, "does not fit"), (_epoch_text, "'epoch' is a str"),
+])
+def test_a_hostile_state_is_refused_by_name_on_resume(tiny_synthetic_dataset, tmp_path,
+                                                       spoil, says):
+    from dualpixel.errors import InputFileError
+
+    config = tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=1)
+    train(config, tmp_path / "run", progress=False)
+    path = tmp_path / "run" / "last_state.pt"
+    torch.save(spoil(torch.load(path, weights_only=True)), path)
+    longer = tiny_config(tiny_synthetic_dataset, epochs=2, iterations_per_epoch=1)
+    with pytest.raises(InputFileError, match=says) as caught:
+        train(longer, tmp_path / "run", resume=True, progress=False)
+    assert "last_state.pt" in str(caught.value)
+
+
+def test_corrupt_run_records_are_refused_by_name(tiny_synthetic_dataset, tmp_path):
+    from dualpixel.errors import InputFileError
+
+    config = tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=1)
+    train(config, tmp_path / "run", progress=False)
+    (tmp_path / "run" / "init.json").write_text("[" * 100_000)
+    longer = tiny_config(tiny_synthetic_dataset, epochs=2, iterations_per_epoch=1)
+    with pytest.raises(InputFileError, match=r"init\.json"):
+        train(longer, tmp_path / "run", resume=True, progress=False)

@@ -341,8 +341,8 @@ def _step_state(folder: Path) -> str:
         path = folder / name
         if path.is_file():
             try:
-                status = json.loads(path.read_text()).get("status", "complete")
-            except json.JSONDecodeError:
+                status = read_mapping(path, "folder description").get("status", "complete")
+            except InputFileError:
                 return "unreadable"
             return "done" if status == "complete" else "started"
     return "to do"
@@ -364,11 +364,8 @@ def _claim_folder(recipe: Recipe, output: Path) -> None:
 
     marker = output / "recipe.json"
     if marker.is_file():
-        try:
-            owner = json.loads(marker.read_text()).get("name")
-        except json.JSONDecodeError:
-            raise InputFileError(marker, "is corrupt; remove it if the folder is this "
-                                         "recipe's") from None
+        owner = read_mapping(marker, "run folder's recipe record (remove it if the folder is "
+                                     "this recipe's)").get("name")
         if owner != recipe.name:
             raise InputFileError(output, f"was made by recipe {owner!r}, not {recipe.name!r} "
                                          f"({recipe.path}); choose another --output")

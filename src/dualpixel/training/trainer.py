@@ -47,6 +47,7 @@ from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.metrics import psnr
 from dualpixel.inference.precision import cpu_has_native_bf16
 from dualpixel.io.atomic import atomic_path, remove_partials
+from dualpixel.io.documents import read_mapping
 from dualpixel.io.run_folder import differing_settings, locate, same_location
 from dualpixel.models.checkpoint import load_model, load_weights, read_metadata, save_model
 from dualpixel.models.registry import build_model
@@ -403,26 +404,35 @@ class Trainer:
             reason = str(error).splitlines()[0][:200]
             raise InputFileError(path, f"not a training state this version can read safely "
                                        f"({reason}); start anew or remove it") from None
-        if "model" not in state:
+        if isinstance(state, dict) and "model" not in state:
             raise InputFileError(path, "written by an older version without the weights; start "
                                        "anew")
-        self.net.load_state_dict(state["model"])  # copied onto the parameters' device
-        if self.ema is not None:
-            if state.get("ema") is None:
-                raise ParameterError(f"{path} was written without ema_decay; resume it with "
-                                     "ema_decay: 0 or start a new run")
-            self.ema.load_state_dict(state["ema"])
-        self.optimizer.load_state_dict(state["optimizer"])
-        self.scheduler.load_state_dict(state["scheduler"])
+        problem = _state_problem(state)
+        if problem:
+            raise InputFileError(path, f"is not a training state of this version ({problem}); "
+                                       "start anew or remove it")
+        try:  # shapes and entries that do not fit this config's network and optimiser
+            self.net.load_state_dict(state["model"])  # copied onto the parameters' device
+            if self.ema is not None:
+                if state.get("ema") is None:
+                    raise ParameterError(f"{path} was written without ema_decay; resume it "
+                                         "with ema_decay: 0 or start a new run")
+                self.ema.load_state_dict(state["ema"])
+            self.optimizer.load_state_dict(state["optimizer"])
+            self.scheduler.load_state_dict(state["scheduler"])
+            _set_rng_state(state["rng"])
+        except (RuntimeError, KeyError, ValueError, TypeError, IndexError) as error:
+            reason = str(error).splitlines()[0][:200] if str(error) else type(error).__name__
+            raise InputFileError(path, f"does not fit this run's network or optimiser "
+                                       f"({reason}); start anew or remove it") from None
         if self.config.lr_schedule == "cosine":  # on the curve of this (maybe longer) run
             factor = _cosine_factor(self.scheduler.last_epoch, self.config.epochs)
             for group in self.optimizer.param_groups:
                 group["lr"] = group["initial_lr"] * factor
         if (self.output / "init.json").is_file():
-            self.init_record = json.loads((self.output / "init.json").read_text())
+            self.init_record = read_mapping(self.output / "init.json", "starting weights record")
         self.start_epoch, self.step = state["epoch"] + 1, state["step"]
         self.best, self.history = state["best_psnr"], state["history"]
-        _set_rng_state(state["rng"])
         if self.main:
             _write_derived(self.output, self.averaged, state["epoch"], self.step,
                            self.history, self.config, self.init_record)
@@ -597,6 +607,28 @@ def _ema_update(decay: float):
 
 def _cpu_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
     return {k: v.detach().cpu().clone() for k, v in module.state_dict().items()}
+
+
+#: What ``last_state.pt`` holds: each entry and its type (:func:`_save_state`).
+_STATE_SCHEMA: dict[str, type | tuple[type, ...]] = {
+    "model": dict, "ema": (dict, type(None)), "optimizer": dict, "scheduler": dict, "epoch": int,
+    "step": int, "best_psnr": (float, int, type(None)), "history": list, "rng": dict}
+
+
+def _state_problem(state: Any) -> str | None:
+    """What makes ``state`` not a training state of :func:`_save_state`, or None."""
+    if not isinstance(state, dict):
+        return f"a {type(state).__name__}, not a mapping"
+    for key, kind in _STATE_SCHEMA.items():
+        if key not in state:
+            return f"no {key!r} entry"
+        if not isinstance(state[key], kind) or isinstance(state[key], bool):
+            return f"{key!r} is a {type(state[key]).__name__}"
+    if state["epoch"] < 0 or state["step"] < 0:
+        return "a negative epoch or step"
+    if not all(isinstance(record, dict) for record in state["history"]):
+        return "'history' holds an entry that is not a record"
+    return None
 
 
 def _save_state(output: Path, net: DeblurNet, ema: AveragedModel | None, optimizer, scheduler,
