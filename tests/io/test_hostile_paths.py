@@ -281,3 +281,25 @@ def test_a_run_folder_with_a_hostile_recipe_record_is_refused(tmp_path, marker):
     result = CliRunner().invoke(cli, ["reproduce", str(recipe), "--output", str(run)])
     assert result.exit_code == 1 and "recipe.json" in result.output, result.output
     assert "Traceback" not in result.output and not (run / "data").exists()
+
+
+def test_array_files_declaring_too_much_are_refused_before_loading(tmp_path):
+    import io
+    import zipfile
+
+    import numpy as np
+
+    from dualpixel.evaluation.niqe import NIQEModel
+    from dualpixel.io.images import load_npy
+
+    header = io.BytesIO()  # a header declaring 4 GiB of float64, and no data
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": "<f8", "fortran_order": False, "shape": (1 << 29,)})
+    with zipfile.ZipFile(tmp_path / "niqe.npz", "w") as archive:
+        archive.writestr("mean.npy", header.getvalue())
+    with pytest.raises(InputFileError, match=r"declares arrays of 4\.00 GiB"):
+        NIQEModel.load(tmp_path / "niqe.npz")
+    (tmp_path / "depth.npy").write_bytes(
+        header.getvalue().replace(b"(536870912,)", b"(10000000000,)"))
+    with pytest.raises(InputFileError, match="declares arrays of"):
+        load_npy(tmp_path / "depth.npy")

@@ -34,6 +34,7 @@ from scipy.special import gamma as gamma_fn
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.arrays import as_image_batch
 from dualpixel.io.atomic import atomic_path
+from dualpixel.io.images import check_array_file
 
 __all__ = [
     "NIQEModel",
@@ -57,6 +58,10 @@ _RATIO = gamma_fn(2 / _SHAPES) ** 2 / (gamma_fn(1 / _SHAPES) * gamma_fn(3 / _SHA
 _SHIFTS = ((0, 1), (1, 0), (1, 1), (1, -1))
 
 
+#: Most bytes a NIQE model file may declare (a mean, a 36x36 covariance and a source line).
+NIQE_MODEL_BYTES = 1 << 20
+
+
 @dataclass(frozen=True)
 class NIQEModel:
     """Multivariate Gaussian of natural-scene features: mean (36,) and covariance (36, 36)."""
@@ -76,6 +81,7 @@ class NIQEModel:
         path = Path(path)
         if not path.is_file():
             raise InputFileError(path, "NIQE model not found")
+        check_array_file(path, most=NIQE_MODEL_BYTES)  # a mean and a 36x36 covariance
         try:
             with np.load(path, allow_pickle=False) as data:
                 mean, cov, source = data["mean"], data["cov"], str(data["source"])

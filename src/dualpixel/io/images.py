@@ -345,11 +345,54 @@ def write_png(path: str | Path, image: np.ndarray, *, bit_depth: int = 16,
         tmp.write_bytes(encoded)
 
 
+def declared_array_bytes(path: str | Path) -> int:
+    """Bytes the arrays of a ``.npy`` or ``.npz`` file declare in their headers (read without
+    loading them); an unreadable header is an error naming the file."""
+    import zipfile
+
+    path = Path(path)
+
+    def header_bytes(handle) -> int:
+        version = np.lib.format.read_magic(handle)
+        read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                else np.lib.format.read_array_header_2_0)
+        shape, _, dtype = read(handle)
+        return int(np.prod(shape, dtype=object)) * dtype.itemsize
+
+    try:
+        if zipfile.is_zipfile(path):
+            with zipfile.ZipFile(path) as archive:
+                total = 0
+                for member in archive.namelist():
+                    if member.endswith(".npy"):
+                        with archive.open(member) as handle:
+                            total += header_bytes(handle)
+                return total
+        with open(path, "rb") as handle:
+            return header_bytes(handle)
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as error:
+        raise InputFileError(path, f"cannot be read as NumPy arrays ({error})") from None
+
+
+def check_array_file(path: str | Path, most: int | None = None) -> None:
+    """Refuse, before loading, a ``.npy``/``.npz`` file whose arrays declare more than ``most``
+    bytes, or more than the memory available."""
+    from dualpixel.memory import GIB, available_memory
+
+    needed = declared_array_bytes(path)
+    limit = available_memory() if most is None else min(most, available_memory())
+    if needed > limit:
+        raise InputFileError(path, f"declares arrays of {needed / GIB:.2f} GiB, more than "
+                                   f"{limit / GIB:.2f} GiB it may hold here")
+
+
 def load_npy(path: str | Path) -> np.ndarray:
-    """A ``.npy`` array (no pickles); a missing or unreadable file is an error naming it."""
+    """A ``.npy`` array (no pickles); a missing or unreadable file, or one that declares more
+    than the memory available, is an error naming it."""
     path = Path(path)
     if not path.is_file():
         raise InputFileError(path, "file not found")
+    check_array_file(path)
     try:
         return np.load(path, allow_pickle=False)
     except (ValueError, OSError) as error:
