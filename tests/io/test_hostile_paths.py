@@ -303,3 +303,20 @@ def test_array_files_declaring_too_much_are_refused_before_loading(tmp_path):
         header.getvalue().replace(b"(536870912,)", b"(10000000000,)"))
     with pytest.raises(InputFileError, match="declares arrays of"):
         load_npy(tmp_path / "depth.npy")
+
+
+def test_a_checkpoint_whose_metadata_asks_for_a_huge_network_is_refused(tmp_path,
+                                                                       tiny_checkpoint):
+    import json
+
+    from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
+
+    import dualpixel
+
+    with safe_open(str(tiny_checkpoint), framework="pt") as handle:
+        metadata = dict(handle.metadata())
+    metadata["refiner"] = json.dumps([60000, 60000])
+    save_file(load_file(str(tiny_checkpoint)), str(tmp_path / "huge.safetensors"), metadata)
+    with pytest.raises(InputFileError, match="metadata describes a network of"):
+        dualpixel.load_model(tmp_path / "huge.safetensors")

@@ -106,6 +106,22 @@ def _temporal(metadata: dict[str, str]) -> bool:
     return True
 
 
+def _check_declared_size(path: str | Path, meta: dict[str, Any]) -> None:
+    """Refuse, before any allocation, a checkpoint whose metadata describes a network of
+    another size than the tensors it holds (the network is built on the meta device)."""
+    import math
+
+    from safetensors import safe_open
+
+    with torch.device("meta"):
+        declared = sum(v.numel() for v in build_from_metadata(meta).state_dict().values())
+    with safe_open(str(path), framework="pt") as handle:
+        stored = sum(math.prod(handle.get_slice(key).get_shape()) for key in handle.keys())
+    if declared != stored:
+        raise InputFileError(path, f"its metadata describes a network of {declared:,} values, "
+                                   f"but it holds {stored:,}: not a checkpoint of that network")
+
+
 def build_from_metadata(meta: dict[str, Any], *,
                         refiner: tuple[int, ...] | None = None) -> DeblurNet:
     """A fresh network of the architecture that :func:`read_metadata` returned (random weights);
@@ -155,6 +171,7 @@ def load_model(path: str | Path, *, device: str | torch.device = "cpu") -> Deblu
     if not isinstance(path, (str, Path)):
         raise ParameterError(f"load_model takes a checkpoint path, got {type(path).__name__}")
     meta = read_metadata(path)
+    _check_declared_size(path, meta)
     model = build_from_metadata(meta)
     load_weights(model, path)
     model.temporal = model.temporal and meta["temporal"]
