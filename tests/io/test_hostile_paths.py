@@ -320,3 +320,15 @@ def test_a_checkpoint_whose_metadata_asks_for_a_huge_network_is_refused(tmp_path
     save_file(load_file(str(tiny_checkpoint)), str(tmp_path / "huge.safetensors"), metadata)
     with pytest.raises(InputFileError, match="metadata describes a network of"):
         dualpixel.load_model(tmp_path / "huge.safetensors")
+
+
+def test_long_output_names_are_judged_by_their_own_length(tmp_path):
+    from dualpixel.io.atomic import atomic_path, check_writable
+
+    longest = tmp_path / ("x" * 250 + ".png")  # fits; its temporary name must too
+    with atomic_path(longest) as tmp:
+        tmp.write_bytes(b"data")
+    assert longest.read_bytes() == b"data"
+    with pytest.raises(OutputFileError, match="bytes long") as caught:
+        check_writable(tmp_path / ("y" * 300 + ".png"))
+    assert "y" * 300 in str(caught.value)  # the name asked for, not a temporary one

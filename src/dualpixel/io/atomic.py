@@ -34,9 +34,11 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """
     target = Path(path)
     check_writable(target)
+    # the stem shortened where the temporary name would exceed the longest name (mkstemp adds 8)
+    room = _name_max(target.parent) - len(PARTIAL_MARKER) - len(target.suffix) - 10
     fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{target.stem}{PARTIAL_MARKER}", suffix=target.suffix, dir=target.parent
-    )
+        prefix=f".{target.stem[:max(room, 1)]}{PARTIAL_MARKER}", suffix=target.suffix,
+        dir=target.parent)
     os.close(fd)
     tmp = Path(tmp_name)
     try:
@@ -61,11 +63,23 @@ def _output_error(target: Path, error: OSError) -> OutputFileError:
     return OutputFileError(target, f"could not be written ({error.strerror or error})")
 
 
+def _name_max(folder: Path) -> int:
+    """The longest file name (bytes) ``folder``'s file system takes (255 where unknown)."""
+    try:
+        return os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
+
+
 def check_writable(path: str | Path) -> Path:
     """Make ``path``'s folder and check a file can be written there, before any long work; raise
     :class:`OutputFileError` naming the path otherwise (an existing folder, a read-only folder,
     a parent that is a file)."""
     target = Path(path)
+    longest = _name_max(target.parent if target.parent.is_dir() else Path("."))
+    if len(os.fsencode(target.name)) > longest:
+        raise OutputFileError(target, f"its name is {len(os.fsencode(target.name))} bytes long, "
+                                      f"more than this file system allows ({longest})")
     if target.is_dir():
         raise OutputFileError(target, "is a folder; give a file name")
     try:
