@@ -118,7 +118,7 @@ def test_pattern_command(tmp_path):
 
 
 def test_fit_psf_writes_a_camera_file_synthesis_takes(shared_dir, tmp_path):
-    """The Pixel 4 camera file of recipes/cameras is made this way (there with the full grid)."""
+    """The shipped Pixel 4 camera is made this way (there with the full grid)."""
     from dualpixel.calibration.camera import load_camera
 
     folder = shared_dir / "data" / "pixel4-measured-psf"
@@ -138,10 +138,8 @@ def test_fit_psf_writes_a_camera_file_synthesis_takes(shared_dir, tmp_path):
 
 
 def test_the_shipped_pixel4_camera_matches_its_measured_psfs():
-    from pathlib import Path
-
     from dualpixel.calibration.camera import load_camera
 
-    camera = load_camera(Path(__file__).resolve().parents[2] / "recipes/cameras/pixel4.json")
+    camera = load_camera("pixel4")
     assert camera.light == "linear" and camera.width == 2016
     assert 9 <= camera.coc_percentiles["p50"] <= 11  # the measured kernels' 10-px radius

@@ -139,8 +139,16 @@ class DPCamera:
 
 
 def load_camera(path: str | Path) -> DPCamera:
-    """Read a ``camera.json`` written by ``dualpixel calibrate camera``."""
+    """Read a ``camera.json`` written by ``dualpixel calibrate camera``, or a shipped camera
+    by name (:mod:`dualpixel.cameras`: ``canon-840``, ``pixel4``, ...)."""
+    from dualpixel.cameras import camera_names, shipped_camera
+
+    if not Path(path).exists():
+        path = shipped_camera(str(path)) or path
     path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, "camera file not found (the shipped cameras: "
+                                   f"{', '.join(camera_names())})")
     return DPCamera.from_dict(read_mapping(path, "camera file"), path)
 
 

@@ -102,11 +102,11 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--psf-bank", type=click.Choice(PSF_BANK_NAMES), default="paper",
               help="PSF shapes to draw from: the paper's 48, around the real Pixel 4 fits, or "
                    "broad (fuller and smoother shapes too).")
-@click.option("--camera", "camera_file", type=click.Path(dir_okay=False, path_type=Path),
-              default=None,
-              help="A calibrated camera (`dualpixel calibrate camera`): its PSF shape replaces "
-                   "--psf-bank (see --psf-shapes) and its per-channel disparity ratio shapes "
-                   "the views.")
+@click.option("--camera", "camera_file", default=None,
+              help="A calibrated camera: a shipped one by name (canon-840, canon-840-linear, "
+                   "canon-hd, canon-hd-linear, pixel4) or a file of `dualpixel calibrate "
+                   "camera`: its PSF shape replaces --psf-bank (see --psf-shapes) and its "
+                   "per-channel disparity ratio shapes the views.")
 @click.option("--psf-shapes", type=click.Choice(PSF_SHAPE_SOURCES), default=None,
               help="With --camera: PSF shapes from the camera's fit, or drawn from --psf-bank "
                    "with the camera's disparity ratios and light  [default: camera].")
@@ -134,7 +134,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, render_mode: str,
           bit_depth: str,
           noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
-          psf_model: str, psf_bank: str, camera_file: Path | None, psf_shapes: str | None,
+          psf_model: str, psf_bank: str, camera_file: str | None, psf_shapes: str | None,
           light: str | None, grey: bool,
           split: str, max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,

@@ -6,8 +6,9 @@ with phases inside it) holds:
 - ``name``, ``description``;
 - ``data``: steps run in order, each ``{name, scenes: {...}}`` (:class:`SceneConfig` keys plus
   ``sequences`` and ``seed``) or ``{name, synth: {...}}`` (:class:`SynthConfig` keys plus
-  ``input``, a step's name or a folder, and ``format``; ``camera`` is a camera file, relative to
-  the recipe). Step NAME writes ``OUTPUT/data/NAME``;
+  ``input``, a step's name or a folder, and ``format``; ``camera`` is a shipped camera's name
+  (:mod:`dualpixel.cameras`) or a camera file, relative to the recipe). Step NAME writes
+  ``OUTPUT/data/NAME``;
 - ``train``: :class:`TrainConfig` keys shared by every phase. In the data keys (``real_data``,
   ``synthetic_data``, ``val_data``, ``real_val_data``) a step's name stands for its folder; other
   paths are relative to the working directory;
@@ -210,7 +211,10 @@ def synth_config(recipe: Recipe, step: DataStep, output: Path):
         if key in args:
             args[key] = tuple(args[key])
     if "camera" in args:
-        args["camera"] = load_camera(recipe.path.parent / args["camera"]).to_dict()
+        camera = str(args["camera"])  # a shipped camera's name, or a file beside the recipe
+        shipped = "/" not in camera and not camera.endswith(".json")
+        args["camera"] = load_camera(camera if shipped
+                                     else recipe.path.parent / camera).to_dict()
     return SynthConfig(**args), Path(source), fmt
 
 
