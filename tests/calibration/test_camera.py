@@ -201,3 +201,14 @@ def test_stats_reports_the_disparity_ratio_per_channel(tmp_path):
     assert "disparity ratio R/G/B" in result.output
     (summary,) = json.loads((tmp_path / "s.json").read_text())
     np.testing.assert_allclose(summary["disparity_ratio"], RATIO, atol=0.06)
+
+
+def test_shipped_cameras_load_by_name_and_an_unknown_name_lists_them():
+    from dualpixel.cameras import camera_names
+    from dualpixel.errors import InputFileError
+
+    assert {"canon-840", "canon-840-linear", "canon-hd", "canon-hd-linear",
+            "pixel4"} <= set(camera_names())
+    assert load_camera("canon-840-linear").light == "linear"
+    with pytest.raises(InputFileError, match="the shipped cameras: canon-840"):
+        load_camera("canon-9000")
