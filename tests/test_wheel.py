@@ -1,5 +1,6 @@
 """The built wheel holds what an installed package needs (issue #13): weights with their model
-card, py.typed, the licence, the NIQE model, the demo scene, and the project URLs."""
+card, py.typed, the licence, the NIQE model, the demo scene, the shipped cameras, and the
+project URLs."""
 
 import shutil
 import subprocess
@@ -38,7 +39,8 @@ def test_wheel_contents(wheel):
     assert len(shipped) <= 2  # the default and one alternative (issue #32)
     for needed in ("dualpixel/py.typed", "dualpixel/weights/registry.json",
                    "dualpixel/weights/MODEL_CARD.md", "dualpixel/evaluation/niqe_builtin.npz",
-                   "dualpixel/demo_data/canon_scene_01/LICENSE.md"):
+                   "dualpixel/demo_data/canon_scene_01/LICENSE.md",
+                   "dualpixel/cameras/pixel4.json", "dualpixel/cameras/canon-840-linear.json"):
         assert needed in names, needed
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     assert "Project-URL: Source" in text and "License-Expression: MIT" in text
