@@ -332,3 +332,23 @@ def test_long_output_names_are_judged_by_their_own_length(tmp_path):
     with pytest.raises(OutputFileError, match="bytes long") as caught:
         check_writable(tmp_path / ("y" * 300 + ".png"))
     assert "y" * 300 in str(caught.value)  # the name asked for, not a temporary one
+
+
+@pytest.mark.parametrize("dtype", ["int16", "float64"])
+def test_views_of_signed_or_float_samples_are_refused_by_name(tmp_path, dtype):
+    import numpy as np
+    import tifffile
+
+    view = tmp_path / "view.tif"
+    tifffile.imwrite(view, (np.random.default_rng(0).random((48, 64, 3)) * 100).astype(dtype))
+    result = CliRunner().invoke(cli, ["deblur", "--left", str(view), "--right", str(view), "-o",
+                                      str(tmp_path / "out.png")])
+    assert result.exit_code == 1 and f"holds {dtype} samples" in result.output, result.output
+    assert "Traceback" not in result.output
+
+
+def test_a_set_value_yaml_cannot_read_is_a_usage_error(tmp_path):
+    result = CliRunner().invoke(cli, ["train", "--set", f"synthetic_data={tmp_path}", "--set",
+                                      "epochs=[", "-o", str(tmp_path / "run")])
+    assert result.exit_code == 2 and "epochs: '[' is not a value" in result.output
+    assert "Traceback" not in result.output

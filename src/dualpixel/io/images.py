@@ -124,6 +124,9 @@ def _imread(path: Path, kind: str = "image") -> np.ndarray:
         raise InputFileError(path, f"cannot be decoded as {article} {kind} "
                                    "(corrupt or unsupported format)")
     _check_complete(path)  # decoded, but maybe with the missing rows filled in grey
+    if kind == "image" and data.dtype not in (np.uint8, np.uint16):
+        raise InputFileError(path, f"holds {data.dtype} samples; images must be 8- or 16-bit "
+                                   "unsigned (save float or signed data as a 16-bit TIFF or PNG)")
     return data
 
 

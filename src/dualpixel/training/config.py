@@ -177,7 +177,11 @@ def _coerce(name: str, annotation: Any, value: Any) -> Any:
     if isinstance(value, str) and type(None) in options and value.lower() in ("null", "none"):
         return None  # --set val_data=null: an optional path switched off, not a file "null"
     if isinstance(value, str) and str not in options:
-        value = yaml.safe_load(value)
+        try:
+            value = yaml.safe_load(value)
+        except yaml.YAMLError:
+            raise ParameterError(f"{name}: {value!r} is not a value (a number, true/false, a "
+                                 "name or a [list])") from None
         if isinstance(value, str) and float in options:  # YAML 1.1 reads "5e-4" as a string
             try:
                 value = float(value)
