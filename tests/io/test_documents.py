@@ -51,7 +51,8 @@ def test_commands_refuse_malformed_documents(tmp_path, tiny_synthetic_dataset):
         assert "Traceback" not in result.output
     (tmp_path / "camera.json").write_bytes(BINARY)
     result = runner.invoke(cli, ["synth", "--input", str(tmp_path), "--output",
-                                 str(tmp_path / "s"), "--camera", str(tmp_path / "camera.json")])
+                                 str(tmp_path.parent / f"{tmp_path.name}-s"), "--camera",
+                                 str(tmp_path / "camera.json")])
     assert result.exit_code != 0 and "camera.json" in result.output, result.output
     assert "Traceback" not in result.output
 

@@ -229,7 +229,8 @@ def test_preview_and_custom_noise_sigmas_through_the_cli(scene_dir, tmp_path):
     assert shown.exit_code == 0, shown.output
     image = cv2.imread(str(tmp_path / "p.png"))
     assert image is not None and image.shape[1] > 800
-    missing = runner.invoke(cli, ["preview", "--dataset", str(tmp_path), "--output",
+    (tmp_path / "empty").mkdir()
+    missing = runner.invoke(cli, ["preview", "--dataset", str(tmp_path / "empty"), "--output",
                                   str(tmp_path / "q.png")])
     assert missing.exit_code == 1 and "manifest.jsonl" in missing.output
 

@@ -401,12 +401,12 @@ def test_torchrun_two_processes(tiny_synthetic_dataset, tmp_path, as_frames):
 @pytest.mark.parametrize(("key", "value", "message"), [
     ("learning_rate", ".inf", "learning_rate must be finite"),
     ("learning_rate", ".nan", "learning_rate must be finite"),
-    ("iterations_per_epoch", "0", "iterations_per_epoch must be >= 1"),
-    ("val_limit", "0", "val_limit must be >= 1"),
+    ("iterations_per_epoch", "0", "iterations_per_epoch must be between 1 and"),
+    ("val_limit", "0", "val_limit must be between 1 and"),
     ("lambda_x", "-0.1", "lambda_x"),
     ("lstm_dropout", "5", "lstm_dropout"),
-    ("workers", "-1", "workers must be >= 0"),
-    ("threads", "0", "threads must be >= 1"),
+    ("workers", "-1", "workers must be between 0 and"),
+    ("threads", "0", "threads must be between 1 and"),
     ("width", "0", "width must be > 0"),
 ])
 def test_config_values_are_checked_up_front(tiny_synthetic_dataset, key, value, message):

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.errors import InputFileError, OutputFileError, ParameterError
 
 __all__ = ["check_outputs_apart", "check_plain_name", "contained"]
 
@@ -40,13 +40,13 @@ def check_outputs_apart(inputs: Mapping[str, Iterable[str | Path]],
     for out_option, out in outputs.items():
         target = Path(out).resolve()
         for option, given, source in existing:
-            if target == source:
+            if target == source and not source.is_dir():
                 problem = f"is the input {option} ({given})"
-            elif source.is_relative_to(target):
+            elif source.is_relative_to(target):  # the input folder itself, or one inside
                 problem = f"is a folder that holds the input {option} ({given})"
             elif source.is_dir() and target.is_relative_to(source):
                 problem = f"lies inside the input folder {option} ({given})"
             else:
                 continue
-            raise ParameterError(f"{out_option} {out} {problem}: inputs are never outputs; "
-                                 "write elsewhere")
+            raise OutputFileError(out, f"{problem} ({out_option}): inputs are never outputs; "
+                                       "write elsewhere")
