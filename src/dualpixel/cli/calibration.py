@@ -66,7 +66,9 @@ def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, 
     """Non-blind PSF estimation per disk and view (S1)."""
     from dualpixel.calibration.psf_estimation import estimate_psfs, read_captures
 
-    estimate = estimate_psfs(read_captures(left, right, combined), radius=radius,
+    captures = read_captures(left, right, combined)
+    click.echo("estimating the PSFs of every disk (about a minute on a CPU)...", err=True)
+    estimate = estimate_psfs(captures, radius=radius,
                              kernel_size=kernel_size, lam=lam, smoothness=smoothness)
     estimate.save(output)
     click.echo(f"estimated {len(estimate.centres)} PSF(s) per view; wrote {output}")

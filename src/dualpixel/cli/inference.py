@@ -134,13 +134,17 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     from dualpixel.inference import Deblurrer
     from dualpixel.inference.encoding import view_encoding_from_files
     from dualpixel.inference.jobs import plan_deblur_jobs, run_deblur_jobs
+    from dualpixel.models import model_spec, read_metadata
     from dualpixel.progress import progress_bar
+    from dualpixel.weights import resolve_checkpoint
 
     view_encoding = view_encoding_from_files(encoding, black_level, white_level, right_gain,
                                              flat_field)
-    model, resolved = _load(checkpoint, device, backend)
+    views = model_spec(read_metadata(resolve_checkpoint(checkpoint))["model"]).views
+    # the inputs and outputs are checked before the model loads
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
-                            needs_right=model.spec.views == 2, combined=combined)
+                            needs_right=views == 2, combined=combined)
+    model, resolved = _load(checkpoint, device, backend)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                           precision="fp16" if half else precision, flips=flips,
                           multiscale=multiscale, backend=backend, brightness=brightness,
@@ -303,6 +307,7 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
         extra = read_metadata(resolve_checkpoint(checkpoint))["extra"]
         save_model(output, model, dtype=torch.float16, extra={**extra, "source": str(checkpoint)})
     else:
+        click.echo("tracing and exporting the graph (about 2 minutes on a CPU)...", err=True)
         export_onnx(model, output, height=height, width=width, step=step)
     click.echo(f"wrote {output}")
 
