@@ -352,3 +352,16 @@ def test_a_set_value_yaml_cannot_read_is_a_usage_error(tmp_path):
                                       "epochs=[", "-o", str(tmp_path / "run")])
     assert result.exit_code == 2 and "epochs: '[' is not a value" in result.output
     assert "Traceback" not in result.output
+
+
+def test_a_killed_write_leaves_nothing_once_the_file_is_written_again(tmp_path):
+    from dualpixel.io.atomic import PARTIAL_MARKER, atomic_path
+
+    leftover = tmp_path / f".model{PARTIAL_MARKER}k1ll3d00.onnx"  # as a killed export leaves it
+    leftover.write_bytes(b"half a graph")
+    other = tmp_path / f".other{PARTIAL_MARKER}k1ll3d00.onnx"  # another file's: not ours
+    other.write_bytes(b"x")
+    with atomic_path(tmp_path / "model.onnx") as tmp:
+        tmp.write_bytes(b"graph")
+    assert not leftover.exists() and other.exists()
+    assert (tmp_path / "model.onnx").read_bytes() == b"graph"

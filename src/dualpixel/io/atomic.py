@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import glob
 import os
 import stat
 import tempfile
@@ -31,14 +32,17 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it over ``path``, else delete it.
 
     The temporary name keeps the suffix, so writers that infer the format from it still work.
+    A temporary file of the same ``path`` that an earlier, killed write left is removed first.
     """
     target = Path(path)
     check_writable(target)
     # the stem shortened where the temporary name would exceed the longest name (mkstemp adds 8)
     room = _name_max(target.parent) - len(PARTIAL_MARKER) - len(target.suffix) - 10
-    fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{target.stem[:max(room, 1)]}{PARTIAL_MARKER}", suffix=target.suffix,
-        dir=target.parent)
+    prefix = f".{target.stem[:max(room, 1)]}{PARTIAL_MARKER}"
+    for leftover in target.parent.glob(f"{glob.escape(prefix)}*{glob.escape(target.suffix)}"):
+        if leftover.is_file() and len(leftover.name) == len(prefix) + 8 + len(target.suffix):
+            leftover.unlink(missing_ok=True)  # this file's earlier write, killed mid-way
+    fd, tmp_name = tempfile.mkstemp(prefix=prefix, suffix=target.suffix, dir=target.parent)
     os.close(fd)
     tmp = Path(tmp_name)
     try:
