@@ -103,6 +103,8 @@ def test_one_frame_raw_and_junk_are_refused(tmp_path):
                                       "-o", str(tmp_path / "out")])
     assert result.exit_code == 1 and "junk.CR2" in result.output
     assert "camera raw" in result.output and "Traceback" not in result.output
+    assert "b'" not in result.output  # LibRaw's message as text, not a bytes repr
+    assert not (tmp_path / "out").exists()  # a failed import leaves no empty folders
 
 
 class _FakeRaw:

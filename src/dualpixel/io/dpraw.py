@@ -24,6 +24,7 @@ tell, A is the left view, and the result says so.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -106,7 +107,10 @@ def read_dual_pixel_raw(path: str | Path) -> DualPixelRaw:
             balance = [float(v) for v in raw.camera_whitebalance]
             orientation = _LIBRAW_FLIP_TO_EXIF.get(int(raw.sizes.flip), 1)
     except rawpy.LibRawError as error:
-        raise InputFileError(path, f"cannot be read as a camera raw file ({error})") from None
+        reason = error.args[0] if error.args else error
+        if isinstance(reason, bytes):  # LibRaw's messages arrive as bytes
+            reason = reason.decode("utf-8", "replace")
+        raise InputFileError(path, f"cannot be read as a camera raw file ({reason})") from None
     try:
         with rawpy.imread(str(path), shot_select=1) as raw:
             a_only = raw.raw_image_visible.copy()
@@ -203,15 +207,23 @@ def import_dual_pixel_raws(
         raise ParameterError("two raw files share a name; import them into separate folders")
     folders = {role: output / f"{split}_{role}" / "source" for role in ("l", "r", "c")}
     check_image_path(folders["l"] / f"probe{suffix}")
+    made = [f for folder in folders.values() for f in (folder, folder.parent, output)
+            if not f.exists()]  # removed again, empty, if the import fails
     for folder in folders.values():
         check_writable(folder / f"probe{suffix}")
     results = []
-    for path in progress_bar(paths, desc="developing", unit="file", enabled=progress):
-        raw = read_dual_pixel_raw(path)  # one at a time: 30 MP frames are large
-        views = develop_views(raw, a_view=a_view)
-        metadata = ImageMetadata.from_orientation(raw.orientation)
-        for role, image in (("l", views.left), ("r", views.right), ("c", views.combined)):
-            write_png(folders[role] / f"{Path(path).stem}{suffix}", image, bit_depth=16,
-                      metadata=metadata)
-        results.append((Path(path), views))
+    try:
+        for path in progress_bar(paths, desc="developing", unit="file", enabled=progress):
+            raw = read_dual_pixel_raw(path)  # one at a time: 30 MP frames are large
+            views = develop_views(raw, a_view=a_view)
+            metadata = ImageMetadata.from_orientation(raw.orientation)
+            for role, image in (("l", views.left), ("r", views.right), ("c", views.combined)):
+                write_png(folders[role] / f"{Path(path).stem}{suffix}", image, bit_depth=16,
+                          metadata=metadata)
+            results.append((Path(path), views))
+    except BaseException:
+        for folder in sorted(set(made), key=lambda f: len(f.parts), reverse=True):
+            with contextlib.suppress(OSError):  # kept where something was written
+                folder.rmdir()
+        raise
     return results
