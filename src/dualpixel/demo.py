@@ -250,8 +250,9 @@ def _intro(mode, checkpoint, recipe, count, seconds, timings) -> str:
         recipe_info = recipe.describe()
         cam, psf = recipe_info["camera"], recipe_info["psf"]
         distortion = recipe_info["distortion"]["name"] if recipe_info["distortion"] else "off"
-        text += (f"Synthesis: camera {cam['name']} (f = {cam['focal_length']}, N = "
-                 f"{cam['f_number']}, focus {cam['focus_distance']}), PSF n = {psf['n']}, "
+        text += (f"Synthesis: camera {cam['name']} (f = {cam['focal_length']:g} m, "
+                 f"f/{cam['f_number']:g}, focused at {cam['focus_distance']:.2f} m), PSF n = "
+                 f"{psf['n']}, "
                  f"alpha = {psf['alpha']}, beta = {psf['beta']}, kappa = {psf['kappa']}, "
                  f"distortion {distortion}, noise sigma {recipe_info['noise_sigma']}. ")
     return text + (f"Deblurring took {np.mean(timings):.2f} s per frame; the whole demo "
