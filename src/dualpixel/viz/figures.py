@@ -31,8 +31,9 @@ def save_figure(fig, path: str | Path, *, dpi: int = 110) -> Path:
     path = check_figure_path(path)
     try:
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format=path.suffix.lower().lstrip(".").replace("jpg",
-                                                                                      "jpeg"))
+            # bbox "tight": labels that a layout pushed past the canvas are kept, not cut
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight", pad_inches=0.08,
+                        format=path.suffix.lower().lstrip(".").replace("jpg", "jpeg"))
     finally:
         plt.close(fig)
     return path
