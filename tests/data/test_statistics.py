@@ -90,3 +90,16 @@ def test_stats_bad_input_names_the_file(tmp_path):
     result = CliRunner().invoke(cli, ["stats", str(tmp_path / "empty")])
     assert result.exit_code != 0 and "Traceback" not in result.output
     assert "empty" in result.output
+
+
+def test_histogram_bins_grow_to_hold_every_value():
+    import numpy as np
+
+    from dualpixel.viz.statistics_figure import _edges
+
+    edges = _edges([np.array([-11.9, 0.0, 3.0]), np.array([10.2])], -8.0, 8.0, 0.25)
+    assert edges[0] <= -11.9 and edges[-1] >= 10.2  # nothing piled into the end bins
+    np.testing.assert_allclose(np.diff(edges), 0.25)
+    assert edges[0] == -12.0 and edges[-1] == 10.25
+    np.testing.assert_allclose(_edges([np.array([0.01])], 0.0, 0.04, 0.00125)[[0, -1]],
+                               [0.0, 0.04])  # inside the default range: the default bins

@@ -15,13 +15,24 @@ from dualpixel.viz.figures import save_figure
 
 __all__ = ["render_statistics_figure"]
 
+#: Per panel: the statistic, its title, and the bins' (low, high, width); the range grows to
+#: hold every value of every dataset, so nothing is piled into the end bins.
 _PANELS = (
-    ("disparity", "disparity between the views (px, per 64-px block)", np.linspace(-8, 8, 65)),
-    ("blur", "blur: best Gaussian std target -> input (px, per block)", None),
-    ("noise", "noise std of the input (per image)", np.linspace(0, 0.04, 33)),
-    ("gradient_fraction", "fraction of input pixels with |gradient| > 0.05",
-     np.linspace(0, 0.4, 33)),
+    ("disparity", "disparity between the views (px, per 64-px block)", (-8.0, 8.0, 0.25)),
+    ("blur", "blur: best Gaussian std target -> input (px, per block)", (-0.125, 2.0, 0.25)),
+    ("noise", "noise std of the input (per image)", (0.0, 0.04, 0.00125)),
+    ("gradient_fraction", "fraction of input pixels with |gradient| > 0.05", (0.0, 0.4, 0.0125)),
 )
+
+
+def _edges(values: list[np.ndarray], low: float, high: float, width: float) -> np.ndarray:
+    """Bin edges of ``width`` from ``low`` to ``high``, widened in whole bins to hold all
+    ``values``."""
+    data = np.concatenate([v.ravel() for v in values]) if values else np.zeros(0)
+    if data.size:
+        low = low - width * np.ceil(max(0.0, low - float(data.min())) / width)
+        high = high + width * np.ceil(max(0.0, float(data.max()) - high) / width)
+    return low + width * np.arange(round((high - low) / width) + 1)
 
 
 def render_statistics_figure(stats: list[DatasetStatistics], output: str | Path) -> Path:
@@ -30,15 +41,15 @@ def render_statistics_figure(stats: list[DatasetStatistics], output: str | Path)
                              constrained_layout=True)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for ax, (key, title, bins) in zip(axes, _PANELS):
+        edges = _edges([getattr(item, key) for item in stats if getattr(item, key).size], *bins)
         for index, item in enumerate(stats):
             values = getattr(item, key)
             if values.size == 0:
                 continue
-            edges = bins if bins is not None else np.arange(-0.125, item.max_blur + 0.25, 0.25)
             colour = colours[index % len(colours)]
             label = f"{item.name} ({item.size[1]}x{item.size[0]}, {item.frames} frames)"
-            ax.hist(np.clip(values, edges[0], edges[-1]), bins=edges, density=True,
-                    histtype="step", linewidth=1.6, color=colour, label=label)
+            ax.hist(values, bins=edges, density=True, histtype="step", linewidth=1.6,
+                    color=colour, label=label)
             ax.axvline(float(np.median(values)), color=colour, linestyle="--", linewidth=1)
         ax.set_title(title, fontsize=9)
         ax.set_yticks([])
