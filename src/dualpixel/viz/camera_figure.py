@@ -40,22 +40,43 @@ def render_camera_figure(calibration, path: str | Path, *, kernels_shown: int = 
     from dualpixel.optics.psf import dp_psf
 
     camera = calibration.camera
-    radii = np.linspace(0.0, max(float(max(f.radius.max() for f in calibration.fits)), 1.0), 40)
+    usable_radii = np.concatenate([f.radius[u].ravel() for f, u in zip(calibration.fits,
+                                                                        calibration.usable)])
+    # the axes hold 99.5 % of the blocks: one outlier does not squeeze the rest into a corner
+    reach = float(np.percentile(usable_radii, 99.5)) if usable_radii.size else 1.0
+    radii = np.linspace(0.0, max(reach * 1.05, 1.0), 40)
     base = model_disparity(radii, camera.psf)
+    every = np.linspace(0.0, max(float(usable_radii.max(initial=1.0)), 1.0), 80)
+    every_base = model_disparity(every, camera.psf)  # the points' own disparities, all of them
     fig = plt.figure(figsize=(13, 4.6))
     axis = fig.add_subplot(1, 2, 1)
+    shown_d: list[np.ndarray] = []
     for c, (label, colour) in enumerate(CHANNELS):
         points_r, points_d = [], []
         for fit, usable in zip(calibration.fits, calibration.usable):
             r, a = fit.radius[..., c][usable], fit.ratio[..., c][usable]
             sign = np.sign(fit.ratio[..., 1][usable])
             points_r.append(r)
-            points_d.append(a * sign * np.interp(r, radii, base))
+            points_d.append(a * sign * np.interp(r, every, every_base))
         axis.scatter(np.concatenate(points_r) + (c - 1) * 0.06, np.concatenate(points_d), s=5,
                      alpha=0.25, color=colour)
+        shown_d.append(np.concatenate(points_d))
         axis.plot(radii, camera.disparity_ratio[c] * base, color=colour,
                   label=f"{label}: {camera.disparity_ratio[c]:.2f} x model")
     axis.plot(radii, base, "k--", label="paper's model (training data before)")
+    disparities = np.concatenate(shown_d) if shown_d else np.zeros(0)
+    if disparities.size:
+        low, high = np.percentile(disparities, [0.5, 99.0])
+        span = max(high - low, 1e-3)
+        bottom = min(low, 0.0) - 0.05 * span
+        top = max(high, float(base.max())) + 0.1 * span
+        axis.set_ylim(bottom, top)
+        hidden = int(((disparities < bottom) | (disparities > top)).sum()
+                     + (usable_radii > radii[-1] + 0.2).sum())
+        if hidden:
+            axis.text(0.99, 0.02, f"{hidden} outlying points beyond the axes", fontsize=7,
+                      ha="right", transform=axis.transAxes)
+    axis.set_xlim(-0.2, radii[-1] + 0.2)
     axis.set_xlabel("CoC radius r (px)")
     axis.set_ylabel("DP disparity (px, right minus left centroid)")
     axis.set_title(f"{camera.name}: disparity against blur ({camera.blocks} blocks)")
