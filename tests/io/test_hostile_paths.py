@@ -160,6 +160,8 @@ def inputs(tmp_path, tiny_checkpoint):
     (["demo", "--rgb", "{d}/scene/rgb.png", "--depth", "{d}/scene/depth.npy", "-o",
       "{d}/scene"], "holds the input --rgb"),
     (["stats", "{d}/dpdd", "--json", "{d}/dpdd/stats.json"], "inside the input folder DATASETS"),
+    (["synth", "--input", "{d}/dpdd", "--output", "{d}/scene", "--camera",
+      "{d}/scene/depth.npy"], "holds the input --camera"),
     (["niqe", "fit", "--images", "{d}/scene", "-o", "{d}/scene/model.npz"],
      "inside the input folder --input"),
 ])

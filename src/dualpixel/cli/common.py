@@ -54,8 +54,9 @@ class OutputPath(click.Path):
     is an input, holds one or lies inside an input folder, before any work."""
 
 
-#: Options whose string value is an input file when it names one (a checkpoint, not a tag).
-_FILE_OR_NAME_OPTIONS = ("checkpoint", "checkpoints", "niqe_model")
+#: Options whose string value is an input file when it names one (a checkpoint or camera file,
+#: not a shipped name).
+_FILE_OR_NAME_OPTIONS = ("checkpoint", "checkpoints", "niqe_model", "camera_file")
 
 
 def _paths_of(ctx: click.Context) -> tuple[dict[str, list[Path]], dict[str, Path]]:
@@ -71,8 +72,7 @@ def _paths_of(ctx: click.Context) -> tuple[dict[str, list[Path]], dict[str, Path
         if isinstance(param.type, OutputPath):
             outputs[option] = Path(values[0])
         elif isinstance(param.type, click.Path) or param.name in _FILE_OR_NAME_OPTIONS:
-            inputs[option] = [Path(v) for v in values if isinstance(v, (str, Path))
-                              and Path(v).exists()]
+            inputs[option] = [Path(v) for v in values if isinstance(v, (str, Path))]
     return inputs, outputs
 
 

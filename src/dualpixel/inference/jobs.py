@@ -28,6 +28,7 @@ from dualpixel.io.images import (
     write_png,
 )
 from dualpixel.io.metadata import read_metadata
+from dualpixel.io.paths import check_outputs_apart
 
 __all__ = ["DeblurJob", "plan_deblur_jobs", "run_deblur_jobs"]
 
@@ -80,7 +81,7 @@ def plan_deblur_jobs(
             folder = output if single else output / sequence.name
             jobs.append([DeblurJob(f.left, f.right, folder / f"{f.left.stem}.png", f.combined)
                          for f in sequence.frames])
-        _refuse_overwriting_inputs(jobs, output, folder=True)
+        _refuse_overwriting_inputs(jobs, output)
         _output_folder(output)
         return jobs
     left = Path(left)
@@ -100,7 +101,7 @@ def plan_deblur_jobs(
         raise InputFileError(combined, f"must be {kind}, like --left {left}")
     if not left.is_dir():
         jobs = [[DeblurJob(left, right, output, combined)]]
-        _refuse_overwriting_inputs(jobs, output, folder=False)
+        _refuse_overwriting_inputs(jobs, output)
         check_writable(check_image_path(output))
         return jobs
     lefts = list(image_files(left).values())
@@ -115,23 +116,18 @@ def plan_deblur_jobs(
         if mean is not None and not mean.is_file():
             raise InputFileError(mean, f"combined frame for {path.name} is missing")
         sequence.append(DeblurJob(path, other, output / path.name, mean))
-    _refuse_overwriting_inputs([sequence], output, folder=True)
+    _refuse_overwriting_inputs([sequence], output)
     _output_folder(output)
     return [sequence]
 
 
-def _refuse_overwriting_inputs(jobs: list[list[DeblurJob]], output: Path, *, folder: bool
-                               ) -> None:
-    """An output that is an input, or a folder that holds one (symlinks resolved), is refused
-    before any work: deblurring never overwrites the user's views."""
-    inputs = {p.resolve() for sequence in jobs for job in sequence
-              for p in (job.left, job.right) if p is not None}
-    target = output.resolve()
-    clash = (next((p for p in inputs if p.is_relative_to(target)), None) if folder
-             else next((p for p in inputs if p == target), None))
-    if clash is not None:
-        what = "holds the input" if folder and clash != target else "is the input"
-        raise OutputFileError(output, f"{what} {clash}; choose an output apart from the views")
+def _refuse_overwriting_inputs(jobs: list[list[DeblurJob]], output: Path) -> None:
+    """An output that is an input view, or a folder that holds one (symlinks resolved), is
+    refused before any work (:func:`~dualpixel.io.paths.check_outputs_apart`): deblurring never
+    overwrites the user's views."""
+    views = [p for sequence in jobs for job in sequence for p in (job.left, job.right)
+             if p is not None]
+    check_outputs_apart({"view": views}, {"--output": output})
 
 
 def _same_size(path: Path, image: np.ndarray, reference: Path, shape: tuple[int, ...]) -> None:

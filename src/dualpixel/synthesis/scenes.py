@@ -277,8 +277,9 @@ def render_scene(
 SCENES_DESCRIPTION = "scenes.json"
 
 
-def _check_or_write_description(root: Path, settings: dict) -> None:
-    """Refuse a folder holding scenes made with other settings (kept frames would not match)."""
+def _check_description(root: Path, settings: dict) -> None:
+    """Refuse a folder holding scenes made with other settings (kept frames would not match),
+    or sequences without a description; make the folder."""
     from dualpixel.errors import InputFileError
     from dualpixel.io.documents import read_mapping
     from dualpixel.io.run_folder import differing_settings
@@ -295,7 +296,6 @@ def _check_or_write_description(root: Path, settings: dict) -> None:
         raise InputFileError(root, f"holds sequences without a {SCENES_DESCRIPTION} (made by "
                                    "something else); choose another output folder")
     root.mkdir(parents=True, exist_ok=True)
-    _write_description(root, settings, "incomplete")
 
 
 def _write_description(root: Path, settings: dict, status: str, sequences: int = 0) -> None:
@@ -345,7 +345,7 @@ def write_scene_folder(
         if not settings["relief"]:  # as recorded before the setting existed
             del settings["relief"]
         description = {"config": settings, "seed": seed}
-        _check_or_write_description(root, description)
+        _check_description(root, description)
         remove_partials(root)  # temporary files of writes a kill interrupted
         missing = [(folder, k, names, config, seed) for k, folder in enumerate(folders)
                    if not all((folder / "depth" / f"{n}.npy").is_file()
