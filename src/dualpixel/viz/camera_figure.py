@@ -50,6 +50,7 @@ def render_camera_figure(calibration, path: str | Path, *, kernels_shown: int = 
     every_base = model_disparity(every, camera.psf)  # the points' own disparities, all of them
     fig = plt.figure(figsize=(13, 4.6))
     axis = fig.add_subplot(1, 2, 1)
+    shown_r: list[np.ndarray] = []
     shown_d: list[np.ndarray] = []
     for c, (label, colour) in enumerate(CHANNELS):
         points_r, points_d = [], []
@@ -60,6 +61,7 @@ def render_camera_figure(calibration, path: str | Path, *, kernels_shown: int = 
             points_d.append(a * sign * np.interp(r, every, every_base))
         axis.scatter(np.concatenate(points_r) + (c - 1) * 0.06, np.concatenate(points_d), s=5,
                      alpha=0.25, color=colour)
+        shown_r.append(np.concatenate(points_r))
         shown_d.append(np.concatenate(points_d))
         axis.plot(radii, camera.disparity_ratio[c] * base, color=colour,
                   label=f"{label}: {camera.disparity_ratio[c]:.2f} x model")
@@ -71,8 +73,8 @@ def render_camera_figure(calibration, path: str | Path, *, kernels_shown: int = 
         bottom = min(low, 0.0) - 0.05 * span
         top = max(high, float(base.max())) + 0.1 * span
         axis.set_ylim(bottom, top)
-        hidden = int(((disparities < bottom) | (disparities > top)).sum()
-                     + (usable_radii > radii[-1] + 0.2).sum())
+        beyond_r = np.concatenate(shown_r) > radii[-1] + 0.2  # each point counted once
+        hidden = int(((disparities < bottom) | (disparities > top) | beyond_r).sum())
         if hidden:
             axis.text(0.99, 0.02, f"{hidden} outlying points beyond the axes", fontsize=7,
                       ha="right", transform=axis.transAxes)
