@@ -43,12 +43,15 @@ DEFAULT_OVERSHOOT = "model"
 ENCODINGS: tuple[str, ...] = ("srgb", "linear")
 
 
-def output_modes_suffix(brightness: str, overshoot: str) -> str:
-    """How results name a model run with these output modes: ``+limited`` for a limited
-    overshoot, then ``+tied`` for a tied brightness (the order they are applied in).
+def output_modes_suffix(brightness: str, overshoot: str, *, flips: bool = False,
+                        multiscale: bool = False) -> str:
+    """How results name a model run with these settings: ``+flips`` and ``+multiscale`` for
+    the network's passes, then ``+limited`` for a limited overshoot and ``+tied`` for a tied
+    brightness (the order they are applied in).
 
-    >>> output_modes_suffix("tied", "limited"), output_modes_suffix("model", "model")
-    ('+limited+tied', '')
+    >>> output_modes_suffix("tied", "limited"), output_modes_suffix("model", "model", flips=True)
+    ('+limited+tied', '+flips')
     """
+    passes = ("+flips" if flips else "") + ("+multiscale" if multiscale else "")
     limited = "+limited" if overshoot == "limited" else ""
-    return limited + ("+tied" if brightness == "tied" else "")
+    return passes + limited + ("+tied" if brightness == "tied" else "")

@@ -178,7 +178,7 @@ def test_check_model_command(frame, tmp_path, tiny_checkpoint):
                                       str(tiny_checkpoint), "--reference", str(tiny_checkpoint),
                                       "-o", str(out), "--device", "cpu", "--brightness", "model",
                                       "--brightness", "tied", "--overshoot", "model",
-                                      "--overshoot", "limited"])
+                                      "--overshoot", "limited", "--flips", "off", "--flips", "off"])
     assert result.exit_code == 0, result.output
     csv = (out / "target_free.csv").read_text().splitlines()
     assert csv[0].startswith("pair,method,brightness_change") and len(csv) == 5
@@ -199,19 +199,32 @@ def test_check_model_command(frame, tmp_path, tiny_checkpoint):
     assert nothing.exit_code != 0 and "no scene folders" in nothing.output
 
 
-def test_the_modes_of_a_checkpoint_share_its_network_pass(frame, tiny_checkpoint):
+def test_the_modes_of_a_checkpoint_share_its_network_pass(frame, tiny_checkpoint, tmp_path):
+    import torch
+
     from dualpixel.inference import Deblurrer
-    from dualpixel.models import load_model
+    from dualpixel.models import load_model, save_model
 
     left, right = frame["left"], frame["right"]
-    methods = model_methods([str(tiny_checkpoint)], device="cpu", precision="fp32",
-                            brightness=("model", "tied"), overshoot=("model", "limited"))
-    model = load_model(tiny_checkpoint)
+    model = load_model(tiny_checkpoint)  # untrained (the identity): perturbed so flips matter
+    torch.manual_seed(1)
+    with torch.no_grad():
+        for p in model.parameters():
+            p.add_(0.05 * torch.randn_like(p))
+    checkpoint = tmp_path / "perturbed.safetensors"
+    save_model(checkpoint, model)
+    methods = model_methods([str(checkpoint)], device="cpu", precision="fp32",
+                            brightness=("model", "tied"), overshoot=("model", "limited"),
+                            flips=(False, True))
+    assert len(methods) == 8
     for name, method in methods.items():
         limit = "limited" if "+limited" in name else "model"
         tie = "tied" if "+tied" in name else "model"
-        alone = Deblurrer(model, precision="fp32", brightness=tie, overshoot=limit)
+        alone = Deblurrer(model, precision="fp32", brightness=tie, overshoot=limit,
+                          flips="+flips" in name)
         np.testing.assert_allclose(method(left, right), alone(left, right), atol=1e-6)
+    flipped = methods[str(checkpoint) + "+flips"](left, right)
+    assert np.abs(flipped - methods[str(checkpoint)](left, right)).max() > 1e-3
 
 
 def test_eval_runs_the_view_checks(shared_dir, tmp_path):

@@ -231,9 +231,8 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
                               precision=precision, flips=flips, multiscale=multiscale,
                               backend=backend, brightness=brightness, overshoot=overshoot)
         is_path = Path(checkpoint).suffix == ".safetensors" or "/" in str(checkpoint)
-        method = (Path(checkpoint).stem if is_path else str(checkpoint)) + (
-            "+flips" if flips else "") + (
-            "+multiscale" if multiscale else "") + output_modes_suffix(brightness, overshoot)
+        method = (Path(checkpoint).stem if is_path else str(checkpoint)) + output_modes_suffix(
+            brightness, overshoot, flips=flips, multiscale=multiscale)
         meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale,
                 "brightness": brightness, "overshoot": overshoot,
                 "precision": deblurrer.numerics.name, "backend": backend}
@@ -384,13 +383,18 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
               show_default=True,
               help="Overshoot mode (see deblur); repeat to check each checkpoint both ways "
                    "(a limited one is named CHECKPOINT+limited).")
+@click.option("--flips", "flips", multiple=True, type=click.Choice(["off", "on"]),
+              default=("off",), show_default=True,
+              help="Self-ensemble (see deblur --flips); repeat to check each checkpoint both "
+                   "ways (with flips it is named CHECKPOINT+flips).")
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
 @_PRECISION_OPTION
 def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[str, ...],
                 reference: str | None, output: Path, encoding: str, black_level: float | None,
                 white_level: float | None, strict: bool, brightness: tuple[str, ...],
-                overshoot: tuple[str, ...], tile: int | None, device: str, precision: str) -> None:
+                overshoot: tuple[str, ...], flips: tuple[str, ...], tile: int | None,
+                device: str, precision: str) -> None:
     """Target-free checks of models on real DP pairs without ground truth: brightness kept,
     no halos, in-focus regions kept, nothing invented, defocused regions sharper."""
     from dualpixel.evaluation.target_free import (
@@ -400,14 +404,16 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
     )
     from dualpixel.inference.encoding import ViewEncoding
 
-    names = [c + output_modes_suffix(tie, limit) for c in checkpoints for limit in overshoot
-             for tie in brightness]
+    passes = tuple(dict.fromkeys(f == "on" for f in flips))
+    names = [c + output_modes_suffix(tie, limit, flips=f) for c in checkpoints for f in passes
+             for limit in overshoot for tie in brightness]
     if reference is not None and reference not in names:
         raise click.BadParameter(f"{reference!r} is not one of the checked models "
                                  f"({', '.join(names)})", param_hint="--reference")
     view_encoding = ViewEncoding(encoding, black_level, white_level)
     methods = model_methods(checkpoints, device=device, encoding=view_encoding, tile=tile,
-                            precision=precision, brightness=brightness, overshoot=overshoot)
+                            precision=precision, brightness=brightness, overshoot=overshoot,
+                            flips=passes)
     rows = []
     for root in inputs:  # pairs named by their folder too when several are checked
         prefix = f"{root.resolve().name}/" if len(inputs) > 1 else ""

@@ -283,14 +283,16 @@ class _LastOutput:
 def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
                   encoding: ViewEncoding | None = None, tile: int | None = None,
                   precision: str = "auto", brightness: Iterable[str] = ("model",),
-                  overshoot: Iterable[str] = ("model",)) -> dict[str, Method]:
-    """A :data:`Method` per checkpoint (a registry name or a ``.safetensors`` path), overshoot
-    mode (:mod:`dualpixel.inference.overshoot`) and brightness mode
+                  overshoot: Iterable[str] = ("model",),
+                  flips: Iterable[bool] = (False,)) -> dict[str, Method]:
+    """A :data:`Method` per checkpoint (a registry name or a ``.safetensors`` path), flips
+    setting (the self-ensemble, :class:`~dualpixel.inference.Deblurrer`), overshoot mode
+    (:mod:`dualpixel.inference.overshoot`) and brightness mode
     (:mod:`dualpixel.inference.brightness`), named ``CHECKPOINT`` plus
-    :func:`~dualpixel.names.output_modes_suffix` (``+limited``, ``+tied``): each pair deblurred
-    afresh, in the views' own encoding and channels
-    (:func:`~dualpixel.inference.encoding.deblur_encoded`); the modes of one checkpoint share
-    its network's output."""
+    :func:`~dualpixel.names.output_modes_suffix` (``+flips``, ``+limited``, ``+tied``): each
+    pair deblurred afresh, in the views' own encoding and channels
+    (:func:`~dualpixel.inference.encoding.deblur_encoded`); the output modes of one checkpoint
+    and flips setting share its network's output."""
     from dualpixel.device import resolve_device
     from dualpixel.inference import Deblurrer
     from dualpixel.inference.encoding import deblur_encoded
@@ -301,20 +303,23 @@ def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
     resolved = resolve_device(device)
     for checkpoint in checkpoints:
         model = load_model(resolve_checkpoint(checkpoint), device=resolved)
-        deblurrer = Deblurrer(model, device=resolved, tile=tile, precision=precision)
-        last = _LastOutput(deblurrer)
-        for limit in overshoot:
-            for tie in brightness:
-                def finished(left: np.ndarray, right: np.ndarray, tie=tie, limit=limit,
-                             deblurrer=deblurrer, last=last) -> np.ndarray:
-                    return deblurrer.finish(last(left, right), left, right, brightness=tie,
-                                            overshoot=limit)
+        for flip in flips:
+            deblurrer = Deblurrer(model, device=resolved, tile=tile, precision=precision,
+                                  flips=flip)
+            last = _LastOutput(deblurrer)
+            for limit in overshoot:
+                for tie in brightness:
+                    def finished(left: np.ndarray, right: np.ndarray, tie=tie, limit=limit,
+                                 deblurrer=deblurrer, last=last) -> np.ndarray:
+                        return deblurrer.finish(last(left, right), left, right, brightness=tie,
+                                                overshoot=limit)
 
-                def method(left: np.ndarray, right: np.ndarray,
-                           finished=finished) -> np.ndarray:
-                    return deblur_encoded(finished, left, right, encoding)
+                    def method(left: np.ndarray, right: np.ndarray,
+                               finished=finished) -> np.ndarray:
+                        return deblur_encoded(finished, left, right, encoding)
 
-                methods[str(checkpoint) + output_modes_suffix(tie, limit)] = method
+                    name = str(checkpoint) + output_modes_suffix(tie, limit, flips=flip)
+                    methods[name] = method
     return methods
 
 
