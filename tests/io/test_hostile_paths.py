@@ -19,7 +19,7 @@ data:
     scenes: {{sequences: 1, frames: 1, width: 64, height: 48, layout: photo, seed: 1}}
 phases:
   - name: {phase}
-ship: {{name: {ship}}}
+ship: {{tag: {ship}}}
 evaluate:
   - {{name: {evaluate}, dataset: {step}, split: test}}
 """
@@ -28,7 +28,7 @@ evaluate:
 @pytest.mark.parametrize("field", ["step", "phase", "ship", "evaluate"])
 @pytest.mark.parametrize("bad", ["../../x", "/tmp/abs", "..", "a/b"])
 def test_recipe_names_that_would_leave_the_run_folder_are_refused(tmp_path, field, bad):
-    names = {"step": "scenes", "phase": "one", "ship": "model", "evaluate": "held-out"}
+    names = {"step": "scenes", "phase": "one", "ship": "model.v1", "evaluate": "held-out"}
     names[field] = f"'{bad}'"
     path = tmp_path / "recipe.yaml"
     path.write_text(RECIPE.format(**names))
@@ -273,7 +273,7 @@ def test_eval_compare_names_stay_apart_from_the_rows(tmp_path, compare, says):
 @pytest.mark.parametrize("marker", ["[1, 2]", "[" * 100_000, "\xff\xfe binary"])
 def test_a_run_folder_with_a_hostile_recipe_record_is_refused(tmp_path, marker):
     recipe = tmp_path / "recipe.yaml"
-    recipe.write_text(RECIPE.format(step="scenes", phase="one", ship="model",
+    recipe.write_text(RECIPE.format(step="scenes", phase="one", ship="model.v1",
                                     evaluate="held-out")
                       + "train: {model: rdpd, width: 0.125, synthetic_data: scenes}\n")
     run = tmp_path / "run"

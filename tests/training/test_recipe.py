@@ -103,7 +103,7 @@ def _tiny_recipe(tmp_path: Path, **changes) -> Path:
                   "val_split": "train", "sequence_frames": 2, "workers": 0, **TINY_PHASE},
         "phases": [{"name": "first", "set": {"learning_rate": 1e-3}},
                    {"name": "second", "set": {"refiner": [4, 8]}}],
-        "ship": {"name": "tiny", "doc": "a tiny model"},
+        "ship": {"tag": "tiny.v1", "doc": "a tiny model"},
         "evaluate": [{"name": "synth", "dataset": "synth", "split": "train"}],
     }
     for key, value in changes.items():
@@ -132,7 +132,7 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
     assert result.exit_code == 0, result.output
     assert "phase first: done" in result.output  # not trained again
     assert (out / "phases/first/last.safetensors").stat().st_mtime_ns == stamp
-    assert (out / "ship/tiny.safetensors").is_file()
+    assert (out / "ship/tiny.v1.safetensors").is_file()
     # the second phase started from the first's weights, by path and hash
     init = read_metadata(out / "phases/second/last.safetensors")["extra"]["init"]
     assert init["name"].endswith("phases/first/last.safetensors")
@@ -155,7 +155,11 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
     ({"data": [{"name": "synth", "synth": {"input": "scenes"}}]},
      "data step synth: input 'scenes' is no earlier data step"),
     ({"data": [{"name": "s", "scenes": {"sequences": 1, "width": -3}}]}, "data step s: width"),
-    ({"ship": {"name": "x", "phase": "third"}}, "ship: .*no phase 'third'"),
+    ({"ship": {"tag": "x.v1", "phase": "third"}}, "ship: .*no phase 'third'"),
+    ({"ship": {"name": "x"}}, "ship: .name. is now .tag."),
+    ({"ship": {"tag": "Tiny"}}, "ship: tag .* is not ARCHITECTURE.vN"),
+    ({"ship": {"tag": "../x.v1"}}, "ship: .*plain name"),
+    ({"ship": {"tag": "x.v1", "output": {"flips": "yes"}}}, "ship output flips: .yes. is not"),
 ])
 def test_bad_recipes_are_refused_before_any_work(tmp_path, changes, message):
     path = _tiny_recipe(tmp_path, **changes)

@@ -1,4 +1,5 @@
-"""``dualpixel reproduce``: make a model from its recipe (``recipes/NAME.yaml``)."""
+"""``dualpixel reproduce``: make a model from its recipe (``recipes/NAME.yaml``);
+``dualpixel release``: ship what a finished run made."""
 
 from __future__ import annotations
 
@@ -43,4 +44,39 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
     click.echo(f"done: {shipped}" if shipped else f"done: phases in {output / 'phases'}")
 
 
-COMMANDS = (reproduce,)
+@click.command(cls=DPCommand, context_settings=CONTEXT)
+@click.argument("run", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.option("--tag", required=True,
+              help="The tag the weights ship under: the recipe's ship.tag (written once).")
+@click.option("--alias", default=None,
+              help="A name that then stands for the tag (e.g. rdpd-light).")
+@click.option("--default", "make_default", is_flag=True,
+              help="Make --alias the package's default model.")
+@click.option("--replaces", default=None, metavar="TAG",
+              help="A shipped tag this one replaces: it moves to the deprecated names with the "
+                   "recipe and phase that remake it, and its file leaves the package.")
+@click.option("--weights-dir", type=OutputPath(file_okay=False, path_type=Path), default=None,
+              help="Weights folder with registry.json [default: the package's].")
+@click.option("--results-dir", type=OutputPath(file_okay=False, path_type=Path),
+              default=Path("docs/results"), show_default=True,
+              help="Where the per-image results go (TAG.csv).")
+@click.option("--recipes-dir", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("recipes"), show_default=True,
+              help="Where shipped models' recipes live; the run's recipe must be there.")
+def release(run: Path, tag: str, alias: str | None, make_default: bool, replaces: str | None,
+            weights_dir: Path | None, results_dir: Path, recipes_dir: Path) -> None:
+    """Ship a finished `reproduce` run: its weights into the package under --tag, with a
+    header and a registry row written from the run (recipe, phase, start, metrics)."""
+    from dualpixel.training.release import release_run
+
+    done = release_run(run, tag, weights_dir=weights_dir, results_dir=results_dir,
+                       recipes_dir=recipes_dir, alias=alias, replaces=replaces,
+                       default=make_default)
+    click.echo(f"released {done.tag}: {done.weights} (sha256 {done.sha256[:16]}...)")
+    if done.results is not None:
+        click.echo(f"per-image results: {done.results}")
+    if done.replaced is not None:
+        click.echo(f"{done.replaced} is retired (deprecated names)")
+
+
+COMMANDS = (reproduce, release)

@@ -17,8 +17,12 @@ with phases inside it) holds:
   nothing (``init: none``, the first phase's default) or from a shipped tag
   (``init: rdpd-light.v12``, checked by its sha256). A phase trains in
   ``OUTPUT/phases/NN-NAME`` and resumes there;
-- ``ship``: ``{name, doc, phase}``: the phase (default the last) whose weights are exported in
-  float16 to ``OUTPUT/ship/NAME.safetensors`` with their provenance and metrics;
+- ``ship``: ``{tag, phase, doc, output}``: what the recipe ships: the tag its weights get
+  (``ARCHITECTURE.vN``, see :mod:`dualpixel.weights`), the phase they come from (default the
+  last), a one-line doc and the output settings the model runs with by default
+  (``{brightness, overshoot, flips}``, as ``dualpixel deblur`` takes them). ``reproduce``
+  exports them in float16 to ``OUTPUT/ship/TAG.safetensors`` with their provenance and metrics
+  (scored with those settings); ``dualpixel release`` puts them into the package;
 - ``evaluate``: ``[{name, dataset, split}]`` scored with the shipped weights (a step's name or a
   folder; a folder outside the run that is missing is skipped with a note).
 
@@ -39,9 +43,14 @@ from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.paths import check_plain_name
 
-__all__ = ["Phase", "Recipe", "load_recipe", "plan_text", "reproduce"]
+__all__ = ["OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe", "phase_done", "plan_text",
+           "reproduce"]
 
 _TOP_KEYS = {"name", "description", "data", "train", "phases", "ship", "evaluate"}
+_SHIP_KEYS = {"tag", "phase", "doc", "output"}
+#: Output settings a recipe's ``ship.output`` may give, with the values each takes.
+OUTPUT_SETTINGS: dict[str, tuple[Any, ...]] = {
+    "brightness": ("model", "tied"), "overshoot": ("model", "limited"), "flips": (False, True)}
 _DATA_KEYS = ("real_data", "synthetic_data", "val_data", "real_val_data")
 
 
@@ -91,6 +100,16 @@ class Recipe:
         """The phase whose weights ``ship`` exports: ``ship.phase``, else the last."""
         return str(self.ship.get("phase", self.phases[-1].name))
 
+    @property
+    def shipped_tag(self) -> str:
+        """The tag the shipped weights get (``ship.tag``)."""
+        return str(self.ship["tag"])
+
+    @property
+    def output_settings(self) -> dict[str, Any]:
+        """How the shipped model runs by default (``ship.output``; unset keys: as given)."""
+        return dict(self.ship.get("output") or {})
+
 
 def _fail(path: Path, where: str, problem: str) -> InputFileError:
     return InputFileError(path, f"{where}: {problem}")
@@ -110,6 +129,38 @@ def _plain(path: Path, where: str, name: Any) -> str:
         raise _fail(path, where, f"{str(name)[:80]!r} must be a plain name (letters, digits, "
                                  "'-', '_'; no '/', '..' or absolute path): it names a folder "
                                  "of the run") from None
+
+
+def _ship(path: Path, raw: Any) -> dict[str, Any]:
+    """The ``ship`` block, checked: a tag (``ARCHITECTURE.vN``), known keys and settings."""
+    import re
+
+    ship = dict(_mapping(path, "ship", raw or {}))
+    if not ship:
+        return ship
+    if "name" in ship and "tag" not in ship:
+        raise _fail(path, "ship", "'name' is now 'tag': the tag the weights ship under, "
+                                  "e.g. rdpd-light.v13")
+    unknown = sorted(set(ship) - _SHIP_KEYS)
+    if unknown:
+        raise _fail(path, "ship", f"unknown key(s) {', '.join(unknown)}; known: "
+                                  f"{', '.join(sorted(_SHIP_KEYS))}")
+    if "tag" not in ship:
+        raise _fail(path, "ship", "missing key 'tag' (the tag the weights ship under)")
+    _plain(path, "ship", ship["tag"])  # it names a file
+    if not re.fullmatch(r"[a-z0-9][a-z0-9-]*\.v[0-9]+", str(ship["tag"])):
+        raise _fail(path, "ship", f"tag {str(ship['tag'])[:80]!r} is not ARCHITECTURE.vN "
+                                  "(lower-case letters, digits and '-', then .v and a number)")
+    output = dict(_mapping(path, "ship output", ship.get("output") or {}))
+    for key, value in output.items():
+        if key not in OUTPUT_SETTINGS:
+            raise _fail(path, "ship output", f"unknown key {key!r}; known: "
+                                             f"{', '.join(OUTPUT_SETTINGS)}")
+        if value not in OUTPUT_SETTINGS[key] or type(value) is not type(OUTPUT_SETTINGS[key][0]):
+            raise _fail(path, f"ship output {key}", f"{value!r} is not one of "
+                        f"{', '.join(map(str, OUTPUT_SETTINGS[key]))}")
+    ship["output"] = output
+    return ship
 
 
 def load_recipe(path: str | Path) -> Recipe:
@@ -155,12 +206,7 @@ def load_recipe(path: str | Path) -> Recipe:
                             init))
     if len({p.name for p in phases}) != len(phases):
         raise _fail(path, "phases", "phase names must be unique")
-    ship = dict(_mapping(path, "ship", raw.get("ship") or {}))
-    unknown = sorted(set(ship) - {"name", "doc", "phase"})
-    if unknown:
-        raise _fail(path, "ship", f"unknown key(s) {', '.join(unknown)}")
-    if "name" in ship:
-        _plain(path, "ship", ship["name"])
+    ship = _ship(path, raw.get("ship"))
     evaluate = []
     for k, item in enumerate(raw.get("evaluate") or []):
         item = dict(_mapping(path, f"evaluate entry {k + 1}", item))
@@ -269,8 +315,6 @@ def check_recipe(recipe: Recipe, output: Path = Path("OUTPUT")) -> None:
                     raise _fail(recipe.path, where, f"{key} {value!r} is no data step of the "
                                                     "recipe and no folder")
     if recipe.ship:
-        if "name" not in recipe.ship:
-            raise _fail(recipe.path, "ship", "missing key 'name'")
         if "phase" in recipe.ship:
             try:
                 recipe.phase_index(str(recipe.ship["phase"]))
@@ -333,8 +377,9 @@ def plan_text(recipe: Recipe, output: Path, until: str | None = None) -> str:
                      f"{config.epochs} x {config.iterations_per_epoch or 'auto'} iterations  "
                      f"[{_phase_state(folder, config.epochs)}]")
     if until is None and recipe.ship:
-        lines.append(f"ship: {recipe.ship['name']} from phase "
-                     f"{recipe.shipped_phase} (float16)")
+        settings = ", ".join(f"{k} {v}" for k, v in recipe.output_settings.items())
+        lines.append(f"ship: {recipe.shipped_tag} from phase {recipe.shipped_phase} (float16"
+                     + (f"; runs with {settings})" if settings else ")"))
         for entry in recipe.evaluate:
             lines.append(f"evaluate: {entry['name']} on {entry['dataset']}")
     return "\n".join(lines)
@@ -350,6 +395,13 @@ def _step_state(folder: Path) -> str:
                 return "unreadable"
             return "done" if status == "complete" else "started"
     return "to do"
+
+
+def phase_done(recipe: Recipe, index: int, output: Path) -> bool:
+    """Whether phase ``index`` of a run in ``output`` has trained all its epochs."""
+    config = phase_config(recipe, index, output, phase_start(recipe, index, output,
+                                                             must_exist=False))
+    return _phase_state(recipe.phase_folder(output, index), config.epochs) == "done"
 
 
 def _phase_state(folder: Path, epochs: int) -> str:
@@ -430,21 +482,22 @@ def ship_phase(recipe: Recipe, folder: Path, output: Path, phase: str,
     source = folder / "last.safetensors"
     meta = read_metadata(source)["extra"]
     model = load_model(source)
-    name = str(recipe.ship["name"])
+    tag = recipe.shipped_tag
     extra = {
-        "name": name, "doc": str(recipe.ship.get("doc", recipe.description)),
+        "name": tag, "doc": str(recipe.ship.get("doc", recipe.description)),
         "recipe": recipe.path.name, "phase": phase, "num_params": count_parameters(model),
         "init": meta.get("init"), "metrics": metrics or {},
-        "config": meta.get("config"),
+        "output": recipe.output_settings, "config": meta.get("config"),
     }
-    target = output / "ship" / f"{name}.safetensors"
+    target = output / "ship" / f"{tag}.safetensors"
     target.parent.mkdir(parents=True, exist_ok=True)
     save_model(target, model, dtype=torch.float16, extra=extra)
     return target
 
 
 def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) -> dict:
-    """Score the shipped weights on each ``evaluate`` entry; returns ``{name: metrics}``."""
+    """Score the shipped weights, run with the recipe's output settings, on each ``evaluate``
+    entry; returns ``{name: metrics}``."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
     from dualpixel.inference.deblur import Deblurrer
     from dualpixel.models.checkpoint import load_model
@@ -456,7 +509,7 @@ def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) 
             log(f"evaluate {entry['name']}: {dataset} not found, skipped")
             continue
         folder = output / "eval" / entry["name"]
-        deblurrer = Deblurrer(load_model(weights))
+        deblurrer = Deblurrer(load_model(weights), **recipe.output_settings)
         run_evaluation(EvaluationRequest(output=folder, dataset=dataset,
                                          split=entry.get("split", "test"), niqe=False,
                                          figures=1), deblurrer, "model")

@@ -2,9 +2,12 @@
 
 After torchvision's ``Weights`` and timm's ``arch.tag`` names: every shipped file has an
 immutable *tag* (``rdpd-light.v12``) with its sha256, the recipe and phase that made it
-(``dualpixel reproduce recipes/RECIPE --until PHASE``), its parameter count, metrics and a
-one-line doc; an *alias* (``rdpd-light``, the default) names the tag it stands for today. Names
-that shipped once are in the deprecation map, which says which recipe phase remakes them.
+(``dualpixel reproduce recipes/RECIPE --until PHASE``) and where that phase started (a phase of
+the same recipe or a shipped tag, with the sha256 of those weights), its parameter count,
+metrics, a one-line doc and the output settings it runs with by default; an *alias*
+(``rdpd-light``, the default) names the tag it stands for today. Names that shipped once are in
+the deprecation map, which says which recipe phase remakes them. ``dualpixel release``
+(:mod:`dualpixel.training.release`) writes the files and the rows.
 
 ``resolve_checkpoint`` takes an alias, a tag or a path to a ``.safetensors`` file written by
 ``dualpixel train`` / ``reproduce``.
@@ -24,7 +27,8 @@ from dualpixel.errors import InputFileError, ParameterError
 
 __all__ = [
     "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "WEIGHTS", "Weights", "file_sha256",
-    "list_models", "model_card", "model_info", "phase_weights", "resolve_checkpoint", "resolve_tag",
+    "list_models", "model_card", "model_info", "output_settings", "phase_weights",
+    "resolve_checkpoint", "resolve_tag", "weights_folder",
 ]
 
 
@@ -41,10 +45,17 @@ class Weights:
     num_params: int
     doc: str
     metrics: dict[str, Any] = field(default_factory=dict)
+    start: dict[str, str] | None = None  # {"phase" or "tag": NAME, "sha256": ...}; None: nothing
+    output: dict[str, Any] = field(default_factory=dict)  # deblur's settings by default
 
     @property
     def path(self) -> Path:
         return Path(str(resources.files(__name__).joinpath(self.file)))
+
+
+def weights_folder() -> Path:
+    """The package folder that holds the shipped files and ``registry.json``."""
+    return Path(str(resources.files(__name__)))
 
 
 def _registry() -> dict[str, Any]:
@@ -113,6 +124,13 @@ def resolve_tag(tag: str) -> Path:
     if file_sha256(path) != WEIGHTS[tag].sha256:
         raise InputFileError(path, f"sha256 differs from the registry's for {tag}")
     return path
+
+
+def output_settings(name: str | Path) -> dict[str, Any]:
+    """The output settings (``brightness``, ``overshoot``, ``flips``) a shipped model runs with
+    by default; empty for a file path (it runs as the network gives it)."""
+    tag = ALIASES.get(str(name), str(name))
+    return dict(WEIGHTS[tag].output) if tag in WEIGHTS else {}
 
 
 def phase_weights(recipe: str, phase: str) -> str | None:

@@ -1,0 +1,241 @@
+"""From a finished recipe run to a shipped model (``dualpixel release RUN --tag TAG``).
+
+The weights ``reproduce`` exported for the recipe's ``ship`` block (``RUN/ship/TAG.safetensors``)
+go into the package's weights folder under their tag, with a header written here: tag, recipe,
+phase, start, doc, parameter count, metrics and output settings. The registry gets the row
+(:mod:`dualpixel.weights`); a tag it replaces moves to the deprecation map with the recipe and
+phase that remake it, and its file leaves the package; the run's per-image results become
+``docs/results/TAG.csv``.
+
+A start is where the shipped phase began: a phase of the same recipe or a shipped tag, each with
+the sha256 of those weights, never a path. A tag is written once: an existing tag, a start that
+resolves to nothing or a run that has not finished is refused before anything is written. The
+registry is written last, so an interrupted release leaves the package as it was (a stray new
+file at most, replaced by the next try).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.documents import read_mapping
+
+__all__ = ["Release", "release_run", "results_rows", "run_recipe"]
+
+#: Columns of ``docs/results/TAG.csv``: one row per evaluation entry and image.
+RESULT_COLUMNS = ("evaluation", "image", "input_psnr", "psnr", "ssim", "input_ssim")
+
+
+@dataclass(frozen=True)
+class Release:
+    """What :func:`release_run` wrote."""
+
+    tag: str
+    weights: Path
+    sha256: str
+    results: Path | None
+    replaced: str | None
+
+
+def run_recipe(run: str | Path):
+    """The :class:`~dualpixel.training.recipe.Recipe` a run folder was made by (its
+    ``recipe.json``)."""
+    from dualpixel.training.recipe import load_recipe
+
+    marker = Path(run) / "recipe.json"
+    if not marker.is_file():
+        raise InputFileError(run, "is no recipe run folder (no recipe.json; "
+                                  "`dualpixel reproduce RECIPE --output RUN` makes one)")
+    record = read_mapping(marker, "run folder's recipe record")
+    path = Path(str(record.get("recipe", "")))
+    if not path.is_file():
+        raise InputFileError(marker, f"names recipe {str(path)[:200]!r}, which is not a file "
+                                     "(run from the folder reproduce ran in)")
+    recipe = load_recipe(path)
+    if recipe.name != record.get("name"):
+        raise InputFileError(marker, f"was made by recipe {record.get('name')!r}, but "
+                                     f"{path} is now {recipe.name!r}")
+    return recipe
+
+
+def _start(recipe, index: int, run: Path, registry: dict[str, Any]) -> dict[str, str] | None:
+    """The shipped phase's start: ``{"phase": NAME, "sha256"}`` or ``{"tag": TAG, "sha256"}``
+    (None: from nothing), checked against the run's record of it."""
+    phase = recipe.phases[index]
+    folder = recipe.phase_folder(run, index)
+    record_path = folder / "init.json"
+    record = read_mapping(record_path, "starting weights record") if record_path.is_file() else None
+    if phase.init == "none":
+        if record is not None:
+            raise InputFileError(record_path, f"phase {phase.name} starts from nothing in the "
+                                              "recipe, but its run started from weights")
+        return None
+    if record is None or not isinstance(record.get("sha256"), str):
+        raise InputFileError(folder, f"phase {phase.name} has no record of its start "
+                                     "(init.json); the start resolves to nothing")
+    name, sha256 = str(record.get("name", "")), record["sha256"]
+    rows = registry["weights"]
+    if name in rows or (phase.init != "previous" and phase.init == name):
+        if name not in rows or rows[name]["sha256"] != sha256:
+            raise InputFileError(record_path, f"the start {name!r} is no shipped tag with this "
+                                              "sha256; the start resolves to nothing")
+        return {"tag": name, "sha256": sha256}
+    previous = recipe.phases[index - 1].name if index else None
+    expected = Path("phases") / str(previous) / "last.safetensors"
+    if phase.init != "previous" or not name.endswith(str(expected)):
+        raise InputFileError(record_path, f"the start {name[:200]!r} is neither a shipped tag nor "
+                                          f"phase {previous} of this recipe; the start "
+                                          "resolves to nothing")
+    return {"phase": str(previous), "sha256": sha256}
+
+
+def _architecture(meta: dict[str, Any]) -> str:
+    """The name in :data:`~dualpixel.models.spec.ARCHITECTURES` of a file's network."""
+    from dualpixel.models.spec import ARCHITECTURES
+
+    for name, spec in ARCHITECTURES.items():
+        if (spec["model"] == meta["model"] and float(spec["width"]) == float(meta["width"])
+                and bool(spec.get("residual", False)) == bool(meta["residual"])
+                and list(spec.get("refiner", ())) == list(meta.get("refiner") or [])):
+            return name
+    raise ParameterError(f"the network ({meta['model']}, width {meta['width']}) has no "
+                         "architecture name; add it to dualpixel.models.spec.ARCHITECTURES")
+
+
+def results_rows(recipe, run: Path) -> list[dict[str, Any]]:
+    """Per image of every ``evaluate`` entry the run scored: input and model PSNR / SSIM."""
+    rows = []
+    for entry in recipe.evaluate:
+        table = Path(run) / "eval" / entry["name"] / "per_image.csv"
+        if not table.is_file():
+            continue
+        by_image: dict[str, dict[str, Any]] = {}
+        with open(table, newline="") as handle:
+            for row in csv.DictReader(handle):
+                image = by_image.setdefault(row["name"], {"evaluation": entry["name"],
+                                                          "image": row["name"]})
+                if row["method"] == "input":
+                    image["input_psnr"], image["input_ssim"] = row["psnr"], row["ssim"]
+                elif row["method"] == "model":
+                    image["psnr"], image["ssim"] = row["psnr"], row["ssim"]
+        for image in by_image.values():
+            rows.append({k: (round(float(image[k]), 4) if k not in ("evaluation", "image")
+                             else image[k]) for k in RESULT_COLUMNS if k in image})
+    return rows
+
+
+def _registry_metrics(extra: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """The run's metrics (``{entry: {input: {...}, model: {...}}}``) as registry rows."""
+    metrics = {}
+    for name, scores in (extra.get("metrics") or {}).items():
+        if "model" in scores and "input" in scores:
+            metrics[name] = {"psnr": round(scores["model"]["psnr"], 2),
+                             "ssim": round(scores["model"]["ssim"], 3),
+                             "input_psnr": round(scores["input"]["psnr"], 2)}
+    return metrics
+
+
+def _write_json(path: Path, value: Any) -> None:
+    from dualpixel.io.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(value, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+
+
+def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = None,
+                results_dir: str | Path | None = Path("docs/results"),
+                recipes_dir: str | Path = Path("recipes"), alias: str | None = None,
+                replaces: str | None = None, default: bool = False) -> Release:
+    """Ship run ``run``'s weights under ``tag`` (the recipe's ``ship.tag``) into
+    ``weights_dir`` (the package's, :func:`~dualpixel.weights.weights_folder`, by default),
+    whose ``registry.json`` gets the row; ``alias`` then names it, ``default`` makes that
+    alias the default, ``replaces`` retires a shipped tag (its aliases move to ``tag``). The
+    recipe must lie in ``recipes_dir``: a shipped model is remade from there. Per-image results
+    go to ``results_dir/TAG.csv`` (None: not written)."""
+    from dualpixel.io.atomic import atomic_path
+    from dualpixel.models.checkpoint import load_model, read_metadata, save_model
+    from dualpixel.training.recipe import phase_done
+    from dualpixel.weights import file_sha256, weights_folder
+
+    run = Path(run)
+    recipe = run_recipe(run)
+    if not recipe.ship:
+        raise InputFileError(recipe.path, "has no ship block: nothing to release")
+    if tag != recipe.shipped_tag:
+        raise ParameterError(f"--tag {tag}: the recipe {recipe.path.name} ships "
+                             f"{recipe.shipped_tag}")
+    if recipe.path.resolve().parent != Path(recipes_dir).resolve():
+        raise InputFileError(recipe.path, f"a shipped model's recipe lives in {recipes_dir}/ "
+                                          "(move it there, then release)")
+    folder = Path(weights_dir) if weights_dir is not None else weights_folder()
+    registry_path = folder / "registry.json"
+    registry = read_mapping(registry_path, "weights registry")
+    names = {*registry["weights"], *registry["deprecated"], *registry["aliases"]}
+    if tag in names:
+        raise ParameterError(f"--tag {tag} already exists in {registry_path}: a tag is "
+                             "written once (take the next vN)")
+    if replaces is not None and replaces not in registry["weights"]:
+        raise ParameterError(f"--replaces {replaces}: no shipped tag of that name")
+    if alias is not None and (alias in registry["weights"] or alias in registry["deprecated"]
+                              or ".v" in alias):
+        raise ParameterError(f"--alias {alias}: an alias is a name without .vN that is no tag")
+    if default and alias is None:
+        raise ParameterError("--default needs --alias (the default is an alias)")
+    index = recipe.phase_index(recipe.shipped_phase)
+    if not phase_done(recipe, index, run):
+        raise InputFileError(recipe.phase_folder(run, index), f"phase {recipe.shipped_phase} "
+                             "has not finished; run reproduce to the end first")
+    exported = run / "ship" / f"{tag}.safetensors"
+    if not exported.is_file():
+        raise InputFileError(exported, "missing: run reproduce to the end (it exports and "
+                                       "scores the weights) first")
+    start = _start(recipe, index, run, registry)
+    meta = read_metadata(exported)
+    extra = meta["extra"]
+    if extra.get("phase") != recipe.shipped_phase:
+        raise InputFileError(exported, f"was exported from phase {extra.get('phase')!r}, not "
+                                       f"{recipe.shipped_phase}; rerun reproduce")
+    metrics = _registry_metrics(extra)
+    header = {"tag": tag, "doc": str(recipe.ship.get("doc", recipe.description)),
+              "recipe": recipe.path.name, "phase": recipe.shipped_phase, "start": start,
+              "num_params": extra["num_params"], "metrics": metrics,
+              "output": recipe.output_settings, "config": extra.get("config")}
+    target = folder / f"{tag}.safetensors"
+    import torch
+
+    save_model(target, load_model(exported), dtype=torch.float16, extra=header)
+    sha256 = file_sha256(target)
+    results = None
+    rows = results_rows(recipe, run)
+    if results_dir is not None and rows:
+        results = Path(results_dir) / f"{tag}.csv"
+        results.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(results) as tmp, open(tmp, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=RESULT_COLUMNS)
+            writer.writeheader()
+            writer.writerows(rows)
+    registry["weights"][tag] = {
+        "file": target.name, "architecture": _architecture(meta), "sha256": sha256,
+        "recipe": recipe.path.name, "phase": recipe.shipped_phase, "start": start,
+        "num_params": extra["num_params"], "doc": header["doc"], "metrics": metrics,
+        "output": recipe.output_settings}
+    if replaces is not None:
+        old = registry["weights"].pop(replaces)
+        registry["deprecated"][replaces] = {
+            "recipe": old["recipe"], "phase": old["phase"], "note": f"replaced by {tag}",
+            "use": alias or tag}
+        registry["aliases"] = {a: (tag if t == replaces else t)
+                               for a, t in registry["aliases"].items()}
+    if alias is not None:
+        registry["aliases"][alias] = tag
+    if default:
+        registry["default"] = alias
+    _write_json(registry_path, registry)
+    if replaces is not None:
+        (folder / f"{replaces}.safetensors").unlink(missing_ok=True)
+    return Release(tag, target, sha256, results, replaces)

@@ -1,0 +1,148 @@
+"""``dualpixel release``: from a finished recipe run to a shipped, registered model."""
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.models import load_model, read_metadata
+from dualpixel.models.registry import count_parameters
+from dualpixel.training.recipe import load_recipe, reproduce
+from dualpixel.weights import file_sha256
+from tests.training.test_recipe import TINY_PHASE, TINY_SCENES
+
+TAG = "rdpd-light-base.v7"  # the tiny run's network is the rdpd-light-base architecture
+
+
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory) -> Path:
+    """A two-phase tiny recipe in a ``recipes/`` folder, run to the end by ``reproduce``."""
+    root = tmp_path_factory.mktemp("release")
+    (root / "recipes").mkdir()
+    raw = {
+        "name": "tiny",
+        "data": [{"name": "scenes", "scenes": {**TINY_SCENES, "seed": 1}},
+                 {"name": "synth", "synth": {"input": "scenes", "cameras": ["set1"],
+                                             "max_layers": 40, "noise_sigmas": [0.01]}}],
+        "train": {"model": "rdpd", "synthetic_data": "synth", "val_data": "synth",
+                  "val_split": "train", **TINY_PHASE, "width": 0.5, "residual": True},
+        "phases": [{"name": "first"}, {"name": "second", "set": {"learning_rate": 1e-4}}],
+        "ship": {"tag": TAG, "doc": "a tiny model", "output": {"brightness": "tied"}},
+        "evaluate": [{"name": "synth", "dataset": "synth", "split": "train"}],
+    }
+    recipe = root / "recipes" / "tiny.yaml"
+    recipe.write_text(yaml.safe_dump(raw, sort_keys=False))
+    reproduce(load_recipe(recipe), root / "run", workers=1, progress=False, log=lambda _: None)
+    return root / "run"
+
+
+def _weights_folder(tmp_path: Path, run: Path) -> Path:
+    """A package weights folder holding one older tag (a copy of the run's export)."""
+    folder = tmp_path / "weights"
+    folder.mkdir()
+    old = folder / "rdpd-light-base.v6.safetensors"
+    old.write_bytes((run / "ship" / f"{TAG}.safetensors").read_bytes())
+    registry = {"default": "base", "aliases": {"base": "rdpd-light-base.v6"},
+                "weights": {"rdpd-light-base.v6": {
+                    "file": old.name, "architecture": "rdpd-light-base",
+                    "sha256": file_sha256(old), "recipe": "old.yaml", "phase": "last",
+                    "start": None, "num_params": 1, "doc": "old", "metrics": {}, "output": {}}},
+                "deprecated": {}}
+    (folder / "registry.json").write_text(json.dumps(registry))
+    return folder
+
+
+def _release(run: Path, weights: Path, results: Path, *extra: str, recipes: Path | None = None):
+    recipes = recipes or run.parent / "recipes"
+    return CliRunner().invoke(cli, ["release", str(run), "--weights-dir", str(weights),
+                                    "--results-dir", str(results), "--recipes-dir",
+                                    str(recipes), *extra])
+
+
+def test_release_writes_the_file_header_row_deprecation_and_results(finished_run, tmp_path):
+    weights = _weights_folder(tmp_path, finished_run)
+    result = _release(finished_run, weights, tmp_path / "results", "--tag", TAG, "--alias",
+                      "base", "--default", "--replaces", "rdpd-light-base.v6")
+    assert result.exit_code == 0, result.output
+    shipped = weights / f"{TAG}.safetensors"
+    registry = json.loads((weights / "registry.json").read_text())
+    row = registry["weights"][TAG]
+    # the header, written by code: tag, recipe, phase, start by phase and hash, never a path
+    extra = read_metadata(shipped)["extra"]
+    first = finished_run / "phases" / "first" / "last.safetensors"
+    start = {"phase": "first", "sha256": file_sha256(first)}
+    assert extra["tag"] == TAG and extra["recipe"] == "tiny.yaml" and extra["phase"] == "second"
+    assert extra["start"] == start and "init" not in extra
+    assert extra["output"] == {"brightness": "tied"} and extra["doc"] == "a tiny model"
+    # the row agrees with the file and the recipe
+    assert row == {"file": shipped.name, "architecture": "rdpd-light-base",
+                   "sha256": file_sha256(shipped), "recipe": "tiny.yaml", "phase": "second",
+                   "start": start, "num_params": count_parameters(load_model(shipped)),
+                   "doc": "a tiny model", "metrics": extra["metrics"],
+                   "output": {"brightness": "tied"}}
+    assert set(row["metrics"]["synth"]) == {"psnr", "ssim", "input_psnr"}
+    # the replaced tag is retired with what remakes it; its aliases follow; its file is gone
+    assert registry["deprecated"]["rdpd-light-base.v6"] == {
+        "recipe": "old.yaml", "phase": "last", "note": f"replaced by {TAG}", "use": "base"}
+    assert registry["aliases"] == {"base": TAG} and registry["default"] == "base"
+    assert not (weights / "rdpd-light-base.v6.safetensors").exists()
+    # per-image results from the run's evaluation
+    with open(tmp_path / "results" / f"{TAG}.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert rows and {r["evaluation"] for r in rows} == {"synth"}
+    assert all(float(r["psnr"]) > 0 and float(r["input_psnr"]) > 0 for r in rows)
+    assert load_model(shipped).width == 0.5
+
+
+def test_release_refuses_before_writing(finished_run, tmp_path):
+    weights = _weights_folder(tmp_path, finished_run)
+    before = (weights / "registry.json").read_text()
+
+    def refused(result, *words):
+        assert result.exit_code != 0 and "Traceback" not in result.output, result.output
+        for word in words:
+            assert word in result.output, result.output
+        assert (weights / "registry.json").read_text() == before
+        assert not (weights / f"{TAG}.safetensors").exists()
+
+    results = tmp_path / "results"
+    refused(_release(finished_run, weights, results, "--tag", "rdpd-light-base.v8"),
+            "--tag", TAG)
+    refused(_release(finished_run, weights, results, "--tag", TAG, "--replaces", "nothing.v1"),
+            "--replaces")
+    refused(_release(finished_run, weights, results, "--tag", TAG, "--default"), "--alias")
+    refused(CliRunner().invoke(cli, ["release", str(finished_run), "--tag", TAG,
+                                     "--weights-dir", str(weights), "--results-dir",
+                                     str(results), "--recipes-dir", str(tmp_path)]),
+            "recipes")
+    # an existing tag is never written again
+    registry = json.loads(before)
+    registry["deprecated"][TAG] = {"recipe": "tiny.yaml", "phase": "second", "note": "old"}
+    (weights / "registry.json").write_text(json.dumps(registry))
+    before = (weights / "registry.json").read_text()
+    refused(_release(finished_run, weights, results, "--tag", TAG), "already exists")
+
+
+def test_a_start_that_resolves_to_nothing_or_an_unfinished_run_is_refused(finished_run,
+                                                                          tmp_path):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    recipes = finished_run.parent / "recipes"
+    weights = _weights_folder(tmp_path, finished_run)
+    record = run / "phases" / "second" / "init.json"
+    good = record.read_text()
+    record.write_text(json.dumps({"name": "/somewhere/else.safetensors", "sha256": "0" * 64}))
+    result = _release(run, weights, tmp_path / "results", "--tag", TAG, recipes=recipes)
+    assert result.exit_code == 1 and "resolves to nothing" in result.output, result.output
+    record.write_text(good)
+    history = run / "phases" / "second" / "history.jsonl"
+    history.write_text("")
+    result = _release(run, weights, tmp_path / "results", "--tag", TAG, recipes=recipes)
+    assert result.exit_code == 1 and "has not finished" in result.output, result.output
+    assert "Traceback" not in result.output
