@@ -71,7 +71,7 @@ def check_views(left: Any, right: Any, combined: Any = None) -> list:
 
 
 def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, device: str = "auto",
-           tile: int | None = None, flips: bool = False, multiscale: bool = False,
+           tile: int | None = None, flips: bool | None = None, multiscale: bool = False,
            precision: str = "auto", views_sum: bool = False,
            backend: str = "torch", encoding: str = "srgb", black_level: float | None = None,
            white_level: float | None = None, right_gain: float | np.ndarray = 1.0,
@@ -80,17 +80,19 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD), or ``views_sum=True`` for views that sum to it (a raw A/B split; they
     are doubled). :func:`check_views` tells the usual mistakes. ``model``: a name, a checkpoint
-    path or a loaded network. ``flips``:
+    path or a loaded network. ``flips``, ``brightness``, ``overshoot``: None takes a shipped
+    model's own setting (:func:`dualpixel.weights.run_settings`; ``list_models`` shows them),
+    else as the network gives it. ``flips``:
     average over the flips that keep DP geometry (self-ensemble, 4x the time; ``Deblurrer``).
     ``multiscale``: fuse with a pass at half resolution (at most 1.25x the time;
     :mod:`dualpixel.inference.multiscale`). ``precision``: ``auto`` (bf16 where the device
     computes it natively), ``fp32``, ``bf16`` or ``fp16`` (:mod:`dualpixel.inference.precision`).
     ``backend``: ``torch``, or ``onnxruntime`` (CPU, fp32; :mod:`dualpixel.inference.onnx_runtime`).
     ``brightness``: ``"tied"`` holds the output's low-pass brightness in linear light at the
-    input's, ``"model"`` leaves it as the network gives it; None: the package's default
+    input's, ``"model"`` leaves it as the network gives it
     (:mod:`dualpixel.inference.brightness`). ``overshoot``: ``"limited"`` keeps the output
-    within the input's local range (no halos), ``"model"`` leaves it; None: the package's
-    default (:mod:`dualpixel.inference.overshoot`).
+    within the input's local range (no halos), ``"model"`` leaves it
+    (:mod:`dualpixel.inference.overshoot`).
 
     Phone and raw views (:mod:`dualpixel.inference.encoding`): grey views (one channel, such as
     a Pixel's green-only DP data) come back grey, in the layout they came in. ``encoding``:
@@ -115,6 +117,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     )
     from dualpixel.inference.onnx_runtime import backend_device
     from dualpixel.models.unet import DeblurNet
+    from dualpixel.weights import run_settings
 
     view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain)
     channels, scale = min(image_channels(left), 3), full_scale(left)
@@ -147,10 +150,10 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     lefts, rights_in = to_model(lefts, lefts if rights is None else rights, view_encoding,
                                 scale=scale, views_sum=views_sum)
     rights = None if rights is None else rights_in
-    deblurrer = Deblurrer(net, device=resolved, tile=tile, flips=flips,
-                          multiscale=multiscale, precision=precision, backend=backend,
-                          **({} if brightness is None else {"brightness": brightness}),
-                          **({} if overshoot is None else {"overshoot": overshoot}))
+    settings = run_settings(model if isinstance(model, (str, Path)) else None,
+                            brightness=brightness, overshoot=overshoot, flips=flips)
+    deblurrer = Deblurrer(net, device=resolved, tile=tile, multiscale=multiscale,
+                          precision=precision, backend=backend, **settings)
     outputs = []
     for index in range(len(lefts)):
         deblurrer.reset()  # a batch holds independent pairs

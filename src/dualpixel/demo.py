@@ -30,7 +30,7 @@ from dualpixel.progress import progress_bar
 from dualpixel.viz.comparison import render_comparison
 from dualpixel.viz.html_report import Figure, Report, write_html_report
 from dualpixel.viz.maps import render_colour_map, write_views_gif
-from dualpixel.weights import DEFAULT_CHECKPOINT, resolve_checkpoint
+from dualpixel.weights import DEFAULT_CHECKPOINT, resolve_checkpoint, run_settings
 
 __all__ = ["DemoFrame", "DemoResult", "run_demo"]
 
@@ -150,7 +150,8 @@ def run_demo(
             rgbd, focus = render_scene(seed, config)
         sequence, recipe = _synthetic_frames(rgbd, camera, seed, bar, focus)
 
-    deblurrer = Deblurrer(model, device=device, tile=tile)
+    settings = run_settings(checkpoint)  # as the model ships to run
+    deblurrer = Deblurrer(model, device=device, tile=tile, **settings)
     timings = []
     for index, frame in enumerate(sequence):
         tick = time.perf_counter()
@@ -177,7 +178,8 @@ def run_demo(
 
     figures = _figures(sequence, output, recipe)
     if mode == "procedural":
-        real_rows, metrics["real"], real_figure = _real_scene(model, device, output, tile)
+        real_rows, metrics["real"], real_figure = _real_scene(model, device, output, tile,
+                                                              settings)
         rows += real_rows
         figures.insert(0, real_figure)
     bar.update()
@@ -203,13 +205,14 @@ def run_demo(
     return DemoResult(path, metrics, seconds)
 
 
-def _real_scene(model, device: str, output: Path,
-                tile: int | None = None) -> tuple[list[list[str]], dict, tuple]:
+def _real_scene(model, device: str, output: Path, tile: int | None = None,
+                settings: dict | None = None) -> tuple[list[list[str]], dict, tuple]:
     """Deblur the shipped real Canon scene; compare with DPDNet's published output."""
     folder = real_scene_dir()
     images = {name: read_rgb(folder / f"{name}.png") for name in
               ("view0", "view1", "input", "target", "dpdnet")}
-    ours = Deblurrer(model, device=device, tile=tile)(images["view0"], images["view1"])
+    ours = Deblurrer(model, device=device, tile=tile, **(settings or {}))(images["view0"],
+                                                                          images["view1"])
     write_png(output / "frames" / "real_output.png", ours, bit_depth=8)
     target = images["target"]
     panels = {"input": images["input"], "ours": ours, "DPDNet (published)": images["dpdnet"],

@@ -31,12 +31,13 @@ BACKENDS: tuple[str, ...] = ("torch", "onnxruntime")
 #: Outputs' brightness (:mod:`dualpixel.inference.brightness`): "tied", the output's low-pass
 #: brightness in linear light held at the input's, or "model", as the network gives it.
 BRIGHTNESS_MODES: tuple[str, ...] = ("tied", "model")
-#: What every command and :func:`dualpixel.deblur` use unless told otherwise.
+#: What a network runs with unless told otherwise (a shipped model may say otherwise:
+#: :func:`dualpixel.weights.run_settings`).
 DEFAULT_BRIGHTNESS = "model"
 #: Outputs' range (:mod:`dualpixel.inference.overshoot`): "limited", clipped to the input's
 #: local range near every pixel, or "model", as the network gives it.
 OVERSHOOT_MODES: tuple[str, ...] = ("limited", "model")
-#: What every command and :func:`dualpixel.deblur` use unless told otherwise.
+#: What a network runs with unless told otherwise (as for :data:`DEFAULT_BRIGHTNESS`).
 DEFAULT_OVERSHOOT = "model"
 #: How DP views store light (:mod:`dualpixel.inference.encoding`): display values ("srgb",
 #: photographs and the DPDD) or raw sensor values ("linear").

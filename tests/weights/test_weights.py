@@ -138,3 +138,31 @@ def test_retired_names_say_what_to_do_once(name):
         assert message.count(note) == 1, message
     if DEPRECATED[name].get("use"):
         assert f"use {DEPRECATED[name]['use']} instead" in message
+
+
+def test_a_shipped_model_runs_with_its_own_settings_unless_told(monkeypatch):
+    import dataclasses
+
+    import numpy as np
+
+    import dualpixel
+    from dualpixel import weights as registry
+    from dualpixel.evaluation.target_free import method_settings
+    from dualpixel.weights import run_settings
+
+    tag = ALIASES[DEFAULT_CHECKPOINT]
+    own = {"brightness": "tied", "overshoot": "limited"}
+    monkeypatch.setitem(registry.WEIGHTS, tag, dataclasses.replace(WEIGHTS[tag], output=own))
+    assert run_settings(DEFAULT_CHECKPOINT) == {**own, "flips": False}
+    assert run_settings(tag, brightness="model")["brightness"] == "model"  # told: as told
+    assert run_settings("any/file.safetensors")["brightness"] == "model"  # a file: as given
+    assert list(method_settings([DEFAULT_CHECKPOINT])) == [DEFAULT_CHECKPOINT + "+limited+tied"]
+    rng = np.random.default_rng(0)
+    left = rng.uniform(0.2, 0.8, (32, 48, 3)).astype(np.float32)
+    right = np.roll(left, 1, axis=1)
+    by_default = dualpixel.deblur(left, right, model=tag, device="cpu", precision="fp32")
+    told = dualpixel.deblur(left, right, model=tag, device="cpu", precision="fp32", **own)
+    plain = dualpixel.deblur(left, right, model=tag, device="cpu", precision="fp32",
+                             brightness="model", overshoot="model")
+    np.testing.assert_array_equal(by_default, told)
+    assert np.abs(by_default - plain).max() > 1e-4

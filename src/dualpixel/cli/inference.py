@@ -12,8 +12,6 @@ from dualpixel.names import (
     ALIGN_MODE_NAMES,
     BACKENDS,
     BRIGHTNESS_MODES,
-    DEFAULT_BRIGHTNESS,
-    DEFAULT_OVERSHOOT,
     ENCODINGS,
     OVERSHOOT_MODES,
     PRECISIONS,
@@ -33,9 +31,11 @@ _BACKEND_OPTION = click.option(
     "--backend", type=click.Choice(BACKENDS), default="torch", show_default=True,
     help="Run the network with PyTorch, or with ONNX Runtime on the CPU in fp32 (exported once "
          "per checkpoint and cached; needs: pip install 'dualpixel[onnx]').")
+_OWN = " [default: the shipped model's own setting (dualpixel models), else model]"
 _FLIPS_OPTION = click.option(
-    "--flips", is_flag=True,
-    help="Average over the DP-preserving flips (self-ensemble; 4x the time).")
+    "--flips/--no-flips", default=None,
+    help="Average over the DP-preserving flips (self-ensemble; 4x the time) [default: the "
+         "shipped model's own setting (dualpixel models), else off].")
 # Options that the import commands share.
 _IMPORT_OUTPUT_OPTION = click.option(
     "--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
@@ -43,15 +43,13 @@ _IMPORT_OUTPUT_OPTION = click.option(
 _IMPORT_SPLIT_OPTION = click.option("--split", default="test",
                                     help="Split name of the folders written.")
 _BRIGHTNESS_OPTION = click.option(
-    "--brightness", type=click.Choice(BRIGHTNESS_MODES), default=DEFAULT_BRIGHTNESS,
-    show_default=True,
+    "--brightness", type=click.Choice(BRIGHTNESS_MODES), default=None,
     help="tied: hold the output's low-pass brightness in linear light at the input's (blur "
-         "moves light, it makes none); model: as the network gives it.")
+         "moves light, it makes none); model: as the network gives it." + _OWN)
 _OVERSHOOT_OPTION = click.option(
-    "--overshoot", type=click.Choice(OVERSHOOT_MODES), default=DEFAULT_OVERSHOOT,
-    show_default=True,
+    "--overshoot", type=click.Choice(OVERSHOOT_MODES), default=None,
     help="limited: keep the output within the input's range near each pixel (no halos beside "
-         "edges); model: as the network gives it.")
+         "edges); model: as the network gives it." + _OWN)
 _MULTISCALE_OPTION = click.option(
     "--multiscale", is_flag=True,
     help="Also deblur at half resolution and take the coarse structure from there (at most "
@@ -119,8 +117,8 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
            white_level: float | None, right_gain: float, flat_field: tuple[Path, Path] | None,
            strict: bool, checkpoint: str,
            tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
-           backend: str, flips: bool, multiscale: bool, brightness: str,
-           overshoot: str) -> None:
+           backend: str, flips: bool | None, multiscale: bool, brightness: str | None,
+           overshoot: str | None) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder.
 
     Grey views (a phone's green-only DP data) give a grey output; --encoding linear takes raw
@@ -136,7 +134,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     from dualpixel.inference.jobs import plan_deblur_jobs, run_deblur_jobs
     from dualpixel.models import model_spec, read_metadata
     from dualpixel.progress import progress_bar
-    from dualpixel.weights import resolve_checkpoint
+    from dualpixel.weights import resolve_checkpoint, run_settings
 
     view_encoding = view_encoding_from_files(encoding, black_level, white_level, right_gain,
                                              flat_field)
@@ -145,10 +143,10 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=views == 2, combined=combined)
     model, resolved = _load(checkpoint, device, backend)
+    settings = run_settings(checkpoint, brightness=brightness, overshoot=overshoot, flips=flips)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
-                          precision="fp16" if half else precision, flips=flips,
-                          multiscale=multiscale, backend=backend, brightness=brightness,
-                          overshoot=overshoot)
+                          precision="fp16" if half else precision, multiscale=multiscale,
+                          backend=backend, **settings)
     total = sum(len(sequence) for sequence in jobs)
 
     def report(path: Path, finding) -> None:
@@ -225,16 +223,19 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
     deblurrer, method, meta = None, "model", {}
     if not no_model and pred is None and target is None:
         from dualpixel.inference import Deblurrer
+        from dualpixel.weights import run_settings
 
         model, resolved = _load(checkpoint, device, backend)
+        settings = run_settings(checkpoint, brightness=brightness, overshoot=overshoot,
+                                flips=flips)
         deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
-                              precision=precision, flips=flips, multiscale=multiscale,
-                              backend=backend, brightness=brightness, overshoot=overshoot)
+                              precision=precision, multiscale=multiscale, backend=backend,
+                              **settings)
         is_path = Path(checkpoint).suffix == ".safetensors" or "/" in str(checkpoint)
         method = (Path(checkpoint).stem if is_path else str(checkpoint)) + output_modes_suffix(
-            brightness, overshoot, flips=flips, multiscale=multiscale)
-        meta = {"checkpoint": str(checkpoint), "flips": flips, "multiscale": multiscale,
-                "brightness": brightness, "overshoot": overshoot,
+            settings["brightness"], settings["overshoot"], flips=settings["flips"],
+            multiscale=multiscale)
+        meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, **settings,
                 "precision": deblurrer.numerics.name, "backend": backend}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
@@ -374,19 +375,17 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
               help="Exit with status 1 when a model does worse than --reference, or changes a "
                    "photograph's brightness by more than 1 %.")
 @click.option("--brightness", "brightness", multiple=True,
-              type=click.Choice(BRIGHTNESS_MODES), default=(DEFAULT_BRIGHTNESS,),
-              show_default=True,
+              type=click.Choice(BRIGHTNESS_MODES),
               help="Brightness mode (see deblur); repeat to check each checkpoint both ways "
-                   "(a tied one is named CHECKPOINT+tied).")
+                   "(a tied one is named CHECKPOINT+tied) [default: each model's own].")
 @click.option("--overshoot", "overshoot", multiple=True,
-              type=click.Choice(OVERSHOOT_MODES), default=(DEFAULT_OVERSHOOT,),
-              show_default=True,
+              type=click.Choice(OVERSHOOT_MODES),
               help="Overshoot mode (see deblur); repeat to check each checkpoint both ways "
-                   "(a limited one is named CHECKPOINT+limited).")
+                   "(a limited one is named CHECKPOINT+limited) [default: each model's own].")
 @click.option("--flips", "flips", multiple=True, type=click.Choice(["off", "on"]),
-              default=("off",), show_default=True,
               help="Self-ensemble (see deblur --flips); repeat to check each checkpoint both "
-                   "ways (with flips it is named CHECKPOINT+flips).")
+                   "ways (with flips it is named CHECKPOINT+flips) [default: each model's "
+                   "own].")
 @click.option("--tile", type=int, default=None, help="Tile size for bounded memory.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, ...")
 @_PRECISION_OPTION
@@ -399,21 +398,22 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
     no halos, in-focus regions kept, nothing invented, defocused regions sharper."""
     from dualpixel.evaluation.target_free import (
         check_folder,
+        method_settings,
         model_methods,
         write_target_free_report,
     )
     from dualpixel.inference.encoding import ViewEncoding
 
-    passes = tuple(dict.fromkeys(f == "on" for f in flips))
-    names = [c + output_modes_suffix(tie, limit, flips=f) for c in checkpoints for f in passes
-             for limit in overshoot for tie in brightness]
+    passes = tuple(dict.fromkeys(f == "on" for f in flips)) or None
+    names = list(method_settings(checkpoints, brightness=brightness or None,
+                                 overshoot=overshoot or None, flips=passes))
     if reference is not None and reference not in names:
         raise click.BadParameter(f"{reference!r} is not one of the checked models "
                                  f"({', '.join(names)})", param_hint="--reference")
     view_encoding = ViewEncoding(encoding, black_level, white_level)
     methods = model_methods(checkpoints, device=device, encoding=view_encoding, tile=tile,
-                            precision=precision, brightness=brightness, overshoot=overshoot,
-                            flips=passes)
+                            precision=precision, brightness=brightness or None,
+                            overshoot=overshoot or None, flips=passes)
     rows = []
     for root in inputs:  # pairs named by their folder too when several are checked
         prefix = f"{root.resolve().name}/" if len(inputs) > 1 else ""

@@ -43,7 +43,8 @@ from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
     "TargetFreeReport", "check_deblurred", "check_folder", "check_model",
-    "compare_to_reference", "markdown_table", "model_methods", "read_pairs", "summarise_reports",
+    "compare_to_reference", "markdown_table", "method_settings", "model_methods", "read_pairs",
+    "summarise_reports",
     "write_target_free_report",
 ]
 
@@ -280,46 +281,69 @@ class _LastOutput:
         return self.output
 
 
+def method_settings(checkpoints: Iterable[str], *, brightness: Iterable[str] | None = None,
+                    overshoot: Iterable[str] | None = None, flips: Iterable[bool] | None = None
+                    ) -> dict[str, tuple[str, dict[str, Any]]]:
+    """``{name: (checkpoint, settings)}`` for every checkpoint and combination of the given
+    settings; a setting not given (None) is each checkpoint's own
+    (:func:`~dualpixel.weights.run_settings`). Names are ``CHECKPOINT`` plus
+    :func:`~dualpixel.names.output_modes_suffix` (``+flips``, ``+limited``, ``+tied``)."""
+    from dualpixel.weights import run_settings
+
+    named = {}
+    for checkpoint in checkpoints:
+        own = run_settings(checkpoint)
+        for flip in (own["flips"],) if flips is None else flips:
+            for limit in (own["overshoot"],) if overshoot is None else overshoot:
+                for tie in (own["brightness"],) if brightness is None else brightness:
+                    name = str(checkpoint) + output_modes_suffix(tie, limit, flips=flip)
+                    named[name] = (str(checkpoint), {"brightness": tie, "overshoot": limit,
+                                                     "flips": flip})
+    return named
+
+
 def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
                   encoding: ViewEncoding | None = None, tile: int | None = None,
-                  precision: str = "auto", brightness: Iterable[str] = ("model",),
-                  overshoot: Iterable[str] = ("model",),
-                  flips: Iterable[bool] = (False,)) -> dict[str, Method]:
-    """A :data:`Method` per checkpoint (a registry name or a ``.safetensors`` path), flips
-    setting (the self-ensemble, :class:`~dualpixel.inference.Deblurrer`), overshoot mode
+                  precision: str = "auto", brightness: Iterable[str] | None = None,
+                  overshoot: Iterable[str] | None = None,
+                  flips: Iterable[bool] | None = None) -> dict[str, Method]:
+    """A :data:`Method` per checkpoint (a registry name or a ``.safetensors`` path) and
+    combination of settings (:func:`method_settings`; not given: the model's own): flips (the
+    self-ensemble, :class:`~dualpixel.inference.Deblurrer`), overshoot mode
     (:mod:`dualpixel.inference.overshoot`) and brightness mode
-    (:mod:`dualpixel.inference.brightness`), named ``CHECKPOINT`` plus
-    :func:`~dualpixel.names.output_modes_suffix` (``+flips``, ``+limited``, ``+tied``): each
-    pair deblurred afresh, in the views' own encoding and channels
-    (:func:`~dualpixel.inference.encoding.deblur_encoded`); the output modes of one checkpoint
-    and flips setting share its network's output."""
+    (:mod:`dualpixel.inference.brightness`). Each pair is deblurred afresh, in the views' own
+    encoding and channels (:func:`~dualpixel.inference.encoding.deblur_encoded`); the output
+    modes of one checkpoint and flips setting share its network's output."""
     from dualpixel.device import resolve_device
     from dualpixel.inference import Deblurrer
     from dualpixel.inference.encoding import deblur_encoded
     from dualpixel.models import load_model
     from dualpixel.weights import resolve_checkpoint
 
-    methods: dict[str, Method] = {}
     resolved = resolve_device(device)
-    for checkpoint in checkpoints:
-        model = load_model(resolve_checkpoint(checkpoint), device=resolved)
-        for flip in flips:
-            deblurrer = Deblurrer(model, device=resolved, tile=tile, precision=precision,
-                                  flips=flip)
-            last = _LastOutput(deblurrer)
-            for limit in overshoot:
-                for tie in brightness:
-                    def finished(left: np.ndarray, right: np.ndarray, tie=tie, limit=limit,
-                                 deblurrer=deblurrer, last=last) -> np.ndarray:
-                        return deblurrer.finish(last(left, right), left, right, brightness=tie,
-                                                overshoot=limit)
+    models: dict[str, Any] = {}
+    passes: dict[tuple[str, bool], _LastOutput] = {}
+    methods: dict[str, Method] = {}
+    for name, (checkpoint, settings) in method_settings(
+            checkpoints, brightness=brightness, overshoot=overshoot, flips=flips).items():
+        if checkpoint not in models:
+            models[checkpoint] = load_model(resolve_checkpoint(checkpoint), device=resolved)
+        key = (checkpoint, settings["flips"])
+        if key not in passes:
+            passes[key] = _LastOutput(Deblurrer(models[checkpoint], device=resolved, tile=tile,
+                                                precision=precision, flips=settings["flips"]))
+        last = passes[key]
 
-                    def method(left: np.ndarray, right: np.ndarray,
-                               finished=finished) -> np.ndarray:
-                        return deblur_encoded(finished, left, right, encoding)
+        def finished(left: np.ndarray, right: np.ndarray, last=last,
+                     settings=settings) -> np.ndarray:
+            return last.deblurrer.finish(last(left, right), left, right,
+                                         brightness=settings["brightness"],
+                                         overshoot=settings["overshoot"])
 
-                    name = str(checkpoint) + output_modes_suffix(tie, limit, flips=flip)
-                    methods[name] = method
+        def method(left: np.ndarray, right: np.ndarray, finished=finished) -> np.ndarray:
+            return deblur_encoded(finished, left, right, encoding)
+
+        methods[name] = method
     return methods
 
 

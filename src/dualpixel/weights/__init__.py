@@ -28,7 +28,7 @@ from dualpixel.errors import InputFileError, ParameterError
 __all__ = [
     "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "WEIGHTS", "Weights", "file_sha256",
     "list_models", "model_card", "model_info", "output_settings", "phase_weights",
-    "resolve_checkpoint", "resolve_tag", "weights_folder",
+    "resolve_checkpoint", "resolve_tag", "run_settings", "weights_folder",
 ]
 
 
@@ -131,6 +131,22 @@ def output_settings(name: str | Path) -> dict[str, Any]:
     by default; empty for a file path (it runs as the network gives it)."""
     tag = ALIASES.get(str(name), str(name))
     return dict(WEIGHTS[tag].output) if tag in WEIGHTS else {}
+
+
+def run_settings(name: str | Path | None, *, brightness: str | None = None,
+                 overshoot: str | None = None, flips: bool | None = None) -> dict[str, Any]:
+    """The output settings a model runs with: each one given, else the shipped model's own
+    (:func:`output_settings`), else as the network gives it.
+
+    >>> run_settings("some/file.safetensors", overshoot="limited")
+    {'brightness': 'model', 'overshoot': 'limited', 'flips': False}
+    """
+    from dualpixel.names import DEFAULT_BRIGHTNESS, DEFAULT_OVERSHOOT
+
+    own = output_settings(name) if name is not None else {}
+    return {"brightness": brightness or own.get("brightness", DEFAULT_BRIGHTNESS),
+            "overshoot": overshoot or own.get("overshoot", DEFAULT_OVERSHOOT),
+            "flips": bool(own.get("flips", False)) if flips is None else bool(flips)}
 
 
 def phase_weights(recipe: str, phase: str) -> str | None:
