@@ -31,6 +31,7 @@ def completed(
             yield function(*job)
         return
     context = multiprocessing.get_context("spawn")
+    before = set(multiprocessing.active_children())  # this process's children, ours or not
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                initializer=_watch_parent, initargs=(os.getpid(),))
     try:
@@ -38,10 +39,11 @@ def completed(
         for future in as_completed(futures):
             yield future.result()
     except BaseException:  # an error, KeyboardInterrupt, or the caller closing the generator
-        # the executor has no public way to stop its workers; shutdown() forgets them
-        processes = list((getattr(pool, "_processes", None) or {}).values())
+        # shutdown() stops no running job: the pool's workers (the children started since it
+        # was made) are terminated
+        workers_started = set(multiprocessing.active_children()) - before
         pool.shutdown(wait=False, cancel_futures=True)
-        for process in processes:
+        for process in workers_started:
             process.terminate()
         raise
     pool.shutdown()

@@ -133,18 +133,19 @@ def _imread(path: Path, kind: str = "image") -> np.ndarray:
 def _tiff_upright_bytes(path: Path) -> np.ndarray:
     """The TIFF file's bytes with its first page's orientation tag set to 1 (OpenCV 5 fails to
     decode a TIFF whose orientation is not 1; we want the stored, sensor-order pixels anyway)."""
+    import io
+
     import tifffile
 
-    data = bytearray(path.read_bytes())
+    data = io.BytesIO(path.read_bytes())
     try:
-        with tifffile.TiffFile(path) as tiff:
+        with tifffile.TiffFile(data) as tiff:  # a handle given is left open
             tag = tiff.pages.first.tags.get(274)
-            if tag is not None and tag.value != 1 and tag.count == 1 and tag.dtype == 3:
-                order = "<" if tiff.byteorder == "<" else ">"
-                data[tag.valueoffset : tag.valueoffset + 2] = np.array(1, order + "u2").tobytes()
-    except (tifffile.TiffFileError, OSError, ValueError, IndexError, KeyError):
+            if tag is not None and tag.value != 1:
+                tag.overwrite(1)  # in the copy in memory; the file is not touched
+    except (tifffile.TiffFileError, OSError, ValueError, IndexError, KeyError, TypeError):
         pass  # not a TIFF tifffile can parse: OpenCV decides
-    return np.frombuffer(bytes(data), np.uint8)
+    return np.frombuffer(data.getvalue(), np.uint8)
 
 
 def _unit_range(path: Path, data: np.ndarray) -> np.ndarray:
