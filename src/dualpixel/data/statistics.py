@@ -1,5 +1,5 @@
-"""Statistics of DP datasets: disparity, blur size, noise and gradient content (issue: matching
-synthetic data to a camera).
+"""Statistics of DP datasets: disparity, blur size, noise and gradient content, for
+matching synthetic data to a camera.
 
 Everything is measured at the resolution the images are stored at (the resolution a network sees),
 per ``patch x patch`` block of the grey (channel-mean) image:

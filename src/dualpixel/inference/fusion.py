@@ -1,4 +1,4 @@
-"""Convolutions with their activation fused, for inference on the CPU (issue #36).
+"""Convolutions with their activation fused, for inference on the CPU.
 
 Every ``Conv2d`` followed by ``ReLU`` or ``LeakyReLU`` in an ``nn.Sequential`` (the double
 convolutions of the encoder, decoder and refiner levels) becomes one oneDNN convolution with

@@ -12,7 +12,7 @@ Gaussian of standard deviation ``sigma`` (px at full resolution) and ``U`` bicub
 fused = fine - G * fine + G * U(coarse) = fine + G * (U(coarse) - fine).
 
 ``sigma`` = 3 px was the best of 1, 2, 3, 4 and 6 px on all 40 tuning frames (28.09 -> 28.16 dB
-with stage 5 of the default model; ``experiments/scripts/tune_multiscale.py``); a third, quarter-
+with an earlier light RDPD); a third, quarter-
 resolution scale added nothing (+0.01 dB on the first 20). Large blur gains, mild blur can lose a
 little: see the README for the held-out and real-photograph numbers.
 """

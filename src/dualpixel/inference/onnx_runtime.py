@@ -1,4 +1,4 @@
-"""ONNX Runtime as an inference backend (issue #36: ``deblur --backend onnxruntime``).
+"""ONNX Runtime as an inference backend (``deblur --backend onnxruntime``).
 
 The network is exported once per checkpoint (:mod:`dualpixel.inference.onnx_export`: the
 recurrent step graph for a temporal model, the single-frame graph otherwise; batch, height and

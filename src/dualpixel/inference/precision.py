@@ -1,4 +1,4 @@
-"""Which number format inference runs in (issue #36): ``auto`` picks the fastest that keeps the
+"""Which number format inference runs in: ``auto`` picks the fastest that keeps the
 output within 0.02 dB of float32 on real photographs.
 
 - CUDA: bfloat16 autocast where the GPU has it (Ampere and later), else float16.

@@ -1,4 +1,4 @@
-"""The array convention at the library's public boundary (issues #33 and #34).
+"""The array convention at the library's public boundary.
 
 An *image* is any of
 

@@ -1,4 +1,4 @@
-"""One writer per folder: an advisory lock file that names its holder (issue #34).
+"""One writer per folder: an advisory lock file that names its holder.
 
 ``with folder_lock(folder, "synth"):`` takes ``folder/.dualpixel.lock`` with ``filelock``
 (an exclusive ``flock`` on Unix, never waiting) and writes the holder's pid and command into it.

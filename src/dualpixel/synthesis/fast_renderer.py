@@ -1,4 +1,4 @@
-"""The default ("fast") layered renderer (issue #14): the reference's layers and compositing,
+"""The default ("fast") layered renderer: the reference's layers and compositing,
 with large blur rendered at reduced resolution and cheap convolutions.
 
 The reference (``render_dp_views(..., mode="exact")``) splits the CoC range into up to 500 equal

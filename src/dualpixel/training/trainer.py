@@ -134,8 +134,7 @@ def _iterations_per_epoch(config: TrainConfig, kinds: list[DataKind]) -> int:
 def fast_numerics(device: torch.device) -> bool:
     """Whether training on ``device`` uses bfloat16 autocast and channels-last weights (config
     ``amp`` and ``channels_last``): on CUDA, and on CPUs that compute bfloat16 natively, where
-    a step takes about half the time and the model learns as well (issue #36's A/B run,
-    ``docs/benchmarks.md``)."""
+    a step takes about half the time and the model learns as well (``docs/benchmarks.md``)."""
     return device.type == "cuda" or (device.type == "cpu" and cpu_has_native_bf16())
 
 
