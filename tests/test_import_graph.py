@@ -72,3 +72,38 @@ def test_cli_modules_hold_no_image_processing():
                      if isinstance(node, ast.ImportFrom) and node.module}
         processing = {"cv2", "numpy", "scipy", "scipy.ndimage", "skimage", "torch.nn.functional"}
         assert not imported & processing, (path.name, imported)
+
+
+#: The package's layers, bottom to top: a module imports only from its own layer or below
+#: (module level and function level alike). ``cameras`` and ``weights`` hold data files.
+LAYERS = (
+    ("names", "errors", "device", "memory", "progress", "filters", "parallel", "cameras"),
+    ("io",),
+    ("optics",),
+    ("data",),
+    ("synthesis",),
+    ("models", "weights"),
+    ("inference",),
+    ("viz",),
+    ("evaluation",),
+    ("training",),
+    ("calibration",),
+    ("demo", "demo_data"),
+    ("api",),
+    ("cli", "__main__"),
+)
+
+
+def layer_of(module: str) -> int:
+    part = module.split(".")[1] if "." in module else "api"
+    for index, names in enumerate(LAYERS):
+        if part in names:
+            return index
+    raise AssertionError(f"{module} is in no layer: add {part!r} to LAYERS")
+
+
+def test_no_import_goes_up_the_layers():
+    upward = sorted(f"{module} -> {target}" for module, targets in graph().items()
+                    if module != "dualpixel" for target in targets
+                    if target != "dualpixel" and layer_of(target) > layer_of(module))
+    assert not upward, "imports that go up the layers:\n" + "\n".join(upward)

@@ -20,7 +20,7 @@ from dualpixel.io.arrays import as_image_batch, full_scale, image_channels, rest
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
 if TYPE_CHECKING:
-    from dualpixel.calibration.camera import DPCamera
+    from dualpixel.optics.camera import DPCamera
 
 __all__ = ["check_views", "deblur", "list_models", "load_model", "synthesize"]
 
@@ -203,7 +203,7 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
     if camera_file is not None:  # the calibration module only when a camera is given
-        from dualpixel.calibration.camera import DPCamera, load_camera
+        from dualpixel.optics.camera import DPCamera, load_camera
 
         if isinstance(camera_file, (str, Path)):
             camera_file = load_camera(camera_file)

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dualpixel.calibration.camera import DPCamera
 from dualpixel.calibration.psf_fit import PSFFit
 from dualpixel.io.atomic import atomic_path
+from dualpixel.optics.camera import DPCamera
 from dualpixel.optics.psf import PSFParams, dp_psf
 from dualpixel.viz.figures import save_figure
 

@@ -209,7 +209,7 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
                f"{100 * calibration.linear_share:.0f} % of the blocks better)")
     click.echo(f"wrote {output}")
     if figure is not None:
-        from dualpixel.viz.camera_figure import render_camera_figure
+        from dualpixel.calibration.camera_figure import render_camera_figure
 
         click.echo(f"wrote {render_camera_figure(calibration, figure)}")
 

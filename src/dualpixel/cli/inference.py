@@ -344,7 +344,7 @@ def import_keras(weights: Path, model: str, output: Path) -> None:
 def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, fmt: str) -> None:
     """Develop Canon Dual Pixel RAW files (.CR2) into left, right and combined views (needs:
     pip install 'dualpixel[raw]'), ready for 'dualpixel deblur --input OUTPUT'."""
-    from dualpixel.io.dpraw import import_dual_pixel_raws
+    from dualpixel.data.dpraw import import_dual_pixel_raws
 
     results = import_dual_pixel_raws(list(raws), output, split=split, a_view=a_view,
                                      suffix=f".{fmt}", progress=True)

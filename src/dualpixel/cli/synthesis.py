@@ -140,7 +140,7 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
           depth_scale: float, seed: int, device: str, workers: int,
           png_compression: int | None, shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
-    from dualpixel.calibration.camera import load_camera
+    from dualpixel.optics.camera import load_camera
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 

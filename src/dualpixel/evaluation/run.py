@@ -103,7 +103,7 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
         draw_comparisons(examples[: request.figures], drawn, results, method, output)
     write_reports(results, output, meta=meta, breakdown=breakdown)
     if breakdown is not None and breakdown.images:
-        from dualpixel.viz.blur_breakdown_figure import render_blur_breakdown
+        from dualpixel.evaluation.blur_breakdown_figure import render_blur_breakdown
 
         render_blur_breakdown(breakdown, output / "by_blur.png")
     return output / "summary.md"

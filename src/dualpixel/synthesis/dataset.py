@@ -141,7 +141,7 @@ class SynthConfig:
         """The calibrated camera (:class:`~dualpixel.calibration.camera.DPCamera`), or None."""
         if self.camera is None:
             return None
-        from dualpixel.calibration.camera import DPCamera
+        from dualpixel.optics.camera import DPCamera
 
         return DPCamera.from_dict(self.camera, "camera")
 

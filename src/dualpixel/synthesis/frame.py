@@ -31,7 +31,7 @@ from dualpixel.synthesis.layers import check_render_mode
 from dualpixel.synthesis.renderer import render_dp_views
 
 if TYPE_CHECKING:
-    from dualpixel.calibration.camera import DPCamera
+    from dualpixel.optics.camera import DPCamera
 
 __all__ = ["DPFrame", "SequenceRecipe", "camera_settings", "draw_recipe", "synthesize_frame"]
 

@@ -245,7 +245,7 @@ def scene_config(step: DataStep):
 
 def synth_config(recipe: Recipe, step: DataStep, output: Path):
     """``(SynthConfig, input folder, format)`` of a synth step."""
-    from dualpixel.calibration.camera import load_camera
+    from dualpixel.optics.camera import load_camera
     from dualpixel.synthesis.dataset import SynthConfig
 
     args = dict(step.args)

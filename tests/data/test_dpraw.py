@@ -11,8 +11,8 @@ import tifffile
 from click.testing import CliRunner
 
 from dualpixel.cli.main import cli
+from dualpixel.data.dpraw import DualPixelRaw, develop_views, split_dual_pixel
 from dualpixel.errors import InputFileError, ParameterError
-from dualpixel.io.dpraw import DualPixelRaw, develop_views, split_dual_pixel
 
 BLACK, WHITE = 512.0, 15000.0
 
@@ -90,7 +90,7 @@ def _dng(path, frames: int, orientation: int = 6) -> None:
 
 def test_one_frame_raw_and_junk_are_refused(tmp_path):
     pytest.importorskip("rawpy")
-    from dualpixel.io.dpraw import read_dual_pixel_raw
+    from dualpixel.data.dpraw import read_dual_pixel_raw
 
     _dng(tmp_path / "single.dng", 1)
     with pytest.raises(InputFileError, match=r"single\.dng.*one raw frame"):
@@ -131,7 +131,7 @@ def test_two_frame_raw_through_the_import_path(scene, tmp_path, monkeypatch):
     read, split and developed back into the known views."""
     import types
 
-    from dualpixel.io import dpraw
+    from dualpixel.data import dpraw
 
     stored = _raw_of(scene["left"], scene["right"])
     frames = {0: stored.combined, 1: stored.a_only}
@@ -159,7 +159,7 @@ def test_two_frame_raw_through_the_import_path(scene, tmp_path, monkeypatch):
 
 
 def test_missing_rawpy_names_the_extra(tmp_path, monkeypatch):
-    from dualpixel.io.dpraw import read_dual_pixel_raw
+    from dualpixel.data.dpraw import read_dual_pixel_raw
 
     monkeypatch.setitem(sys.modules, "rawpy", None)
     with pytest.raises(ParameterError, match=r"dualpixel\[raw\]"):
@@ -167,7 +167,7 @@ def test_missing_rawpy_names_the_extra(tmp_path, monkeypatch):
 
 
 def test_import_writes_a_dpdd_folder_deblur_reads(scene, tmp_path, monkeypatch):
-    import dualpixel.io.dpraw as dpraw
+    import dualpixel.data.dpraw as dpraw
     from dualpixel.io.metadata import read_metadata
 
     raws = {"one": _raw_of(scene["left"], scene["right"])}
