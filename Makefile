@@ -35,7 +35,7 @@ docs: $(STAMP)
 	$(BIN)/mkdocs build --strict
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests $(wildcard benchmarks)
+	$(BIN)/ruff check src tests hubconf.py $(wildcard benchmarks)
 
 test: $(STAMP) lint browser
 	$(BIN)/python -m pytest -n 2 -q --doctest-modules src/dualpixel tests

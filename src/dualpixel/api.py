@@ -32,8 +32,9 @@ def list_models() -> dict[str, dict[str, Any]]:
     return shipped()
 
 
-def load_model(name_or_path: str | Path = DEFAULT_CHECKPOINT, *, device: str = "cpu"):
-    """A shipped model by name (see :func:`list_models`) or a checkpoint file, in eval mode."""
+def load_model(name_or_path: str | Path = DEFAULT_CHECKPOINT, *, device: str = "auto"):
+    """A shipped model by name (see :func:`list_models`) or a checkpoint file, in eval mode, on
+    ``device`` (``auto``: the GPU when there is one, as every command)."""
     from dualpixel.device import resolve_device
     from dualpixel.models import load_model as load_checkpoint
     from dualpixel.weights import resolve_checkpoint

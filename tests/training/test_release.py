@@ -46,7 +46,8 @@ def _weights_folder(tmp_path: Path, run: Path) -> Path:
     folder.mkdir()
     old = folder / "rdpd-light-base.v6.safetensors"
     old.write_bytes((run / "ship" / f"{TAG}.safetensors").read_bytes())
-    registry = {"default": "base", "aliases": {"base": "rdpd-light-base.v6"},
+    registry = {"default": "base", "aliases": {"base": "rdpd-light-base.v6",
+                                               "old": "rdpd-light-base.v6"},
                 "weights": {"rdpd-light-base.v6": {
                     "file": old.name, "architecture": "rdpd-light-base",
                     "sha256": file_sha256(old), "recipe": "old.yaml", "phase": "last",
@@ -85,9 +86,10 @@ def test_release_writes_the_file_header_row_deprecation_and_results(finished_run
                    "doc": "a tiny model", "metrics": extra["metrics"],
                    "output": {"brightness": "tied"}}
     assert set(row["metrics"]["synth"]) == {"psnr", "ssim", "input_psnr"}
-    # the replaced tag is retired with what remakes it; its aliases follow; its file is gone
-    assert registry["deprecated"]["rdpd-light-base.v6"] == {
-        "recipe": "old.yaml", "phase": "last", "note": f"replaced by {TAG}", "use": "base"}
+    # the replaced tag is retired with what remakes it, and so are its other aliases
+    retired = {"recipe": "old.yaml", "phase": "last", "note": f"replaced by {TAG}",
+               "use": "base"}
+    assert registry["deprecated"] == {"rdpd-light-base.v6": retired, "old": retired}
     assert registry["aliases"] == {"base": TAG} and registry["default"] == "base"
     assert not (weights / "rdpd-light-base.v6.safetensors").exists()
     # per-image results from the run's evaluation

@@ -2,11 +2,11 @@
 for the fine detail, and its output on the views at half resolution for the coarse structure.
 
 At half resolution a blur of radius r px becomes r / 2 px, where the network does better: on a
-tuning set of the default model's kind (``experiments/scripts/make_tune_data.sh``: unseen photo
-scenes, seed 22000, not the test set) the half-resolution pass, upsampled, beat the full-resolution
-one on pixels blurred by 8 px or more (20.76 against 20.35 dB on its first 20 frames) and on noisy,
-nearly sharp frames (averaging four pixels halves the noise), but lost the fine detail of in-focus
-pixels (29.4 against 35.6 dB). Splitting the two by frequency keeps the best of each: with ``G`` a
+tuning set of the default model's kind (unseen photo scenes, seed 22000, not the test set) the
+half-resolution pass, upsampled, beat the full-resolution one on pixels blurred by 8 px or more
+(20.76 against 20.35 dB on its first 20 frames) and on noisy, nearly sharp frames (averaging
+four pixels halves the noise), but lost the fine detail of in-focus pixels (29.4 against 35.6
+dB). Splitting the two by frequency keeps the best of each: with ``G`` a
 Gaussian of standard deviation ``sigma`` (px at full resolution) and ``U`` bicubic upsampling,
 
 fused = fine - G * fine + G * U(coarse) = fine + G * (U(coarse) - fine).

@@ -154,7 +154,8 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
     """Ship run ``run``'s weights under ``tag`` (the recipe's ``ship.tag``) into
     ``weights_dir`` (the package's, :func:`~dualpixel.weights.weights_folder`, by default),
     whose ``registry.json`` gets the row; ``alias`` then names it, ``default`` makes that
-    alias the default, ``replaces`` retires a shipped tag (its aliases move to ``tag``). The
+    alias the default, ``replaces`` retires a shipped tag and its aliases (other than
+    ``alias``), each saying which recipe phase remakes it and what to use instead. The
     recipe must lie in ``recipes_dir``: a shipped model is remade from there. Per-image results
     go to ``results_dir/TAG.csv`` (None: not written)."""
     from dualpixel.io.atomic import atomic_path
@@ -224,13 +225,15 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
         "recipe": recipe.path.name, "phase": recipe.shipped_phase, "start": start,
         "num_params": extra["num_params"], "doc": header["doc"], "metrics": metrics,
         "output": recipe.output_settings}
-    if replaces is not None:
+    if replaces is not None:  # retired with its aliases (but --alias), saying what remakes it
         old = registry["weights"].pop(replaces)
-        registry["deprecated"][replaces] = {
-            "recipe": old["recipe"], "phase": old["phase"], "note": f"replaced by {tag}",
-            "use": alias or tag}
-        registry["aliases"] = {a: (tag if t == replaces else t)
-                               for a, t in registry["aliases"].items()}
+        retired = {"recipe": old["recipe"], "phase": old["phase"], "note": f"replaced by {tag}",
+                   "use": alias or tag}
+        registry["deprecated"][replaces] = retired
+        for name in [a for a, t in registry["aliases"].items() if t == replaces]:
+            del registry["aliases"][name]
+            if name != alias:
+                registry["deprecated"][name] = retired
     if alias is not None:
         registry["aliases"][alias] = tag
     if default:
