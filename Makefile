@@ -8,7 +8,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= demo-output
 
-.PHONY: setup demo test lint browser docs clean
+.PHONY: setup demo test lint browser docs tables clean
 
 setup: $(STAMP)
 
@@ -39,6 +39,9 @@ lint: $(STAMP)
 
 test: $(STAMP) lint browser
 	$(BIN)/python -m pytest -n 2 -q --doctest-modules src/dualpixel tests
+
+tables: $(STAMP)  # regenerate the README's and the model card's results tables
+	$(BIN)/python -m dualpixel.evaluation.tables
 
 clean:
 	rm -rf $(VENV) $(OUT)
