@@ -35,6 +35,9 @@ def models(width: float) -> None:
                    f"{refiner}, {info['parameters']:,} parameters, {info['bytes'] / 1e6:.1f} MB, "
                    f"sha256 {info['sha256'][:16]}...; made by recipes/{info['recipe']} phase "
                    f"{info['phase']}")
+        settings = ", ".join(f"--{k} {v}" if not isinstance(v, bool) else
+                             f"--{'' if v else 'no-'}{k}" for k, v in info["output"].items())
+        click.echo(f"    runs with {settings} unless told")
         for dataset, scores in info["metrics"].items():
             click.echo(f"    {dataset}: {scores['psnr']:.2f} dB PSNR, SSIM {scores['ssim']:.3f} "
                        f"(input {scores['input_psnr']:.2f} dB)")

@@ -160,7 +160,8 @@ def phase_weights(recipe: str, phase: str) -> str | None:
 @functools.lru_cache(maxsize=1)
 def model_info() -> dict[str, dict]:
     """Per shipped tag: doc, aliases, recipe and phase, architecture (the file's header only: no
-    network is built and torch is not imported), parameter count, size, sha256 and metrics."""
+    network is built and torch is not imported), parameter count, size, sha256, metrics and the
+    output settings it runs with by default."""
     from safetensors import safe_open
 
     info = {}
@@ -176,6 +177,7 @@ def model_info() -> dict[str, dict]:
             "temporal": json.loads(meta.get("temporal", "true")),
             "parameters": weights.num_params, "bytes": weights.path.stat().st_size,
             "sha256": weights.sha256, "metrics": weights.metrics,
+            "output": run_settings(tag),
         }
     return info
 
