@@ -102,3 +102,31 @@ def test_deblur_command_backend(tiny_checkpoint, cache, tmp_path):
         "--output", str(tmp_path / "x.png"), "--checkpoint", str(tiny_checkpoint),
         "--backend", "onnxruntime", "--precision", "bf16"])
     assert bad.exit_code == 2 and "runs in fp32" in bad.output and "Traceback" not in bad.output
+
+
+def test_deblur_runs_an_exported_graph(tiny_checkpoint, tmp_path):
+    from dualpixel.inference.onnx_export import export_onnx, graph_metadata
+    from dualpixel.models import load_model
+
+    graph = tmp_path / "tiny.onnx"
+    export_onnx(load_model(tiny_checkpoint), graph, height=32, width=48, batch=2)
+    assert graph_metadata(graph)["model"] == "rdpd"
+    rng = np.random.default_rng(3)
+    for name in ("l", "r"):
+        cv2.imwrite(str(tmp_path / f"{name}.png"), rng.integers(0, 255, (40, 56, 3), np.uint8))
+    outputs = {}
+    for checkpoint in (tiny_checkpoint, graph):
+        out = tmp_path / f"{checkpoint.suffix[1:]}.png"
+        result = CliRunner().invoke(cli, [
+            "deblur", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png"),
+            "--output", str(out), "--checkpoint", str(checkpoint), "--precision", "fp32"])
+        assert result.exit_code == 0, result.output
+        outputs[checkpoint.suffix] = cv2.imread(str(out)).astype(int)
+    assert np.abs(outputs[".safetensors"] - outputs[".onnx"]).max() <= 1  # 8-bit rounding
+    # a graph without the network's description, and a file that is no graph, are refused
+    stray = tmp_path / "stray.onnx"
+    stray.write_bytes(b"not a graph")
+    bad = CliRunner().invoke(cli, [
+        "deblur", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png"),
+        "--output", str(tmp_path / "x.png"), "--checkpoint", str(stray)])
+    assert bad.exit_code == 1 and "stray.onnx" in bad.output and "Traceback" not in bad.output

@@ -19,7 +19,8 @@ from dualpixel.names import (
 )
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
-_CHECKPOINT_HELP = "Checkpoint: a registry name (see MODEL_CARD.md) or a .safetensors path."
+_CHECKPOINT_HELP = ("Checkpoint: a registry name (dualpixel models) or a .safetensors path; "
+                    "deblur and eval also run a graph from `dualpixel export` (.onnx).")
 # Options that deblur and eval share.
 _OVERLAP_OPTION = click.option("--overlap", type=click.IntRange(0), default=None,
                                help="Tile overlap in pixels  [default: min(64, tile/2)].")
@@ -56,13 +57,26 @@ _MULTISCALE_OPTION = click.option(
          "1.25x the time).")
 
 
+def _is_graph(checkpoint: str) -> bool:
+    """Whether ``--checkpoint`` names an exported ONNX graph (run by ONNX Runtime)."""
+    return str(checkpoint).lower().endswith(".onnx")
+
+
 def _load(checkpoint: str, device: str, backend: str = "torch"):
-    from dualpixel.inference.onnx_runtime import backend_device
+    """``(network, device, settings)``: the network (for an ``.onnx`` graph, the network it
+    describes), the device it runs on, and what ``Deblurrer`` needs besides (the graph and the
+    onnxruntime backend for a graph)."""
+    from dualpixel.inference.onnx_runtime import backend_device, load_onnx_checkpoint
     from dualpixel.models import load_model
     from dualpixel.weights import resolve_checkpoint
 
+    if _is_graph(checkpoint):
+        path = resolve_checkpoint(checkpoint)
+        resolved = backend_device("onnxruntime", device)
+        return load_onnx_checkpoint(path), resolved, {"backend": "onnxruntime", "graph": path}
     resolved = backend_device(backend, device)  # names a missing extra before any loading
-    return load_model(resolve_checkpoint(checkpoint), device=resolved), resolved
+    model = load_model(resolve_checkpoint(checkpoint), device=resolved)
+    return model, resolved, {"backend": backend}
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -138,15 +152,20 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
 
     view_encoding = view_encoding_from_files(encoding, black_level, white_level, right_gain,
                                              flat_field)
-    views = model_spec(read_metadata(resolve_checkpoint(checkpoint))["model"]).views
+    if _is_graph(checkpoint):
+        from dualpixel.inference.onnx_export import graph_metadata
+
+        views = model_spec(graph_metadata(resolve_checkpoint(checkpoint))["model"]).views
+    else:
+        views = model_spec(read_metadata(resolve_checkpoint(checkpoint))["model"]).views
     # the inputs and outputs are checked before the model loads
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=views == 2, combined=combined)
-    model, resolved = _load(checkpoint, device, backend)
+    model, resolved, runtime = _load(checkpoint, device, backend)
     settings = run_settings(checkpoint, brightness=brightness, overshoot=overshoot, flips=flips)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                           precision="fp16" if half else precision, multiscale=multiscale,
-                          backend=backend, **settings)
+                          **runtime, **settings)
     total = sum(len(sequence) for sequence in jobs)
 
     def report(path: Path, finding) -> None:
@@ -225,18 +244,17 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         from dualpixel.inference import Deblurrer
         from dualpixel.weights import run_settings
 
-        model, resolved = _load(checkpoint, device, backend)
+        model, resolved, runtime = _load(checkpoint, device, backend)
         settings = run_settings(checkpoint, brightness=brightness, overshoot=overshoot,
                                 flips=flips)
         deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
-                              precision=precision, multiscale=multiscale, backend=backend,
-                              **settings)
-        is_path = Path(checkpoint).suffix == ".safetensors" or "/" in str(checkpoint)
+                              precision=precision, multiscale=multiscale, **runtime, **settings)
+        is_path = Path(checkpoint).suffix in (".safetensors", ".onnx") or "/" in str(checkpoint)
         method = (Path(checkpoint).stem if is_path else str(checkpoint)) + output_modes_suffix(
             settings["brightness"], settings["overshoot"], flips=settings["flips"],
             multiscale=multiscale)
         meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, **settings,
-                "precision": deblurrer.numerics.name, "backend": backend}
+                "precision": deblurrer.numerics.name, "backend": runtime["backend"]}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
     click.echo(f"reports in {output}")
@@ -302,7 +320,10 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
     width, height = parse_size(None, None, size)
     if fmt == "onnx":
         check_export_packages()  # before loading anything
-    model, _ = _load(checkpoint, "cpu")
+    if _is_graph(checkpoint):
+        raise click.BadParameter(f"{checkpoint} is already an exported graph; give the "
+                                 ".safetensors checkpoint", param_hint="--checkpoint")
+    model, _, _ = _load(checkpoint, "cpu")
     if fmt == "safetensors-fp16":
         extra = read_metadata(resolve_checkpoint(checkpoint))["extra"]
         save_model(output, model, dtype=torch.float16, extra={**extra, "source": str(checkpoint)})

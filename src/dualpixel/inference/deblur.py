@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -126,6 +127,8 @@ class Deblurrer:
         fusion_sigma: where the two scales are split (Gaussian std, px at full resolution).
         half: deprecated spelling of ``precision="fp16"``.
         backend: ``torch``, or ``onnxruntime`` (CPU, float32; the ``onnx`` extra).
+        graph: with ``onnxruntime``, an exported graph to run (``dualpixel export``; ``model``
+            then only describes it: :func:`~dualpixel.inference.onnx_runtime.load_onnx_checkpoint`).
         brightness: ``"tied"``: the output's low-pass brightness in linear light held at the
             input's (:mod:`dualpixel.inference.brightness`); ``"model"``: as the network gives it.
         overshoot: ``"limited"``: the output kept within the input's local range (no halos;
@@ -142,6 +145,7 @@ class Deblurrer:
     fusion_sigma: float = FUSION_SIGMA
     half: bool = False
     backend: str = "torch"
+    graph: str | Path | None = None
     brightness: str = DEFAULT_BRIGHTNESS
     overshoot: str = DEFAULT_OVERSHOOT
 
@@ -164,7 +168,7 @@ class Deblurrer:
         if self.backend == "onnxruntime":
             self.numerics = _onnxruntime_precision(precision, self.device)
             self.model = self.model.cpu().eval()
-            self._net = OnnxRuntimeNet(self.model)
+            self._net = OnnxRuntimeNet(self.model, graph=self.graph)
         else:
             self.numerics = resolve_precision(precision, self.device)
             memory = (torch.channels_last if self.numerics.channels_last

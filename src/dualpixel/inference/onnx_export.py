@@ -5,11 +5,15 @@ The single-frame graph maps the model input ``(1, C, H, W)`` to the output ``(1,
 returns ``output, next_hidden, next_cell``; the state is ``(1, 512*width, H/16, W/16)`` for
 ``H, W`` rounded up to multiples of 16, and zeros for the first frame. Height and width
 are dynamic: a graph exported at one size runs at any other (``dynamic=False`` fixes them).
+Every graph carries the network's architecture in its metadata (``dualpixel``: name, width,
+residual, refiner, peepholes, whether it is the step graph), so ``deblur --checkpoint
+model.onnx`` runs it (:func:`dualpixel.inference.onnx_runtime.load_onnx_checkpoint`).
 Needs the ``onnx`` extra (``onnx``, ``onnxscript``; ``onnxruntime`` to verify).
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +24,10 @@ from dualpixel.errors import ParameterError
 from dualpixel.io.atomic import atomic_path
 from dualpixel.models.unet import SIZE_MULTIPLE, DeblurNet
 
-__all__ = ["export_onnx", "run_onnx", "state_shape"]
+__all__ = ["METADATA_KEY", "export_onnx", "graph_metadata", "run_onnx", "state_shape"]
+
+#: The metadata entry of an exported graph that describes its network.
+METADATA_KEY = "dualpixel"
 
 
 class _Frame(nn.Module):
@@ -94,7 +101,42 @@ def export_onnx(
             opset_version=opset, dynamo=True, external_data=False, verbose=False,
             dynamic_shapes=dynamic_shapes,
         )
+        _describe(tmp, model, step=step, dynamic=dynamic)
     return path
+
+
+def _describe(path: Path, model: DeblurNet, *, step: bool, dynamic: bool) -> None:
+    """Write the network's architecture into the graph's metadata."""
+    import onnx
+
+    graph = onnx.load(str(path))
+    entry = graph.metadata_props.add()
+    entry.key, entry.value = METADATA_KEY, json.dumps({
+        "model": model.spec.name, "width": float(model.width),
+        "residual": bool(model.shape.residual), "refiner": list(model.shape.refiner),
+        "peepholes": bool(model.shape.peepholes), "temporal": bool(model.temporal),
+        "step": bool(step), "dynamic": bool(dynamic)})
+    onnx.save(graph, str(path))
+
+
+def graph_metadata(path: str | Path) -> dict:
+    """The network description an exported graph carries (:data:`METADATA_KEY`)."""
+    import onnx
+
+    from dualpixel.errors import InputFileError
+
+    try:
+        graph = onnx.load(str(path), load_external_data=False)
+    except Exception as error:  # onnx raises DecodeError and others for a bad file
+        raise InputFileError(path, f"not a readable ONNX graph ({type(error).__name__})") from None
+    for entry in graph.metadata_props:
+        if entry.key == METADATA_KEY:
+            try:
+                return dict(json.loads(entry.value))
+            except (ValueError, TypeError):
+                break
+    raise InputFileError(path, "is no graph written by `dualpixel export` (it carries no "
+                               "network description); export the checkpoint again")
 
 
 def run_onnx(path: str | Path, *inputs: np.ndarray) -> list[np.ndarray]:

@@ -31,7 +31,8 @@ from dualpixel.inference.onnx_export import export_onnx, state_shape
 from dualpixel.models.unet import DeblurNet
 from dualpixel.names import BACKENDS
 
-__all__ = ["BACKENDS", "OnnxRuntimeNet", "backend_device", "cache_dir", "check_backend"]
+__all__ = ["BACKENDS", "OnnxRuntimeNet", "backend_device", "cache_dir", "check_backend",
+           "load_onnx_checkpoint"]
 
 #: The opset of cached graphs (part of the cache key).
 OPSET = 18
@@ -93,17 +94,20 @@ class OnnxRuntimeNet:
         model: the network to export (once; later runs find the graph in :func:`cache_dir`).
         threads: ONNX Runtime's intra-op threads (default: torch's thread count).
         cache: the folder for exported graphs (default: :func:`cache_dir`).
+        graph: an exported graph of ``model`` to run instead (``model`` then only describes
+            it: :func:`load_onnx_checkpoint`).
     """
 
     def __init__(self, model: DeblurNet, *, threads: int | None = None,
-                 cache: str | Path | None = None) -> None:
+                 cache: str | Path | None = None, graph: str | Path | None = None) -> None:
         check_backend("onnxruntime")
         import onnxruntime
 
         self.spec, self.shape, self.temporal = model.spec, model.shape, model.temporal
         self._state_shape = functools.partial(state_shape, model)
         folder = Path(cache) if cache is not None else cache_dir()
-        path = folder / f"{_fingerprint(model, self.temporal)}.onnx"
+        path = (Path(graph) if graph is not None
+                else folder / f"{_fingerprint(model, self.temporal)}.onnx")
         if not path.is_file():
             folder.mkdir(parents=True, exist_ok=True)
             batch, height, width = _EXPORT_SIZE
@@ -134,6 +138,30 @@ class OnnxRuntimeNet:
         feeds.update(hidden=_numpy(state[0]), cell=_numpy(state[1]))
         out, hidden, cell = self.session.run(None, feeds)
         return torch.from_numpy(out), (torch.from_numpy(hidden), torch.from_numpy(cell))
+
+
+def load_onnx_checkpoint(path: str | Path) -> DeblurNet:
+    """The network an exported graph (``dualpixel export``) describes, untrained: what
+    :class:`~dualpixel.inference.Deblurrer` needs to run the graph (``graph=path``). A graph
+    traced at a fixed size is refused; a recurrent model's single-frame graph deblurs every
+    frame on its own (export ``--step`` to carry the state through a sequence)."""
+    from dualpixel.errors import InputFileError
+    from dualpixel.inference.onnx_export import graph_metadata
+    from dualpixel.models import build_model
+
+    check_backend("onnxruntime")
+    meta = graph_metadata(path)
+    if not meta.get("dynamic", True):
+        raise InputFileError(path, "was exported at a fixed size; export it again (the default "
+                                   "graph runs at any size)")
+    try:
+        model = build_model(str(meta["model"]), width=float(meta["width"]),
+                            residual=bool(meta["residual"]), peepholes=bool(meta["peepholes"]),
+                            refiner=tuple(int(c) for c in meta["refiner"]))
+    except (KeyError, TypeError, ValueError, ParameterError) as error:
+        raise InputFileError(path, f"describes no network this version builds ({error})") from None
+    model.temporal = bool(meta.get("temporal", False)) and bool(meta.get("step", False))
+    return model.eval()
 
 
 def _numpy(tensor: torch.Tensor) -> np.ndarray:
