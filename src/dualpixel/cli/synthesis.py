@@ -125,9 +125,9 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
 @click.option("--png-compression", type=click.IntRange(0, 9), default=None,
-              help="zlib level of the PNGs: 0 (stored, ~50 % larger) to 9 (smallest, ~10x "
-                   "slower to write)  [default: a fast run-length strategy, about level 1's "
-                   "size].")
+              help="zlib level of all the PNGs: 0 (stored, fastest, 20-30 % larger) to 9 "
+                   "(smallest, ~10x slower to write)  [default: the views stored, the target "
+                   "with a fast run-length strategy].")
 @click.option("--shard", default=None, callback=lambda _c, p, v: _shard(p, v), metavar="K/N",
               help="Render only the K-th of N interleaved parts of the frames (0-based), e.g. "
                    "K=$SLURM_ARRAY_TASK_ID; join the N folders with `dualpixel merge-shards`.")

@@ -271,10 +271,14 @@ def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
                                                                      target))
     # The encoders release the GIL: the frame's files are written side by side, and all of them
     # are in place before its manifest line (the frame's commit) is returned.
+    # The views are written fast (stored, level 0); the target, read again at every epoch's
+    # scoring and kept longest, compressed. ``png_compression`` sets all four.
+    view_level = 0 if png_compression is None else png_compression
     writes = [_writer_pool().submit(write_png, paths[name], data, bit_depth=config.bit_depth,
-                                    compression=png_compression)
-              for name, data in (("left", left), ("right", right), ("combined", combined),
-                                 ("target", target))]
+                                    compression=level)
+              for name, data, level in (("left", left, view_level), ("right", right, view_level),
+                                        ("combined", combined, view_level),
+                                        ("target", target, png_compression))]
     save_npy(paths["defocus"], result.defocus.cpu().numpy().astype(np.float32))
     record = {
         "key": job.key,
@@ -470,7 +474,8 @@ def synthesize_dataset(
             e.g. one task of a scheduler's array job; :func:`merge_shards` joins the n folders
             into the dataset a single run writes, byte for byte.
         png_compression: zlib level 0-9 of the PNGs (:func:`~dualpixel.io.images.write_png`);
-            None: the fast default. Not part of the content: a run may resume with another.
+            None: the views stored (level 0, fastest) and the target with OpenCV's fast
+            default. Not part of the content: a run may resume with another.
 
     Returns:
         The ``dataset.json`` description (with ``status`` and frame counts).
