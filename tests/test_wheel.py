@@ -45,3 +45,40 @@ def test_wheel_contents(wheel):
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     assert "Project-URL: Source" in text and "License-Expression: MIT" in text
     assert wheel.stat().st_size < 80e6
+
+
+def test_the_installed_wheel_works_outside_the_clone(wheel, tmp_path):
+    """The wheel installed on its own (no source tree on the path), run from a folder outside
+    the clone: the README's Python example and ``dualpixel demo``."""
+    import site
+
+    target = tmp_path / "installed"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--quiet", "--target",
+                    str(target), str(wheel)], check=True)
+    # -S: no site processing, so the clone's editable install is invisible; the dependencies
+    # come from this environment's site-packages, the package from the wheel alone
+    env = {"PYTHONPATH": ":".join([str(target), *site.getsitepackages()]),
+           "PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "TQDM_DISABLE": "1"}
+    example = f"""
+import numpy as np
+import dualpixel
+assert dualpixel.__file__.startswith({str(target)!r}), dualpixel.__file__
+rng = np.random.default_rng(0)
+rgb = rng.uniform(0.1, 0.9, (64, 96, 3)).astype(np.float32)
+depth_m = np.linspace(1.0, 6.0, 96, dtype=np.float32)[None].repeat(64, 0)
+frame = dualpixel.synthesize(rgb, depth_m, camera="dslr-840", camera_file="canon-840-linear",
+                             noise_model="poisson-gaussian",
+                             noise_sigmas=(0.006, 0.009, 0.013, 0.018, 0.025), seed=0)
+sharp = dualpixel.deblur(frame["left"], frame["right"], device="cpu")
+print(dualpixel.check_views(frame["left"], frame["right"], frame["combined"]))
+print(dualpixel.psnr(sharp, frame["target"]) > 0, sorted(dualpixel.list_models()))
+"""
+    run = subprocess.run([sys.executable, "-S", "-c", example], cwd=tmp_path, env=env,
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "True" in run.stdout
+    demo = subprocess.run([sys.executable, "-S", "-m", "dualpixel", "demo", "--output",
+                           str(tmp_path / "demo"), "--frames", "1", "--device", "cpu"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert demo.returncode == 0, demo.stderr[-2000:]
+    assert (tmp_path / "demo" / "index.html").is_file()
