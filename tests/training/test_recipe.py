@@ -175,3 +175,30 @@ def test_bad_recipes_are_refused_before_any_work(tmp_path, changes, message):
 def test_missing_recipe_is_named(tmp_path):
     with pytest.raises(InputFileError, match="recipe not found"):
         load_recipe(tmp_path / "none.yaml")
+
+
+def test_a_recipe_extends_another_by_name(tmp_path):
+    base = _tiny_recipe(tmp_path)
+    child = tmp_path / "child.yaml"
+    child.write_text(yaml.safe_dump({
+        "name": "child", "extends": base.name,
+        "data": [{"name": "synth", "synth": {"input": "scenes", "cameras": ["set2"],
+                                             "max_layers": 40, "noise_sigmas": [0.01]}}],
+        "train": {"learning_rate": 5e-4},
+        "phases": [{"name": "second", "set": {"epochs": 2}}, {"name": "third"}],
+        "ship": {"tag": "child.v1"}}, sort_keys=False))
+    parent, recipe = load_recipe(base), load_recipe(child)
+    assert [s.name for s in recipe.data] == ["scenes", "synth"]  # replaced in place
+    assert recipe.data[1].args["cameras"] == ["set2"] and recipe.data[0] == parent.data[0]
+    assert recipe.train == {**parent.train, "learning_rate": 5e-4}
+    assert [p.name for p in recipe.phases] == ["first", "second", "third"]
+    assert recipe.phases[1].settings == {"epochs": 2} and recipe.phases[0] == parent.phases[0]
+    assert recipe.evaluate == parent.evaluate and recipe.shipped_tag == "child.v1"
+    loop = tmp_path / "loop.yaml"
+    loop.write_text("name: loop\nextends: loop.yaml\nphases: [{name: a}]\n")
+    with pytest.raises(InputFileError, match=r"extends: loop\.yaml makes a cycle"):
+        load_recipe(loop)
+    missing = tmp_path / "missing.yaml"
+    missing.write_text("name: m\nextends: nowhere.yaml\nphases: [{name: a}]\n")
+    with pytest.raises(InputFileError, match=r"nowhere\.yaml is no recipe beside this one"):
+        load_recipe(missing)

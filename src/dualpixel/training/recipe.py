@@ -26,6 +26,10 @@ with phases inside it) holds:
 - ``evaluate``: ``[{name, dataset, split}]`` scored with the shipped weights (a step's name or a
   folder; a folder outside the run that is missing is skipped with a note).
 
+``extends: BASE.yaml`` (a recipe beside this one) starts from the base: this recipe's data steps
+and phases replace the base's of the same name or follow them, its ``train`` keys override the
+base's, and its other keys replace the base's; a variant names only what changes.
+
 Every step resumes: a rerun of ``reproduce`` continues where the last one stopped. Bad input
 (an unknown key, a phase whose start cannot be resolved, a missing data step) is refused before
 any work, naming the recipe, the phase and the key.
@@ -46,7 +50,9 @@ from dualpixel.io.paths import check_plain_name
 __all__ = ["OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe", "phase_done", "plan_text",
            "reproduce"]
 
-_TOP_KEYS = {"name", "description", "data", "train", "phases", "ship", "evaluate"}
+_TOP_KEYS = {"name", "description", "extends", "data", "train", "phases", "ship", "evaluate"}
+#: How deep ``extends`` may chain.
+_MAX_EXTENDS = 8
 _SHIP_KEYS = {"tag", "phase", "doc", "output"}
 #: Output settings a recipe's ``ship.output`` may give, with the values each takes.
 OUTPUT_SETTINGS: dict[str, tuple[Any, ...]] = {
@@ -163,14 +169,52 @@ def _ship(path: Path, raw: Any) -> dict[str, Any]:
     return ship
 
 
-def load_recipe(path: str | Path) -> Recipe:
-    """Read and check a recipe's structure (the settings are checked by :func:`check_recipe`)."""
-    path = Path(path)
-    raw = read_mapping(path, "recipe", syntax="yaml")
+def _by_name(path: Path, where: str, items: Any) -> dict[str, Any]:
+    if not isinstance(items, list):
+        raise _fail(path, where, "expected a list")
+    named = {}
+    for k, item in enumerate(items):
+        if not isinstance(item, dict) or "name" not in item:
+            raise _fail(path, f"{where} entry {k + 1}", "expected a mapping with a name")
+        named[str(item["name"])] = item
+    return named
+
+
+def _raw_recipe(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """A recipe's mapping with its ``extends`` resolved: the base recipe (a file beside it)
+    with this one's ``data`` steps and ``phases`` replacing or following the base's by name,
+    its ``train`` settings over the base's, and its other keys replacing the base's."""
+    raw = dict(read_mapping(path, "recipe", syntax="yaml"))
     unknown = sorted(set(raw) - _TOP_KEYS)
     if unknown:
         raise _fail(path, "recipe", f"unknown key(s) {', '.join(unknown)}; known: "
                                     f"{', '.join(sorted(_TOP_KEYS))}")
+    if "extends" not in raw:
+        return raw
+    base_path = path.parent / _plain(path, "extends", Path(str(raw["extends"])).name)
+    if base_path.resolve() in {p.resolve() for p in (*chain, path)} or len(chain) >= _MAX_EXTENDS:
+        raise _fail(path, "extends", f"{base_path.name} makes a cycle or a chain deeper than "
+                                     f"{_MAX_EXTENDS}")
+    if not base_path.is_file():
+        raise _fail(path, "extends", f"{base_path.name} is no recipe beside this one")
+    base = _raw_recipe(base_path, (*chain, path))
+    merged = {**base, **{k: v for k, v in raw.items() if k != "extends"}}
+    for key in ("data", "phases"):
+        if key in raw and key in base:
+            items = _by_name(base_path, key, base[key])
+            items.update(_by_name(path, key, raw[key]))
+            merged[key] = list(items.values())
+    if "train" in raw:
+        merged["train"] = {**_mapping(base_path, "train", base.get("train") or {}),
+                           **_mapping(path, "train", raw["train"] or {})}
+    return merged
+
+
+def load_recipe(path: str | Path) -> Recipe:
+    """Read and check a recipe's structure (the settings are checked by :func:`check_recipe`);
+    ``extends: BASE.yaml`` starts from a recipe beside it (:func:`_raw_recipe`)."""
+    path = Path(path)
+    raw = _raw_recipe(path)
     for key in ("name", "phases"):
         if key not in raw:
             raise _fail(path, "recipe", f"missing key {key!r}")
