@@ -150,8 +150,8 @@ def run_demo(
             rgbd, focus = render_scene(seed, config)
         sequence, recipe = _synthetic_frames(rgbd, camera, seed, bar, focus)
 
-    settings = run_settings(checkpoint)  # as the model ships to run
-    deblurrer = Deblurrer(model, device=device, tile=tile, **settings)
+    deblurrer = Deblurrer(model, device=device, tile=tile,
+                          **run_settings(checkpoint))  # as the model ships to run
     timings = []
     for index, frame in enumerate(sequence):
         tick = time.perf_counter()
@@ -178,8 +178,7 @@ def run_demo(
 
     figures = _figures(sequence, output, recipe)
     if mode == "procedural":
-        real_rows, metrics["real"], real_figure = _real_scene(model, device, output, tile,
-                                                              settings)
+        real_rows, metrics["real"], real_figure = _real_scene(deblurrer, output)
         rows += real_rows
         figures.insert(0, real_figure)
     bar.update()
@@ -205,14 +204,14 @@ def run_demo(
     return DemoResult(path, metrics, seconds)
 
 
-def _real_scene(model, device: str, output: Path, tile: int | None = None,
-                settings: dict | None = None) -> tuple[list[list[str]], dict, tuple]:
-    """Deblur the shipped real Canon scene; compare with DPDNet's published output."""
+def _real_scene(deblurrer: Deblurrer, output: Path) -> tuple[list[list[str]], dict, tuple]:
+    """Deblur the shipped real Canon scene (with the demo's deblurrer, state reset); compare
+    with DPDNet's published output."""
     folder = real_scene_dir()
     images = {name: read_rgb(folder / f"{name}.png") for name in
               ("view0", "view1", "input", "target", "dpdnet")}
-    ours = Deblurrer(model, device=device, tile=tile, **(settings or {}))(images["view0"],
-                                                                          images["view1"])
+    deblurrer.reset()  # another photograph: nothing carried over from the sequence
+    ours = deblurrer(images["view0"], images["view1"])
     write_png(output / "frames" / "real_output.png", ours, bit_depth=8)
     target = images["target"]
     panels = {"input": images["input"], "ours": ours, "DPDNet (published)": images["dpdnet"],

@@ -62,6 +62,19 @@ def _is_graph(checkpoint: str) -> bool:
     return str(checkpoint).lower().endswith(".onnx")
 
 
+def _network_name(checkpoint: str) -> str:
+    """The network a checkpoint or exported graph holds (its header only; nothing is built)."""
+    from dualpixel.models import read_metadata
+    from dualpixel.weights import resolve_checkpoint
+
+    path = resolve_checkpoint(checkpoint)
+    if _is_graph(checkpoint):
+        from dualpixel.inference.onnx_export import graph_metadata
+
+        return str(graph_metadata(path)["model"])
+    return read_metadata(path)["model"]
+
+
 def _load(checkpoint: str, device: str, backend: str = "torch"):
     """``(network, device, settings)``: the network (for an ``.onnx`` graph, the network it
     describes), the device it runs on, and what ``Deblurrer`` needs besides (the graph and the
@@ -146,18 +159,13 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     from dualpixel.inference import Deblurrer
     from dualpixel.inference.encoding import view_encoding_from_files
     from dualpixel.inference.jobs import plan_deblur_jobs, run_deblur_jobs
-    from dualpixel.models import model_spec, read_metadata
+    from dualpixel.models import model_spec
     from dualpixel.progress import progress_bar
-    from dualpixel.weights import resolve_checkpoint, run_settings
+    from dualpixel.weights import run_settings
 
     view_encoding = view_encoding_from_files(encoding, black_level, white_level, right_gain,
                                              flat_field)
-    if _is_graph(checkpoint):
-        from dualpixel.inference.onnx_export import graph_metadata
-
-        views = model_spec(graph_metadata(resolve_checkpoint(checkpoint))["model"]).views
-    else:
-        views = model_spec(read_metadata(resolve_checkpoint(checkpoint))["model"]).views
+    views = model_spec(_network_name(checkpoint)).views
     # the inputs and outputs are checked before the model loads
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=views == 2, combined=combined)

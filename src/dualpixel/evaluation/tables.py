@@ -22,8 +22,8 @@ from typing import Any
 
 from dualpixel.errors import InputFileError
 
-__all__ = ["DOCUMENTS", "dev_scene_table", "held_out_table", "method_label", "render_tables",
-           "target_free_table", "update_documents", "weights_table"]
+__all__ = ["DOCUMENTS", "dev_scene_table", "method_label", "render_tables", "target_free_table",
+           "update_documents", "weights_table"]
 
 #: The dev scenes' evaluations and their column titles.
 DEV_SETS = {"canon-dp-real": "Canon 840x512", "canon-dp-real-hd": "Canon 1620x980"}
@@ -109,24 +109,6 @@ def dev_scene_table(results: Mapping[str, list[dict[str, str]]],
     return "\n".join(lines)
 
 
-def held_out_table(results: Mapping[str, list[dict[str, str]]],
-                   labels: Mapping[str, str]) -> str:
-    """Per held-out (synthetic) evaluation of a tag's recipe, its mean PSNR gain over the
-    input (dB) and the number of frames, from the tag's results CSV."""
-    lines = ["| model | evaluation | frames | input PSNR | gain |", "|---|---|---|---|---|"]
-    for tag, label in labels.items():
-        by_set: dict[str, list[dict[str, str]]] = defaultdict(list)
-        for row in results.get(tag, []):
-            if row["evaluation"] not in DEV_SETS:
-                by_set[row["evaluation"]].append(row)
-        for k, (name, rows) in enumerate(by_set.items()):
-            inputs = [float(r["input_psnr"]) for r in rows]
-            gain = sum(float(r["psnr"]) for r in rows) / len(rows) - sum(inputs) / len(inputs)
-            lines.append(f"| {label if k == 0 else ''} | {name} | {len(rows)} | "
-                         f"{sum(inputs) / len(inputs):.2f} | {gain:+.2f} |")
-    return "\n".join(lines)
-
-
 def _mean(rows: list[dict[str, str]], key: str) -> float:
     values = [float(r[key]) for r in rows if r[key] not in ("", "nan")
               and not math.isnan(float(r[key]))]
@@ -193,7 +175,6 @@ def render_tables(root: str | Path) -> dict[str, str]:
         "weights": weights_table({tag: WEIGHTS[tag] for tag in tags}, ALIASES,
                                  DEFAULT_CHECKPOINT),
         "dev-scenes": dev_scene_table(results, {tag: f"`{tag}`" for tag in tags}),
-        "held-out": held_out_table(results, {tag: f"`{tag}`" for tag in tags}),
         "target-free": target_free_table(target_free, methods),
     }
 

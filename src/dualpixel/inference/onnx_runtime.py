@@ -108,7 +108,7 @@ class OnnxRuntimeNet:
         folder = Path(cache) if cache is not None else cache_dir()
         path = (Path(graph) if graph is not None
                 else folder / f"{_fingerprint(model, self.temporal)}.onnx")
-        if not path.is_file():
+        if graph is None and not path.is_file():  # a given graph is run, never written
             folder.mkdir(parents=True, exist_ok=True)
             batch, height, width = _EXPORT_SIZE
             export_onnx(model, path, height=height, width=width, step=self.temporal,

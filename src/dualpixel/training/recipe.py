@@ -46,6 +46,7 @@ from typing import Any
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.paths import check_plain_name
+from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES
 
 __all__ = ["OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe", "phase_done", "plan_text",
            "reproduce"]
@@ -56,7 +57,7 @@ _MAX_EXTENDS = 8
 _SHIP_KEYS = {"tag", "phase", "doc", "output"}
 #: Output settings a recipe's ``ship.output`` may give, with the values each takes.
 OUTPUT_SETTINGS: dict[str, tuple[Any, ...]] = {
-    "brightness": ("model", "tied"), "overshoot": ("model", "limited"), "flips": (False, True)}
+    "brightness": BRIGHTNESS_MODES, "overshoot": OVERSHOOT_MODES, "flips": (False, True)}
 _DATA_KEYS = ("real_data", "synthetic_data", "val_data", "real_val_data")
 
 

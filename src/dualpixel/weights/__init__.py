@@ -50,7 +50,7 @@ class Weights:
 
     @property
     def path(self) -> Path:
-        return Path(str(resources.files(__name__).joinpath(self.file)))
+        return weights_folder() / self.file
 
 
 def weights_folder() -> Path:
@@ -59,7 +59,7 @@ def weights_folder() -> Path:
 
 
 def _registry() -> dict[str, Any]:
-    return json.loads(resources.files(__name__).joinpath("registry.json").read_text("utf-8"))
+    return json.loads((weights_folder() / "registry.json").read_text("utf-8"))
 
 
 _REGISTRY = _registry()
