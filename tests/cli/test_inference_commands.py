@@ -6,7 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from dualpixel.cli.main import cli
-from dualpixel.models import build_model, save_model
+from dualpixel.models import build_model, load_model, save_model
 
 
 @pytest.fixture(scope="module")
@@ -38,6 +38,29 @@ def test_deblur_pair_keeps_16_bits_and_checks_sizes(checkpoint, tmp_path):
     missing = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "l.png",
                   "--output", tmp_path / "o.png", "--checkpoint", tmp_path / "none.safetensors")
     assert missing.exit_code == 1 and "none.safetensors: checkpoint not found" in missing.output
+
+
+def test_deblur_runs_a_frame_too_large_for_memory_in_tiles_and_says_so(checkpoint, tmp_path,
+                                                                         monkeypatch):
+    from dualpixel.inference import deblur as deblur_module
+
+    rng = np.random.default_rng(1)
+    for name in ("l", "r"):
+        cv2.imwrite(str(tmp_path / f"{name}.png"), rng.integers(0, 255, (400, 600, 3), np.uint8))
+    args = ("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
+            "--checkpoint", checkpoint, "--device", "cpu", "--precision", "fp32")
+    # memory for batches of four 128-px tiles in half of it; the 600x400 frame does not fit
+    room = 2 * deblur_module.pass_memory(load_model(checkpoint), 4 * 128**2)
+    monkeypatch.setattr(deblur_module, "available_memory", lambda: room)
+    result = run(*args, "--output", tmp_path / "auto.png")
+    assert result.exit_code == 0, result.output
+    assert "Warning: a 600x400 frame needs about" in result.output
+    assert "tiles of" in result.output and "UserWarning" not in result.output
+    monkeypatch.undo()
+    explicit = run(*args, "--output", tmp_path / "tiled.png", "--tile", "128")
+    assert explicit.exit_code == 0, explicit.output
+    np.testing.assert_array_equal(cv2.imread(str(tmp_path / "auto.png")),
+                                  cv2.imread(str(tmp_path / "tiled.png")))
 
 
 def test_deblur_flips_and_multiscale_match_the_api(tmp_path):

@@ -38,6 +38,28 @@ def test_tiled_inference_matches_whole_image(name, canon_views, request):
         assert np.abs(a - b).max() < 1e-3
 
 
+def test_a_frame_too_large_for_memory_runs_in_tiles_with_a_warning(tiny_model, canon_views,
+                                                                   monkeypatch):
+    from dualpixel.inference import deblur as deblur_module
+
+    left, right = canon_views
+    explicit = Deblurrer(tiny_model, precision="fp32", tile=192)(left, right)
+    per_pixel = deblur_module.pass_memory(tiny_model, 1)
+    # room for batches of four 192-px tiles in half of it, not for the whole 840x512 frame
+    room = 2 * deblur_module.pass_memory(tiny_model, 4 * 192**2)
+    assert room < per_pixel * 840 * 512
+    monkeypatch.setattr(deblur_module, "available_memory", lambda: room)
+    deblurrer = Deblurrer(tiny_model, precision="fp32")
+    with pytest.warns(UserWarning, match=r"840x512 frame needs about .* tiles of 192 px"):
+        tiled = deblurrer(left, right)
+    assert deblurrer.tile_for(512, 840) == 192  # and every later frame of the sequence
+    np.testing.assert_array_equal(tiled, explicit)
+    # not even the smallest faithful tile fits: refused, with the numbers, before any pass
+    monkeypatch.setattr(deblur_module, "available_memory", lambda: 10 * per_pixel)
+    with pytest.raises(ParameterError, match=r"840x512 frame needs about .* GiB .* 128-px"):
+        Deblurrer(tiny_model, precision="fp32")(left, right)
+
+
 def test_tile_grid_covers_and_validates():
     grid = TileGrid(128, 32)
     span, starts = grid.layout(400)

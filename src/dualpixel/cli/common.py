@@ -7,11 +7,16 @@ Error contract of the ``dualpixel`` command (README "What the commands guarantee
 - any other failure the library reports on purpose (a bad input file, an unwritable output, not
   enough memory or disk) prints ``Error: <path>: <problem>`` and exits with status 1;
 - neither prints a Python traceback.
+
+Warnings of the library (``warnings.warn``) print as ``Warning: <message>`` on stderr, above
+any progress bar, without Python's file and line.
 """
 
 from __future__ import annotations
 
 import errno
+import sys
+import warnings
 from pathlib import Path
 
 import click
@@ -76,6 +81,13 @@ def _paths_of(ctx: click.Context) -> tuple[dict[str, list[Path]], dict[str, Path
     return inputs, outputs
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` for the command: the message alone, above progress bars."""
+    from tqdm import tqdm
+
+    tqdm.write(f"Warning: {message}", file=sys.stderr)
+
+
 class DPCommand(click.Command):
     """A command whose library errors end in one clear message (see the module docstring),
     and whose outputs are never its inputs (:class:`OutputPath`)."""
@@ -83,7 +95,9 @@ class DPCommand(click.Command):
     def invoke(self, ctx: click.Context):
         try:
             check_outputs_apart(*_paths_of(ctx))
-            return super().invoke(ctx)
+            with warnings.catch_warnings():
+                warnings.showwarning = _show_warning
+                return super().invoke(ctx)
         except (DualPixelError, MemoryError, OSError) as error:
             raise _report(error, ctx) from error
 

@@ -29,6 +29,11 @@ the model passed in is left as it is.
 output's coarse structure from there (:mod:`dualpixel.inference.multiscale`): a second pass on a
 quarter of the pixels (at most 1.25x the time). Each scale (and each flip) carries its own
 recurrent state.
+
+Whole frames that would not fit in the memory available (:func:`pass_memory` against free RAM,
+or the GPU's free memory) are deblurred in tiles instead, with a warning that says so and the
+tile size taken (:meth:`Deblurrer.tile_for`); a frame no faithful tile fits is refused, naming
+the numbers, before any work.
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ from dualpixel.inference.onnx_runtime import OnnxRuntimeNet, check_backend
 from dualpixel.inference.overshoot import DEFAULT_OVERSHOOT, check_overshoot, limit_overshoot
 from dualpixel.inference.precision import Precision, resolve_precision
 from dualpixel.inference.tiling import MAX_BATCH, TileGrid, deblur_tiled
+from dualpixel.memory import GIB, available_memory
 from dualpixel.models.unet import DeblurNet
 
 #: Smallest tile and overlap (px) whose output matches whole-frame deblurring closely: below
@@ -68,7 +74,7 @@ MIN_FAITHFUL_OVERLAP = 32
 
 __all__ = [
     "BATCH_PIXELS", "Deblurrer", "deblur_sequence", "default_overlap", "frame_tensor",
-    "load_sequence_frames",
+    "load_sequence_frames", "pass_memory",
 ]
 
 #: On a GPU, whole-frame ensemble members go through the network together while their pixels
@@ -90,6 +96,22 @@ def default_overlap(tile: int) -> int:
     (64, 32)
     """
     return min(DEFAULT_OVERLAP, tile // 2 // 16 * 16)
+
+
+def pass_memory(model: DeblurNet, pixels: int) -> int:
+    """Bytes one network pass over ``pixels`` (members x height x width) takes at its peak, in
+    float32, with margin: 20 bytes per channel of the first encoder and refiner level, plus 128
+    for the frame's input and output. Measured peaks on the CPU: the default model (16 + 32
+    channels) 650-800 bytes a pixel at 1620x980 and 840x512, estimated 1088; rdpd-wide
+    (32 + 32) 1230, estimated 1408.
+
+    >>> from dualpixel.models import build_model
+    >>> pass_memory(build_model("rdpd", width=0.5, refiner=(32, 64, 128)), 1000)
+    1088000
+    """
+    shape = model.shape
+    channels = shape.encoder[0] + (shape.refiner[0] if shape.refiner else 0)
+    return (20 * channels + 128) * pixels
 
 
 def load_sequence_frames(sequence: DPSequence) -> list[dict[str, np.ndarray]]:
@@ -184,11 +206,45 @@ class Deblurrer:
                 self._flips += [(False, True), (True, True)]
         if self.multiscale:
             check_fusion_sigma(self.fusion_sigma)
+        self._auto_tile: int | None = None  # set once a frame was too large to run whole
         self.reset()
 
     def reset(self) -> None:
         """Forget the recurrent state (start of a new sequence)."""
         self._states: dict = {}  # by (scale, batch of members)
+
+    def free_memory(self) -> int:
+        """Bytes free for a pass: the GPU's free memory on CUDA, else the RAM available."""
+        if self.device.type == "cuda":
+            return torch.cuda.mem_get_info(self.device)[0]
+        return available_memory()
+
+    def tile_for(self, height: int, width: int) -> int | None:
+        """The tile a ``height x width`` frame runs in: this deblurrer's ``tile``; else ``None``
+        (whole) while a whole pass fits in :meth:`free_memory`, or else the largest tile (a
+        multiple of 16, at least :data:`MIN_FAITHFUL_TILE`) whose batches fit in half of it.
+        Raises :class:`ParameterError` when not even that fits."""
+        if self.tile is not None or self._auto_tile is not None:
+            return self.tile or self._auto_tile
+        free = self.free_memory()
+        whole = pass_memory(self.model, height * width)
+        if whole <= free:
+            return None
+        tile = min(max(height, width), 4096) // 16 * 16
+        while tile >= MIN_FAITHFUL_TILE and pass_memory(self.model, MAX_BATCH * tile**2) > free / 2:
+            tile -= 16
+        if tile < MIN_FAITHFUL_TILE:
+            raise ParameterError(
+                f"a {width}x{height} frame needs about {whole / GIB:.1f} GiB of memory whole, "
+                f"and even {MIN_FAITHFUL_TILE}-px tiles do not fit in the "
+                f"{free / GIB:.1f} GiB available; free memory or use smaller images")
+        warnings.warn(
+            f"a {width}x{height} frame needs about {whole / GIB:.1f} GiB of memory whole, "
+            f"{free / GIB:.1f} GiB is available: deblurring in tiles of {tile} px (overlap "
+            f"{default_overlap(tile)} px; --tile sets it)", stacklevel=3)
+        self._auto_tile = tile
+        self.reset()  # a tiled pass carries per-tile state: start the sequence afresh
+        return tile
 
     def __call__(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
         """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3)."""
@@ -226,8 +282,9 @@ class Deblurrer:
                 views = tuple(None if v is None else v[::-1] for v in views)
             inputs.append(frame_tensor(self.model, *views))
         x = torch.cat(inputs)
-        if self.tile is not None:
-            outputs = self._run((scale, 0), x)
+        tile = self.tile_for(*left.shape[:2])
+        if tile is not None:
+            outputs = self._run((scale, 0), x, tile=tile)
         else:
             budget = BATCH_PIXELS if self.device.type == "cuda" else 0
             per_pass = max(1, min(len(inputs), budget // (left.shape[0] * left.shape[1])))
@@ -239,19 +296,21 @@ class Deblurrer:
             total += out.flip(-1) if horizontal else out
         return (total / len(self._flips)).permute(1, 2, 0).numpy()
 
-    def _run(self, key: tuple[int, int], x: torch.Tensor) -> torch.Tensor:
-        """One network pass over a batch of members carrying the state ``key``; float32 on the
-        CPU."""
+    def _run(self, key: tuple[int, int], x: torch.Tensor, tile: int | None = None
+             ) -> torch.Tensor:
+        """One network pass over a batch of members carrying the state ``key`` (in tiles of
+        ``tile`` px when given); float32 on the CPU."""
         x = x.to(self.device)
         state = self._states.get(key) if self.model.temporal else None  # single-frame models
         with self.numerics.autocast(self.device):
-            if self.tile is None:
+            if tile is None:
                 if self.numerics.channels_last:
                     x = x.contiguous(memory_format=torch.channels_last)
                 out, state = self._net.step(x, state)
             else:
+                overlap = self.overlap if tile == self.tile else default_overlap(tile)
                 out, state = deblur_tiled(
-                    self._net, x, tile=self.tile, overlap=self.overlap, states=state,
+                    self._net, x, tile=tile, overlap=overlap, states=state,
                     max_batch=MAX_BATCH, channels_last=self.numerics.channels_last,
                 )
         self._states[key] = state
