@@ -5,7 +5,8 @@
 # in the background and every call stays busy waiting on it; call again as soon as one returns.
 # The device's python3 has torch; the project runs from the sent tree (PYTHONPATH=src).
 #
-#   start RECIPE RUN [SECONDS]  start the run in the background (unless it runs), then `wait`
+#   start RECIPE RUN [SECONDS]  start the run in the background (unless it runs), then `wait`;
+#                               WORKERS, LOADER_WORKERS, FRAME_STORE: its machine settings
 #   wait RUN [SECONDS]          wait up to SECONDS (default 540) while it runs; print progress
 #   stop RECIPE RUN             end a run still going near the end of the budget and export its
 #                               last finished epoch (EMA weights) as RUN/ship/NAME.safetensors
@@ -34,9 +35,11 @@ start)
     # its own session and process group (the pid file holds its id): `stop` ends the run with
     # every loader process it forked, and a call's end does not kill it (the machine stays
     # warm ~30 s, so it goes on only until then unless the next call comes)
+    # the machine's settings (data processes, loader processes, the shared frame store)
     setsid bash -c 'PYTHONPATH=src python3 -m dualpixel reproduce "$1" --output "$2" \
-        --workers "$3" --no-progress; echo $? > "$2.rc"' _ "$recipe" "$run" "${WORKERS:-14}" \
-        >> "$run.log" 2>&1 < /dev/null &
+        --workers "$3" --loader-workers "$4" --frame-store "$5" --no-progress; \
+        echo $? > "$2.rc"' _ "$recipe" "$run" "${WORKERS:-14}" "${LOADER_WORKERS:-12}" \
+        "${FRAME_STORE:-runs/frame-store}" >> "$run.log" 2>&1 < /dev/null &
     echo $! > "$run.pid"
     echo "started: $run (log $run.log)"
   fi

@@ -18,8 +18,10 @@ from tests.conftest import write_dpdd_pairs
 RECIPES = Path(__file__).resolve().parents[2] / "recipes"
 TINY_SCENES = {"sequences": 1, "frames": 2, "width": 96, "height": 64}
 TINY_PHASE = {"epochs": 1, "iterations_per_epoch": 2, "patch_size": 32, "val_limit": 1,
-              "width": 0.125, "tensorboard": False, "threads": 1, "sequence_frames": 2,
-              "workers": 0, "device": "cpu"}
+              "width": 0.125, "tensorboard": False, "sequence_frames": 2}
+#: How the tests' machine runs a phase: reproduce's options, never a recipe's keys.
+TINY_MACHINE = {"threads": 1, "workers": 0, "device": "cpu"}
+MACHINE_OPTIONS = ["--threads", "1", "--loader-workers", "0", "--device", "cpu"]
 
 
 def _shrunk(source: Path, folder: Path, real: Path) -> Path:
@@ -62,7 +64,8 @@ def real_pairs(tmp_path_factory) -> Path:
 @pytest.mark.parametrize("name", sorted(p.name for p in RECIPES.glob("*.yaml")))
 def test_every_recipe_runs_end_to_end_on_tiny_data(name, tmp_path, real_pairs):
     recipe = load_recipe(_shrunk(RECIPES / name, tmp_path, real_pairs))
-    shipped = reproduce(recipe, tmp_path / "run", workers=1, progress=False, log=lambda _: None)
+    shipped = reproduce(recipe, tmp_path / "run", workers=1, progress=False, machine=TINY_MACHINE,
+                        log=lambda _: None)
     extra = read_metadata(shipped)["extra"]
     last = recipe.phases[-1].name
     assert extra["recipe"] == name and extra["phase"] == recipe.ship.get("phase", last)
@@ -100,7 +103,7 @@ def _tiny_recipe(tmp_path: Path, **changes) -> Path:
                                         "max_layers": 40, "noise_sigmas": [0.01]}},
         ],
         "train": {"model": "rdpd", "synthetic_data": "synth", "val_data": "synth",
-                  "val_split": "train", "sequence_frames": 2, "workers": 0, **TINY_PHASE},
+                  "val_split": "train", "sequence_frames": 2, **TINY_PHASE},
         "phases": [{"name": "first", "set": {"learning_rate": 1e-3}},
                    {"name": "second", "set": {"refiner": [4, 8]}}],
         "ship": {"tag": "tiny.v1", "doc": "a tiny model"},
@@ -118,7 +121,7 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
     out = tmp_path / "run"
     runner = CliRunner()
     result = runner.invoke(cli, ["reproduce", str(recipe_path), "--output", str(out),
-                                 "--until", "first", "--no-progress"])
+                                 "--until", "first", "--no-progress", *MACHINE_OPTIONS])
     assert result.exit_code == 0, result.output
     assert (out / "phases/first/last.safetensors").is_file()
     assert not (out / "phases/second").exists()
@@ -128,7 +131,7 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
     assert "first" in dry.output and "[done]" in dry.output and "second" in dry.output
     assert "to do" in dry.output and "plan checked" in dry.output
     result = runner.invoke(cli, ["reproduce", str(recipe_path), "--output", str(out),
-                                 "--no-progress"])
+                                 "--no-progress", "--threads", "2", "--cache"])
     assert result.exit_code == 0, result.output
     assert "phase first: done" in result.output  # not trained again
     assert (out / "phases/first/last.safetensors").stat().st_mtime_ns == stamp
@@ -136,6 +139,10 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
     # the second phase started from the first's weights, by path and hash
     init = read_metadata(out / "phases/second/last.safetensors")["extra"]["init"]
     assert init["name"].endswith("phases/first/last.safetensors")
+    # the machine's settings reached the phases; the recipe never held them
+    saved = yaml.safe_load((out / "phases/second/config.yaml").read_text())
+    assert saved["threads"] == 2 and saved["cache"] is True and saved["device"] == "auto"
+    assert yaml.safe_load((out / "phases/first/config.yaml").read_text())["threads"] == 1
     # a folder made by another recipe is refused, naming both
     other = tmp_path / "other.yaml"
     other.write_text(recipe_path.read_text().replace("name: tiny\n", "name: other\n", 1))
@@ -160,6 +167,10 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
     ({"ship": {"tag": "Tiny"}}, "ship: tag .* is not ARCHITECTURE.vN"),
     ({"ship": {"tag": "../x.v1"}}, "ship: .*plain name"),
     ({"ship": {"tag": "x.v1", "output": {"flips": "yes"}}}, "ship output flips: .yes. is not"),
+    ({"phases": [{"name": "first", "set": {"workers": 12}}]},
+     "phase first: workers: machine settings are not part of a model's recipe.*--loader-workers"),
+    ({"train": {"model": "rdpd", "synthetic_data": "synth", "frame_store": "runs/x"}},
+     "train: frame_store: machine settings .*--frame-store"),
 ])
 def test_bad_recipes_are_refused_before_any_work(tmp_path, changes, message):
     path = _tiny_recipe(tmp_path, **changes)

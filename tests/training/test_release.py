@@ -13,7 +13,7 @@ from dualpixel.models import load_model, read_metadata
 from dualpixel.models.registry import count_parameters
 from dualpixel.training.recipe import load_recipe, reproduce
 from dualpixel.weights import file_sha256
-from tests.training.test_recipe import TINY_PHASE, TINY_SCENES
+from tests.training.test_recipe import TINY_MACHINE, TINY_PHASE, TINY_SCENES
 
 TAG = "rdpd-light-base.v7"  # the tiny run's network is the rdpd-light-base architecture
 
@@ -36,7 +36,8 @@ def finished_run(tmp_path_factory) -> Path:
     }
     recipe = root / "recipes" / "tiny.yaml"
     recipe.write_text(yaml.safe_dump(raw, sort_keys=False))
-    reproduce(load_recipe(recipe), root / "run", workers=1, progress=False, log=lambda _: None)
+    reproduce(load_recipe(recipe), root / "run", workers=1, progress=False, machine=TINY_MACHINE,
+              log=lambda _: None)
     return root / "run"
 
 

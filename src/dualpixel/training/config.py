@@ -26,6 +26,11 @@ __all__ = ["LR_SCHEDULES", "TrainConfig", "load_config", "save_config"]
 LR_SCHEDULES = ("step", "cosine")
 
 
+#: Settings that say how a machine runs training, not what it makes (every draw is seeded per
+#: item, whatever the loader): a resume may change them, and recipes leave them to the command.
+MACHINE_KEYS = ("workers", "threads", "device", "cache", "frame_store")
+
+
 @dataclass
 class TrainConfig:
     """Everything a training run depends on. Defaults are the paper's (Sec. 5)."""

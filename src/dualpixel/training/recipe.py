@@ -9,9 +9,12 @@ with phases inside it) holds:
   ``input``, a step's name or a folder, and ``format``; ``camera`` is a shipped camera's name
   (:mod:`dualpixel.cameras`) or a camera file, relative to the recipe). Step NAME writes
   ``OUTPUT/data/NAME``;
-- ``train``: :class:`TrainConfig` keys shared by every phase. In the data keys (``real_data``,
-  ``synthetic_data``, ``val_data``, ``real_val_data``) a step's name stands for its folder; other
-  paths are relative to the working directory;
+- ``train``: :class:`TrainConfig` keys shared by every phase, except the machine settings
+  (:data:`MACHINE_SETTINGS`: loader workers, threads, device, caches), which are the
+  ``machine`` argument of :func:`reproduce` (``dualpixel reproduce`` options), never part of a
+  model's recipe: they change how fast a run goes, not what it makes. In the data keys
+  (``real_data``, ``synthetic_data``, ``val_data``, ``real_val_data``) a step's name stands for
+  its folder; other paths are relative to the working directory;
 - ``phases``: each ``{name, set: {...}, init: ...}`` names only what changes; it starts from the
   previous phase's weights (``init: previous``, the default after the first phase), from
   nothing (``init: none``, the first phase's default) or from a shipped tag
@@ -47,9 +50,10 @@ from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.paths import check_plain_name
 from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES
+from dualpixel.training.config import MACHINE_KEYS
 
-__all__ = ["OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe", "phase_done", "plan_text",
-           "reproduce"]
+__all__ = ["MACHINE_SETTINGS", "OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe",
+           "phase_done", "plan_text", "reproduce"]
 
 _TOP_KEYS = {"name", "description", "extends", "data", "train", "phases", "ship", "evaluate"}
 #: How deep ``extends`` may chain.
@@ -59,6 +63,11 @@ _SHIP_KEYS = {"tag", "phase", "doc", "output"}
 OUTPUT_SETTINGS: dict[str, tuple[Any, ...]] = {
     "brightness": BRIGHTNESS_MODES, "overshoot": OVERSHOOT_MODES, "flips": (False, True)}
 _DATA_KEYS = ("real_data", "synthetic_data", "val_data", "real_val_data")
+#: TrainConfig keys that say how a machine runs a phase, not what it makes (the data order and
+#: every draw are seeded per item, whatever the loader): given to :func:`reproduce`, never in
+#: a recipe. Values: the ``dualpixel reproduce`` option of each.
+MACHINE_SETTINGS = dict(zip(MACHINE_KEYS, ("--loader-workers", "--threads", "--device",
+                                           "--cache", "--frame-store"), strict=True))
 
 
 @dataclass(frozen=True)
@@ -170,6 +179,15 @@ def _ship(path: Path, raw: Any) -> dict[str, Any]:
     return ship
 
 
+def _no_machine_settings(path: Path, where: str, settings: dict[str, Any]) -> dict[str, Any]:
+    machine = [key for key in settings if key in MACHINE_SETTINGS]
+    if machine:
+        options = ", ".join(MACHINE_SETTINGS[key] for key in machine)
+        raise _fail(path, where, f"{', '.join(machine)}: machine settings are not part of a "
+                    f"model's recipe; give them to dualpixel reproduce ({options})")
+    return settings
+
+
 def _by_name(path: Path, where: str, items: Any) -> dict[str, Any]:
     if not isinstance(items, list):
         raise _fail(path, where, "expected a list")
@@ -246,9 +264,10 @@ def load_recipe(path: str | Path) -> Recipe:
         init = str(item.get("init", "none" if k == 0 else "previous"))
         if k == 0 and init == "previous":
             raise _fail(path, f"phase {item['name']}", "init: previous, but it is the first phase")
+        where = f"phase {item['name']}"
+        settings = dict(_mapping(path, where, item.get("set") or {}))
         phases.append(Phase(_plain(path, f"phase {k + 1}", item["name"]),
-                            dict(_mapping(path, f"phase {item['name']}", item.get("set") or {})),
-                            init))
+                            _no_machine_settings(path, where, settings), init))
     if len({p.name for p in phases}) != len(phases):
         raise _fail(path, "phases", "phase names must be unique")
     ship = _ship(path, raw.get("ship"))
@@ -262,9 +281,10 @@ def load_recipe(path: str | Path) -> Recipe:
         if "split" in item:
             _plain(path, f"evaluate entry {k + 1} split", item["split"])
         evaluate.append(item)
+    train = dict(_mapping(path, "train", raw.get("train") or {}))
+    train = _no_machine_settings(path, "train", train)
     recipe = Recipe(path, _plain(path, "recipe", raw["name"]), str(raw.get("description", "")),
-                    steps,
-                    dict(_mapping(path, "train", raw.get("train") or {})), phases, ship, evaluate)
+                    steps, train, phases, ship, evaluate)
     check_recipe(recipe)
     return recipe
 
@@ -588,12 +608,32 @@ def needed_steps(recipe: Recipe, output: Path, first: int, last: int) -> list[Da
     return [s for s in recipe.data if s.name in wanted]
 
 
+def check_machine(machine: dict[str, Any] | None) -> dict[str, Any]:
+    """The machine settings of a run (:data:`MACHINE_SETTINGS` keys), checked as
+    :class:`TrainConfig` checks them."""
+    from dualpixel.training.config import TrainConfig
+
+    machine = dict(machine or {})
+    unknown = sorted(set(machine) - set(MACHINE_SETTINGS))
+    if unknown:
+        raise ParameterError(f"machine settings are {', '.join(MACHINE_SETTINGS)}; got "
+                             f"{', '.join(unknown)}")
+    if machine:  # the same checks as a config's (ranges, types)
+        TrainConfig(synthetic_data="check", **machine)
+    return machine
+
+
 def reproduce(recipe: Recipe, output: str | Path, *, until: str | None = None,
               start: str | None = None, workers: int = 1, progress: bool = True,
-              log=print) -> Path | None:
+              machine: dict[str, Any] | None = None, log=print) -> Path | None:
     """Run the data, every phase (from ``start``, up to ``until``), export and evaluation;
-    resumes. Returns the shipped file (None with ``until``)."""
+    resumes. Returns the shipped file (None with ``until``).
+
+    ``workers``: processes for the data steps; ``machine``: how each phase runs
+    (:data:`MACHINE_SETTINGS`, e.g. ``{"workers": 12, "frame_store": "runs/store"}``; the
+    :class:`TrainConfig` defaults otherwise)."""
     output = Path(output)
+    machine = check_machine(machine)
     check_recipe(recipe, output)
     first = recipe.phase_index(start) if start else 0
     last = recipe.phase_index(until) if until else len(recipe.phases) - 1
@@ -604,17 +644,19 @@ def reproduce(recipe: Recipe, output: str | Path, *, until: str | None = None,
     from dualpixel.io.lock import folder_lock
 
     with folder_lock(output, "reproduce"):
-        return _reproduce_locked(recipe, output, first, last, until, workers, progress, log)
+        return _reproduce_locked(recipe, output, first, last, until, workers, progress, machine,
+                                 log)
 
 
 def _reproduce_locked(recipe: Recipe, output: Path, first: int, last: int, until: str | None,
-                      workers: int, progress: bool, log) -> Path | None:
+                      workers: int, progress: bool, machine: dict[str, Any], log
+                      ) -> Path | None:
     """:func:`reproduce` once it holds the run folder's lock."""
     _claim_folder(recipe, output)
     steps = needed_steps(recipe, output, first, last)
     run_data(dataclasses.replace(recipe, data=steps), output, workers=workers,
              progress=progress, log=log)
-    folders = {i: run_phase(recipe, i, output, progress=progress, log=log)
+    folders = {i: run_phase(recipe, i, output, overrides=machine, progress=progress, log=log)
                for i in range(first, last + 1)}
     if until is not None or not recipe.ship:
         return None

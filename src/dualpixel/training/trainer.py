@@ -54,7 +54,7 @@ from dualpixel.models.registry import build_model
 from dualpixel.models.unet import DeblurNet
 from dualpixel.models.widen import widen_network
 from dualpixel.progress import progress_bar
-from dualpixel.training.config import TrainConfig, load_config, save_config
+from dualpixel.training.config import MACHINE_KEYS, TrainConfig, load_config, save_config
 from dualpixel.training.losses import DeblurLoss
 
 __all__ = ["DataKind", "TrainResult", "Trainer", "resolve_device", "train", "weight_average"]
@@ -211,7 +211,7 @@ def _set_rng_state(state: dict[str, Any]) -> None:
 # by its sources' content). The initial weights are read only when a run starts (the state file
 # holds them after), so a starting checkpoint renamed since (a default shipped anew) resumes; the
 # run folder keeps the name it started from.
-_RESUME_MAY_CHANGE = ("epochs", "workers", "threads", "device", "tensorboard", "frame_store")
+_RESUME_MAY_CHANGE = ("epochs", "tensorboard", *MACHINE_KEYS)
 # Settings that name data: spelt differently on resume, they must still name the same folders
 # (``paths.json`` records where each pointed from the run folder: a recipe's run folder moved or
 # copied with its data, or a resume from another working directory).
