@@ -192,7 +192,7 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int,
                 shutil.rmtree(out, ignore_errors=True)
                 started = time.perf_counter()
                 subprocess.run([*command, "-q", "synth", "--input", str(scenes), "--output",
-                                str(out), "--cameras", name, "--no-noise", "--no-distortion"],
+                                str(out), "--lens-sets", name, "--no-noise", "--no-distortion"],
                                check=True, capture_output=True)
                 walls.append(time.perf_counter() - started)
             camera = CAMERA_PRESETS[name]

@@ -29,7 +29,7 @@ def tiny_synthetic_dataset(tmp_path_factory) -> Path:
     write_scene_folder(scenes, 2, SceneConfig(width=64, height=64, frames=3, leaves=8), seed=3,
                        progress=False)
     root = tmp_path_factory.mktemp("tiny_dp")
-    config = SynthConfig(cameras=("set1", "set3"), max_layers=40, noise_sigmas=(0.01,), seed=3)
+    config = SynthConfig(lens_sets=("set1", "set3"), max_layers=40, noise_sigmas=(0.01,), seed=3)
     synthesize_dataset(scenes, "rgbd", root, config, workers=1, progress=False)
     return root
 

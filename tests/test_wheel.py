@@ -66,7 +66,7 @@ assert dualpixel.__file__.startswith({str(target)!r}), dualpixel.__file__
 rng = np.random.default_rng(0)
 rgb = rng.uniform(0.1, 0.9, (64, 96, 3)).astype(np.float32)
 depth_m = np.linspace(1.0, 6.0, 96, dtype=np.float32)[None].repeat(64, 0)
-frame = dualpixel.synthesize(rgb, depth_m, camera="dslr-840", camera_file="canon-840-linear",
+frame = dualpixel.synthesize(rgb, depth_m, lens_set="dslr-840", camera="canon-840-linear",
                              noise_model="poisson-gaussian",
                              noise_sigmas=(0.006, 0.009, 0.013, 0.018, 0.025), seed=0)
 sharp = dualpixel.deblur(frame["left"], frame["right"], device="cpu")

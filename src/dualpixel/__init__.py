@@ -8,7 +8,7 @@ The top level is what a notebook needs (arrays: NumPy ``(H, W, 3)`` or torch ``(
 ``(B, 3, H, W)``, float in [0, 1] or integer images; see :mod:`dualpixel.api`)::
 
     import dualpixel
-    frame = dualpixel.synthesize(rgb, depth, camera="dslr-840")
+    frame = dualpixel.synthesize(rgb, depth, lens_set="dslr-840")
     sharp = dualpixel.deblur(frame["left"], frame["right"])       # the shipped rdpd-light
     dualpixel.psnr(sharp, frame["target"])
     dualpixel.list_models()

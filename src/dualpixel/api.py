@@ -9,6 +9,7 @@ RGB, except that :func:`deblur` gives grey views a grey output.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -166,24 +167,48 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     return result
 
 
-def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
+def _old_camera_arguments(lens_set: str, camera: Any, camera_file: Any) -> tuple[str, Any]:
+    """``(lens_set, camera)`` with the arguments' old meanings taken, with a warning: before
+    release 0.2, ``camera`` named the lens set and ``camera_file`` the calibrated camera."""
+    from dualpixel.names import RENAMED_UNTIL
+    from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES
+
+    if isinstance(camera, str) and camera in (*CAMERA_PRESETS, *DEFOCUS_PROFILES):
+        warnings.warn(f"synthesize(camera={camera!r}): a lens set is now lens_set=; camera= is "
+                      f"a calibrated camera (the old meaning goes in release {RENAMED_UNTIL})",
+                      FutureWarning, stacklevel=3)
+        lens_set, camera = camera, None
+    if camera_file is not None:
+        if camera is not None:
+            raise ParameterError("give camera only (camera_file is its old name)")
+        warnings.warn(f"synthesize(camera_file=...) is now camera=...; the old name goes in "
+                      f"release {RENAMED_UNTIL}", FutureWarning, stacklevel=3)
+        camera = camera_file
+    return lens_set, camera
+
+
+def synthesize(rgb: Any, depth: Any, *, lens_set: str = "set1", seed: int = 0,
                psf_bank: str = "paper", noise: bool = True, noise_model: str = "multiplicative",
                noise_sigmas: tuple[float, ...] | None = None, distortion: bool = True,
-               camera_file: str | Path | DPCamera | None = None, psf_shapes: str | None = None,
-               light: str | None = None, device: str = "cpu") -> dict[str, Any]:
+               camera: str | Path | DPCamera | None = None, psf_shapes: str | None = None,
+               light: str | None = None, device: str = "cpu",
+               camera_file: str | Path | DPCamera | None = None) -> dict[str, Any]:
     """Synthesise a DP frame from an all-in-focus image and its depth (metres, ``(H, W)``).
 
-    ``camera``: a preset ``set0``..``set4`` or a defocus profile such as ``dslr-840`` (focused at
-    the depth map's 30th percentile, :func:`~dualpixel.optics.thin_lens.focus_from_depth`).
-    ``camera_file``: a calibrated camera, as ``dualpixel synth --camera`` takes it (a
-    ``camera.json`` path or a :class:`~dualpixel.calibration.camera.DPCamera`): its PSF shape
-    replaces ``psf_bank`` (unless ``psf_shapes="bank"``), its per-channel disparity ratio forms
-    the views and its light space is where the blur happens (``light`` overrides it: "encoded",
-    the paper's, or "linear"); see :func:`~dualpixel.synthesis.frame.camera_settings`.
+    ``lens_set``: what blurs the frame: one of the paper's camera parameter sets ``set0``..
+    ``set4`` or a blur profile such as ``dslr-840`` (focused at the depth map's 30th
+    percentile, :func:`~dualpixel.optics.thin_lens.focus_from_depth`).
+    ``camera``: a calibrated camera, as ``dualpixel synth --camera`` takes it (a shipped one by
+    name, a ``camera.json`` path or a :class:`~dualpixel.optics.camera.DPCamera`): its PSF
+    shape replaces ``psf_bank`` (unless ``psf_shapes="bank"``), its per-channel disparity ratio
+    forms the views and its light space is where the blur happens (``light`` overrides it:
+    "encoded", the paper's, or "linear"); see :func:`~dualpixel.synthesis.frame.camera_settings`.
+    Until release 0.3, ``camera`` naming a lens set and ``camera_file`` are taken as their old
+    meanings, with a warning.
     Returns ``left``, ``right``, ``combined``, ``target`` in the layout of ``rgb`` and
     ``defocus`` (signed CoC radius, px) as ``(H, W)``.
 
-    >>> frame = synthesize(np.full((24, 32, 3), 0.5), np.full((24, 32), 3.0), camera="set0")
+    >>> frame = synthesize(np.full((24, 32, 3), 0.5), np.full((24, 32), 3.0), lens_set="set0")
     >>> sorted(frame), frame["left"].shape
     (['combined', 'defocus', 'left', 'right', 'target'], (24, 32, 3))
     """
@@ -192,7 +217,7 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.optics.psf_bank import PSF_BANKS
     from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES, focus_from_depth
-    from dualpixel.synthesis.frame import camera_settings, draw_recipe, synthesize_frame
+    from dualpixel.synthesis.frame import camera_settings, draw_sequence, synthesize_frame
 
     images, layout = as_image_batch(rgb, "rgb")
     if len(images) != 1:
@@ -203,31 +228,32 @@ def synthesize(rgb: Any, depth: Any, *, camera: str = "set1", seed: int = 0,
     depth_map = check_depth_map(depth_map)
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
-    if camera_file is not None:  # the calibration module only when a camera is given
+    lens_set, camera = _old_camera_arguments(lens_set, camera, camera_file)
+    if camera is not None:
         from dualpixel.optics.camera import DPCamera, load_camera
 
-        if isinstance(camera_file, (str, Path)):
-            camera_file = load_camera(camera_file)
-        elif not isinstance(camera_file, DPCamera):
-            raise ParameterError("camera_file must be a camera.json path or a DPCamera, got "
-                                 f"{type(camera_file).__name__}")
+        if isinstance(camera, (str, Path)):
+            camera = load_camera(camera)
+        elif not isinstance(camera, DPCamera):
+            raise ParameterError("camera must be a shipped camera's name, a camera.json path "
+                                 f"or a DPCamera, got {type(camera).__name__}")
     bank, disparity_ratio, light_space = camera_settings(
-        camera_file, PSF_BANKS[psf_bank], psf_shapes=psf_shapes, light=light)
-    if camera in DEFOCUS_PROFILES:
+        camera, PSF_BANKS[psf_bank], psf_shapes=psf_shapes, light=light)
+    if lens_set in DEFOCUS_PROFILES:
         focus = focus_from_depth(depth_map)
-        lens = DEFOCUS_PROFILES[camera].camera(np.random.default_rng(seed), focus,
-                                               depth_map.shape[1])
-    elif camera in CAMERA_PRESETS:
-        lens = camera
+        lens = DEFOCUS_PROFILES[lens_set].camera(np.random.default_rng(seed), focus,
+                                                 depth_map.shape[1])
+    elif lens_set in CAMERA_PRESETS:
+        lens = lens_set
     else:
         known = ", ".join([*CAMERA_PRESETS, *DEFOCUS_PROFILES])
-        raise ParameterError(f"camera must be one of {known}, got {camera!r}")
-    recipe = draw_recipe(seed, lens, bank=bank, disparity_ratio=disparity_ratio,
+        raise ParameterError(f"lens_set must be one of {known}, got {lens_set!r}")
+    draw = draw_sequence(seed, lens, bank=bank, disparity_ratio=disparity_ratio,
                          light=light_space, distortion=distortion,
                          noise=noise, noise_model=noise_model,
                          noise_sigmas=PAPER_NOISE_SIGMAS if noise_sigmas is None
                          else tuple(noise_sigmas))
-    frame = synthesize_frame(images[0], depth_map, recipe, noise_seed=seed,
+    frame = synthesize_frame(images[0], depth_map, draw, noise_seed=seed,
                              device=resolve_device(device))
     result: dict[str, Any] = {}
     for key in ("left", "right", "combined", "target"):

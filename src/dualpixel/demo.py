@@ -1,11 +1,11 @@
 """The end-to-end demo: synthesise DP views, deblur them with the shipped model, report.
 
 Default input: a short procedural "photo" sequence (``dualpixel.synthesis.scenes``) with a scene
-seed never used for the shipped model's training data, synthesised with the ``dslr-840`` defocus
-profile, and a real Canon DP photograph shipped with the package (``demo_data/canon_scene_01``,
-MIT licence) shown beside the published DPDNet's output. Alternatively a user's left/right pair
-(deblurred and shown; scored when a target is given) or a user's RGB-D frame (synthesised with a
-camera preset).
+seed never used for the shipped model's training data, synthesised with the ``dslr-840`` lens
+set (a blur profile relative to the frame), and a real Canon DP photograph shipped with the
+package (``demo_data/canon_scene_01``, MIT licence) shown beside the published DPDNet's
+output. Alternatively a user's left/right pair (deblurred and shown; scored when a target is
+given) or a user's RGB-D frame (synthesised with a lens set).
 Writes ``index.html`` with the all-in-focus frame, depth and defocus maps, an animated GIF of the
 DP views, input / output / target with zoomed crops, the PSFs used and a metrics table.
 """
@@ -26,6 +26,7 @@ from dualpixel.inference import Deblurrer
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import read_depth, read_rgb, write_png
 from dualpixel.models import load_model
+from dualpixel.names import renamed_keys
 from dualpixel.progress import progress_bar
 from dualpixel.viz.comparison import render_comparison
 from dualpixel.viz.html_report import Figure, Report, write_html_report
@@ -70,29 +71,29 @@ class DemoFrame:
     defocus: np.ndarray | None = None
 
 
-def _synthetic_frames(rgbd: list[tuple[np.ndarray, np.ndarray]], camera: str, seed: int,
+def _synthetic_frames(rgbd: list[tuple[np.ndarray, np.ndarray]], lens_set: str, seed: int,
                       bar: tqdm, focus_distance: float | None = None):
-    """The frames and the :class:`~dualpixel.synthesis.frame.SequenceRecipe` they used."""
+    """The frames and the :class:`~dualpixel.synthesis.frame.SequenceDraw` they used."""
     from dualpixel.optics.psf_bank import PIXEL4_PSF_BANK
     from dualpixel.optics.thin_lens import DEFOCUS_PROFILES, focus_from_depth
-    from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
+    from dualpixel.synthesis.frame import draw_sequence, synthesize_frame
 
-    lens = camera
-    if camera in DEFOCUS_PROFILES:
+    lens = lens_set
+    if lens_set in DEFOCUS_PROFILES:
         rng = np.random.default_rng(seed)
         focus = focus_distance or focus_from_depth(rgbd[0][1])
-        lens = DEFOCUS_PROFILES[camera].camera(rng, focus, rgbd[0][1].shape[1])
-    recipe = draw_recipe(seed, lens, noise_sigmas=(0.01,), bank=PIXEL4_PSF_BANK,
+        lens = DEFOCUS_PROFILES[lens_set].camera(rng, focus, rgbd[0][1].shape[1])
+    draw = draw_sequence(seed, lens, noise_sigmas=(0.01,), bank=PIXEL4_PSF_BANK,
                          noise_model="poisson-gaussian")
     frames = []
     for index, (rgb, depth) in enumerate(rgbd):
-        frame = synthesize_frame(rgb, depth, recipe, noise_seed=seed * 1000 + index)
+        frame = synthesize_frame(rgb, depth, draw, noise_seed=seed * 1000 + index)
         as_hwc = lambda t: t.permute(1, 2, 0).numpy()  # noqa: E731
         frames.append(DemoFrame(as_hwc(frame.left), as_hwc(frame.right), as_hwc(frame.combined),
                                 target=as_hwc(frame.target), rgb=rgb, depth=depth,
                                 defocus=frame.defocus.numpy()))
         bar.update()
-    return frames, recipe
+    return frames, draw
 
 
 def run_demo(
@@ -107,13 +108,18 @@ def run_demo(
     depth_scale: float = 0.001,
     frames: int = 3,
     size: tuple[int, int] = (840, 560),
-    camera: str = "dslr-840",
+    lens_set: str = "dslr-840",
     seed: int = DEMO_SEED,
     device: str = "cpu",
     tile: int | None = None,
     progress: bool = True,
+    camera: str | None = None,
 ) -> DemoResult:
-    """Run the demo and write ``output/index.html``; see the module docstring."""
+    """Run the demo and write ``output/index.html``; see the module docstring. ``lens_set``:
+    what blurs a synthesised frame (``set0``..``set4`` or a profile such as ``dslr-840``);
+    ``camera`` is its old name (until release 0.3)."""
+    if camera is not None:
+        lens_set = renamed_keys({"cameras": camera}, "run_demo")["lens_sets"]
     started = time.perf_counter()
     output = Path(output)
     output.mkdir(parents=True, exist_ok=True)
@@ -131,7 +137,7 @@ def run_demo(
     mode = "pair" if left is not None else "rgbd" if rgb is not None else "procedural"
     count = 1 if mode != "procedural" else frames
     bar = progress_bar(total=2 * count + 3, desc="demo", unit="step", enabled=progress)
-    recipe = None
+    draw = None
     if mode == "pair":
         left_image, right_image = read_rgb(left), read_rgb(right)
         if left_image.shape != right_image.shape:
@@ -148,7 +154,7 @@ def run_demo(
 
             config = SceneConfig(width=size[0], height=size[1], frames=frames, layout="photo")
             rgbd, focus = render_scene(seed, config)
-        sequence, recipe = _synthetic_frames(rgbd, camera, seed, bar, focus)
+        sequence, draw = _synthetic_frames(rgbd, lens_set, seed, bar, focus)
 
     deblurrer = Deblurrer(model, device=device, tile=tile,
                           **run_settings(checkpoint))  # as the model ships to run
@@ -176,7 +182,7 @@ def run_demo(
         metrics["mean"] = mean
         rows.append(["mean", *_cells(mean)])
 
-    figures = _figures(sequence, output, recipe)
+    figures = _figures(sequence, output, draw)
     if mode == "procedural":
         real_rows, metrics["real"], real_figure = _real_scene(deblurrer, output)
         rows += real_rows
@@ -185,10 +191,10 @@ def run_demo(
     seconds = time.perf_counter() - started
     metrics.update({"mode": mode, "checkpoint": str(checkpoint), "seconds": seconds,
                     "deblur_seconds_per_frame": float(np.mean(timings)),
-                    "recipe": recipe.describe() if recipe is not None else {}})
+                    "synthesis": draw.describe() if draw is not None else {}})
     report = Report(
         title="dualpixel demo: DP synthesis and deblurring",
-        intro=_intro(mode, checkpoint, recipe, len(sequence), seconds, timings),
+        intro=_intro(mode, checkpoint, draw, len(sequence), seconds, timings),
         tables=[("Metrics against the sharp target (input = combined DP image)",
                  ["frame", "input PSNR", "input SSIM", "input MAE", "output PSNR",
                   "output SSIM", "output MAE"], rows)] if rows else [],
@@ -246,25 +252,25 @@ def _cells(scores: dict) -> list[str]:
             for n in ("combined", "output") for k in ("psnr", "ssim", "mae")]
 
 
-def _intro(mode, checkpoint, recipe, count, seconds, timings) -> str:
+def _intro(mode, checkpoint, draw, count, seconds, timings) -> str:
     source = {"procedural": f"a procedural RGB-D sequence of {count} frames (scene seed "
                             f"{DEMO_SEED}, never used in training)",
               "rgbd": "your RGB-D frame", "pair": "your left/right DP pair"}[mode]
     text = f"Input: {source}. Model: <code>{checkpoint}</code>. "
-    if recipe is not None:
-        recipe_info = recipe.describe()
-        cam, psf = recipe_info["camera"], recipe_info["psf"]
-        distortion = recipe_info["distortion"]["name"] if recipe_info["distortion"] else "off"
+    if draw is not None:
+        draw_info = draw.describe()
+        cam, psf = draw_info["camera"], draw_info["psf"]
+        distortion = draw_info["distortion"]["name"] if draw_info["distortion"] else "off"
         text += (f"Synthesis: camera {cam['name']} (f = {cam['focal_length']:g} m, "
                  f"f/{cam['f_number']:g}, focused at {cam['focus_distance']:.2f} m), PSF n = "
                  f"{psf['n']}, "
                  f"alpha = {psf['alpha']}, beta = {psf['beta']}, kappa = {psf['kappa']}, "
-                 f"distortion {distortion}, noise sigma {recipe_info['noise_sigma']}. ")
+                 f"distortion {distortion}, noise sigma {draw_info['noise_sigma']}. ")
     return text + (f"Deblurring took {np.mean(timings):.2f} s per frame; the whole demo "
                    f"{seconds:.1f} s.")
 
 
-def _figures(sequence: list[DemoFrame], output: Path, recipe) -> list:
+def _figures(sequence: list[DemoFrame], output: Path, draw) -> list:
     first = sequence[0]
     sections = []
     write_views_gif(first.left, first.right, output / "views.gif")
@@ -300,14 +306,14 @@ def _figures(sequence: list[DemoFrame], output: Path, recipe) -> list:
                                   + ("where our output gains most over the input"
                                      if has_target else "most detail") + ")"))
     sections.append(("Deblurring", comparisons, ""))
-    if recipe is not None:
+    if draw is not None:
         from dualpixel.viz.psf_figure import render_psf_figure
 
         coc = np.abs(np.concatenate([f.defocus.ravel() for f in sequence]))
         largest = max(2.0, float(np.percentile(coc, 99)))
         radii = sorted({round(-largest, 1), round(-largest / 3, 1), round(largest / 3, 1),
                         round(largest, 1)})
-        render_psf_figure(output / "psfs.png", radii, recipe.psf)
+        render_psf_figure(output / "psfs.png", radii, draw.psf)
         sections.append(("PSFs used", [Figure("psfs.png", "DP PSFs of this sequence's shape "
                                               "parameters at radii within its defocus range "
                                               "(ours) beside Punnappurath et al.'s model")],

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS",
            "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "OVERSHOOT_MODES", "PRECISIONS",
-           "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "SCENE_LAYOUTS",
-           "output_modes_suffix"]
+           "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RENAMED", "RENAMED_UNTIL",
+           "SCENE_LAYOUTS", "output_modes_suffix", "renamed_keys"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -56,3 +56,36 @@ def output_modes_suffix(brightness: str, overshoot: str, *, flips: bool = False,
     passes = ("+flips" if flips else "") + ("+multiscale" if multiscale else "")
     limited = "+limited" if overshoot == "limited" else ""
     return passes + limited + ("+tied" if brightness == "tied" else "")
+
+
+#: Settings renamed so that one word keeps one meaning, old -> new. "camera" is a calibrated
+#: camera file (:class:`~dualpixel.optics.camera.DPCamera`); a *lens set* is what blurs a
+#: frame: one of the paper's five camera parameter sets ``set0``..``set4`` (focal length,
+#: aperture, focus distance) or a blur profile relative to the frame (``dslr-840``). The old
+#: names are accepted, with a warning, until release :data:`RENAMED_UNTIL`.
+RENAMED: dict[str, str] = {"cameras": "lens_sets"}
+RENAMED_UNTIL = "0.3"
+
+
+def renamed_keys(values: dict, where: str, *, warn: bool = True) -> dict:
+    """``values`` with every old key of :data:`RENAMED` under its new name (a warning naming
+    ``where`` unless ``warn`` is False, for files this library wrote before the rename).
+
+    >>> renamed_keys({"lens_sets": ["set1"], "seed": 3}, "a recipe")
+    {'lens_sets': ['set1'], 'seed': 3}
+    """
+    import warnings
+
+    from dualpixel.errors import ParameterError
+
+    values = dict(values)
+    for old, new in RENAMED.items():
+        if old not in values:
+            continue
+        if new in values:
+            raise ParameterError(f"{where}: give {new} only ({old} is its old name)")
+        if warn:
+            warnings.warn(f"{where}: {old} is now {new}; the old name goes in release "
+                          f"{RENAMED_UNTIL}", FutureWarning, stacklevel=3)
+        values[new] = values.pop(old)
+    return values

@@ -19,7 +19,7 @@ def scene(height=48, width=64):
 
 def test_synthesise_deblur_and_score_with_numpy():
     rgb, depth = scene()
-    frame = dualpixel.synthesize(rgb, depth, camera="dslr-840", seed=3)
+    frame = dualpixel.synthesize(rgb, depth, lens_set="dslr-840", seed=3)
     assert frame["left"].shape == rgb.shape and isinstance(frame["left"], np.ndarray)
     assert frame["defocus"].shape == depth.shape
     # a defocus profile focuses at the depth map's 30th percentile: the near half (2 m) is sharp
@@ -41,7 +41,7 @@ def test_synthesise_deblur_and_score_with_numpy():
 def test_torch_in_torch_out_and_batches_are_independent_pairs():
     rgb, depth = scene()
     tensor = torch.from_numpy(rgb).permute(2, 0, 1).float()
-    frame = dualpixel.synthesize(tensor, torch.from_numpy(depth), camera="set1", seed=1)
+    frame = dualpixel.synthesize(tensor, torch.from_numpy(depth), lens_set="set1", seed=1)
     assert isinstance(frame["left"], torch.Tensor) and frame["left"].shape == (3, 48, 64)
     single = dualpixel.deblur(frame["left"], frame["right"], device="cpu")
     assert isinstance(single, torch.Tensor) and single.shape == (3, 48, 64)
@@ -60,7 +60,7 @@ def test_every_function_takes_every_layout_alike():
     from PIL import Image
 
     rgb, depth = scene()
-    frame = dualpixel.synthesize(rgb, depth, camera="set1", seed=2)
+    frame = dualpixel.synthesize(rgb, depth, lens_set="set1", seed=2)
     left8 = np.rint(frame["left"] * 255).astype(np.uint8)
     right8 = np.rint(frame["right"] * 255).astype(np.uint8)
     target8 = np.rint(frame["target"] * 255).astype(np.uint8)
@@ -116,10 +116,10 @@ def test_synthesise_with_a_calibrated_camera(tmp_path):
     paper = DPCamera("paper", 64, (1.0, 1.0, 1.0), psf)
     weak_red = DPCamera("weak-red", 64, (0.4, 1.0, 1.0), psf)
     path = weak_red.save(tmp_path / "camera.json")
-    common = dict(camera="set1", seed=4, noise=False, distortion=False)
-    full = dualpixel.synthesize(rgb, depth, camera_file=paper, **common)
-    from_file = dualpixel.synthesize(rgb, depth, camera_file=path, **common)
-    from_object = dualpixel.synthesize(rgb, depth, camera_file=weak_red, **common)
+    common = dict(lens_set="set1", seed=4, noise=False, distortion=False)
+    full = dualpixel.synthesize(rgb, depth, camera=paper, **common)
+    from_file = dualpixel.synthesize(rgb, depth, camera=path, **common)
+    from_object = dualpixel.synthesize(rgb, depth, camera=weak_red, **common)
     for key in ("left", "right", "combined", "target", "defocus"):
         np.testing.assert_array_equal(from_file[key], from_object[key])
 
@@ -129,16 +129,25 @@ def test_synthesise_with_a_calibrated_camera(tmp_path):
     assert disparity(full, 0) > 1e-3
     assert disparity(from_file, 0) == pytest.approx(0.4 * disparity(full, 0), rel=0.02)
     assert disparity(from_file, 1) == pytest.approx(disparity(full, 1), rel=1e-4)
-    linear = dualpixel.synthesize(rgb, depth, camera_file=path, light="linear", **common)
+    linear = dualpixel.synthesize(rgb, depth, camera=path, light="linear", **common)
     assert np.abs(linear["left"] - from_file["left"]).max() > 1e-3
     with pytest.raises(ValueError, match=r"psf_shapes .* needs a camera"):
         dualpixel.synthesize(rgb, depth, psf_shapes="bank")
     with pytest.raises(ValueError, match="light must be one of"):
-        dualpixel.synthesize(rgb, depth, camera_file=path, light="log")
+        dualpixel.synthesize(rgb, depth, camera=path, light="log")
     with pytest.raises(InputFileError, match=r"missing\.json"):
-        dualpixel.synthesize(rgb, depth, camera_file=tmp_path / "missing.json")
-    with pytest.raises(ValueError, match=r"camera_file must be a camera\.json path or a DPCamera"):
-        dualpixel.synthesize(rgb, depth, camera_file={"name": "x"})
+        dualpixel.synthesize(rgb, depth, camera=tmp_path / "missing.json")
+    with pytest.raises(ValueError, match=r"camera must be a shipped camera's name, a camera\.json"):
+        dualpixel.synthesize(rgb, depth, camera={"name": "x"})
+    # the old meanings, for one more release: camera= naming a lens set, camera_file=
+    with pytest.warns(FutureWarning, match=r"lens set is now lens_set="):
+        old = dualpixel.synthesize(rgb, depth, camera="set1", seed=4, noise=False,
+                                   distortion=False)
+    np.testing.assert_array_equal(old["left"],
+                                  dualpixel.synthesize(rgb, depth, **common)["left"])
+    with pytest.warns(FutureWarning, match=r"camera_file=\.\.\.\) is now camera="):
+        old = dualpixel.synthesize(rgb, depth, camera_file=path, **common)
+    np.testing.assert_array_equal(old["left"], from_file["left"])
 
 
 def test_clear_errors_and_the_listing():
@@ -147,8 +156,8 @@ def test_clear_errors_and_the_listing():
         dualpixel.deblur(rgb, rgb[:10])
     with pytest.raises(ValueError, match=r"float values must lie in \[0, 1\]"):
         dualpixel.deblur(rgb * 255, rgb * 255)
-    with pytest.raises(ValueError, match="camera must be one of"):
-        dualpixel.synthesize(rgb, depth, camera="set9")
+    with pytest.raises(ValueError, match="lens_set must be one of"):
+        dualpixel.synthesize(rgb, depth, lens_set="set9")
     with pytest.raises(ValueError, match="checkpoint not found"):
         dualpixel.load_model("no-such-model")
     models = dualpixel.list_models()

@@ -14,7 +14,7 @@ from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.optics.crosstalk import apply_crosstalk
 from dualpixel.optics.psf import PSFParams, dp_psf
 from dualpixel.optics.thin_lens import ThinLensCamera
-from dualpixel.synthesis.frame import SequenceRecipe, synthesize_frame
+from dualpixel.synthesis.frame import SequenceDraw, synthesize_frame
 
 TRUE_PSF = PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)
 OTHER_PSF = PSFParams(n=9, alpha=1.0, beta=0.4, kappa=0.14)
@@ -40,9 +40,9 @@ def _pair(seed: int, ratio=RATIO, params=TRUE_PSF, size=(192, 288), light="encod
     lens = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=1.0)
     camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 10.0,
                             max_coc_radius=9.0)
-    recipe = SequenceRecipe(camera=camera, psf=params, distortion=None, noise_sigma=None,
+    draw = SequenceDraw(camera=camera, psf=params, distortion=None, noise_sigma=None,
                             disparity_ratio=ratio, light=light)
-    frame = synthesize_frame(target, depth, recipe)
+    frame = synthesize_frame(target, depth, draw)
     hwc = [t.permute(1, 2, 0).numpy() for t in (frame.left, frame.right, frame.target)]
     return (f"pair{seed}", *hwc)
 
@@ -163,7 +163,7 @@ def test_calibrate_camera_command_and_synth_with_its_camera(tmp_path):
                                     "--frames", "1", "--size", "96x64"]).exit_code == 0
     data = tmp_path / "data"
     result = CliRunner().invoke(cli, ["-q", "synth", "--input", str(scenes), "--output",
-                                      str(data), "--cameras", "set1", "--camera", str(out),
+                                      str(data), "--lens-sets", "set1", "--camera", str(out),
                                       "--no-noise", "--no-distortion"])
     assert result.exit_code == 0, result.output
     description = json.loads((data / "dataset.json").read_text())

@@ -163,7 +163,7 @@ def test_train_refusals(files, tmp_path, tiny_synthetic_dataset):
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 
     synthesize_dataset(files / "scenes", "rgbd", unfinished,
-                       SynthConfig(cameras=("set0",), max_layers=8), progress=False, limit=0)
+                       SynthConfig(lens_sets=("set0",), max_layers=8), progress=False, limit=0)
     assert_clear(invoke("train", "--set", f"synthetic_data={unfinished}", "--set", "epochs=1",
                         "--output", tmp_path / "t2"), 1, "dataset.json", "unfinished")
     settings = [f"synthetic_data={tiny_synthetic_dataset}", "synthetic_as_frames=true",

@@ -11,7 +11,7 @@ from dualpixel.cli.main import cli
 from dualpixel.evaluation import psnr
 from dualpixel.inference import Deblurrer
 from dualpixel.models import load_model
-from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
+from dualpixel.synthesis.frame import draw_sequence, synthesize_frame
 from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
 from dualpixel.weights import ALIASES, DEFAULT_CHECKPOINT, WEIGHTS, resolve_checkpoint
 
@@ -23,11 +23,11 @@ def test_shipped_checkpoint_loads_and_improves_on_a_new_synthetic_sequence():
     assert model.spec.name == "rdpd" and model.recurrent
     # A sequence with a scene seed never used for training data (0..39 train, 1000.. test).
     rgbd = render_scene_sequence(777, SceneConfig(width=256, height=192, frames=3))
-    recipe = draw_recipe(777, "set1", noise_sigmas=(0.01,))
+    draw = draw_sequence(777, "set1", noise_sigmas=(0.01,))
     deblur = Deblurrer(model)
     before, after = [], []
     for index, (rgb, depth) in enumerate(rgbd):
-        frame = synthesize_frame(rgb, depth, recipe, noise_seed=index)
+        frame = synthesize_frame(rgb, depth, draw, noise_seed=index)
         hwc = {k: getattr(frame, k).permute(1, 2, 0).numpy() for k in
                ("left", "right", "combined", "target")}
         output = deblur(hwc["left"], hwc["right"])

@@ -34,7 +34,7 @@ def frame():
     noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 2.0)
     rgb = np.clip(0.45 + 1.2 * noise, 0.02, 0.9)
     depth = np.where(np.arange(320)[None, :] < 128, 1.0, 3.0).repeat(192, 0).astype(np.float32)
-    frame = dualpixel.synthesize(rgb, depth, camera="dslr-840", noise=False, distortion=False,
+    frame = dualpixel.synthesize(rgb, depth, lens_set="dslr-840", noise=False, distortion=False,
                                  light="linear")
     return {k: np.asarray(v, np.float32) for k, v in frame.items()}
 

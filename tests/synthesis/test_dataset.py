@@ -15,7 +15,7 @@ from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 
 SMALL = SceneConfig(width=64, height=48, frames=2, leaves=6)
-FAST = {"cameras": ("set0", "set4"), "max_layers": 40}
+FAST = {"lens_sets": ("set0", "set4"), "max_layers": 40}
 
 
 @pytest.fixture(scope="module")
@@ -190,7 +190,7 @@ def test_synthia_layout_and_split(tmp_path):
         bgr = np.stack((code // 65536, (code // 256) % 256, code % 256), -1).astype(np.uint8)
         cv2.imwrite(str(tmp_path / "in" / seq / "DepthLeft" / "0000.png"), bgr)
     summary = synthesize_dataset(tmp_path / "in", "synthia", tmp_path / "out",
-                                 SynthConfig(cameras=("set2",)), progress=False)
+                                 SynthConfig(lens_sets=("set2",)), progress=False)
     assert summary["status"] == "complete"
     assert (tmp_path / "out" / "train_c" / "source" / "seq_001" / "0000.png").is_file()
     assert (tmp_path / "out" / "test_c" / "source" / "seq_002" / "0000.png").is_file()
@@ -203,7 +203,7 @@ def test_scenes_then_synth_end_to_end_through_the_cli(tmp_path):
     assert scenes.exit_code == 0, scenes.output
     assert len(list((tmp_path / "sc" / "seq_000" / "depth").glob("*.npy"))) == 3
     synth = runner.invoke(cli, ["synth", "--input", str(tmp_path / "sc"), "--output",
-                                str(tmp_path / "ds"), "--cameras", "set1,set3", "--layers", "64",
+                                str(tmp_path / "ds"), "--lens-sets", "set1,set3", "--layers", "64",
                                 "--bit-depth", "8"])
     assert synth.exit_code == 0, synth.output
     assert "complete: 6/6 frames" in synth.output
@@ -213,12 +213,25 @@ def test_scenes_then_synth_end_to_end_through_the_cli(tmp_path):
     bad = runner.invoke(cli, ["synth", "--input", str(tmp_path / "nowhere"), "--output",
                               str(tmp_path / "x")])
     assert bad.exit_code == 1 and "nowhere" in bad.output
+    # a dataset written before lens sets had their name, resumed with the old option's name
+    description = json.loads((tmp_path / "ds" / "dataset.json").read_text())
+    description["config"]["cameras"] = description["config"].pop("lens_sets")
+    (tmp_path / "ds" / "dataset.json").write_text(json.dumps(description))
+    old = runner.invoke(cli, ["synth", "--input", str(tmp_path / "sc"), "--output",
+                              str(tmp_path / "ds"), "--cameras", "set1,set3", "--layers", "64",
+                              "--bit-depth", "8"])
+    assert old.exit_code == 0, old.output
+    assert "Warning: --cameras is now --lens-sets" in old.output
+    assert "complete: 6/6 frames" in old.output and "different configuration" not in old.output
+    both = runner.invoke(cli, ["synth", "--input", str(tmp_path / "sc"), "--output",
+                               str(tmp_path / "ds"), "--cameras", "set1", "--lens-sets", "set1"])
+    assert both.exit_code == 2 and "--lens-sets only" in both.output
 
 
 def test_preview_and_custom_noise_sigmas_through_the_cli(scene_dir, tmp_path):
     runner = CliRunner()
     synth = runner.invoke(cli, ["synth", "--input", str(scene_dir), "--output",
-                                str(tmp_path / "ds"), "--cameras", "set2", "--layers", "32",
+                                str(tmp_path / "ds"), "--lens-sets", "set2", "--layers", "32",
                                 "--noise-sigmas", "0.01,0.02"])
     assert synth.exit_code == 0, synth.output
     records = [json.loads(x) for x in (tmp_path / "ds" / "manifest.jsonl").read_text().split("\n")

@@ -90,7 +90,7 @@ def test_every_sequence_gets_its_own_profile_camera(tmp_path):
     write_scene_folder(scenes, 4, SceneConfig(width=64, height=48, frames=1, layout="photo"),
                        seed=5, progress=False)
     sequences = discover_sequences(scenes, "rgbd")
-    config = SynthConfig(cameras=("dslr-840", "dslr-840-mild"), psf_bank="pixel4")
+    config = SynthConfig(lens_sets=("dslr-840", "dslr-840-mild"), psf_bank="pixel4")
     jobs = plan_jobs(sequences, config)
     assert len(jobs) == 8
     for job in jobs:
@@ -112,7 +112,7 @@ def test_dataset_with_a_profile_uses_the_scene_focus(tmp_path):
     scenes = tmp_path / "scenes"
     write_scene_folder(scenes, 2, SceneConfig(width=96, height=64, frames=2, layout="photo"),
                        seed=2, progress=False)
-    config = SynthConfig(cameras=("dslr-840",), psf_bank="pixel4", bit_depth=8,
+    config = SynthConfig(lens_sets=("dslr-840",), psf_bank="pixel4", bit_depth=8,
                          noise_model="poisson-gaussian", noise_sigmas=(0.01,), max_layers=60)
     summary = synthesize_dataset(scenes, "rgbd", tmp_path / "dp", config, progress=False)
     assert summary["status"] == "complete"
@@ -126,7 +126,7 @@ def test_dataset_with_a_profile_uses_the_scene_focus(tmp_path):
     with pytest.raises(ParameterError, match="psf_bank"):
         SynthConfig(psf_bank="canon")
     with pytest.raises(ParameterError, match="dslr-840"):
-        SynthConfig(cameras=("dslr",))
+        SynthConfig(lens_sets=("dslr",))
 
 
 def test_a_camera_can_keep_its_ratios_and_light_with_the_banks_shapes(tmp_path):
@@ -140,10 +140,10 @@ def test_a_camera_can_keep_its_ratios_and_light_with_the_banks_shapes(tmp_path):
     fitted = PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)
     camera = DPCamera(name="c", width=840, disparity_ratio=(0.7, 0.96, 1.0), psf=fitted,
                       light="linear").to_dict()
-    own = plan_jobs(sequences, SynthConfig(cameras=("dslr-840",), camera=camera,
+    own = plan_jobs(sequences, SynthConfig(lens_sets=("dslr-840",), camera=camera,
                                            psf_bank="broad"))
     assert {job.recipe.psf for job in own} == {fitted}  # default: the camera's fitted shape
-    config = SynthConfig(cameras=("dslr-840",), camera=camera, psf_bank="broad",
+    config = SynthConfig(lens_sets=("dslr-840",), camera=camera, psf_bank="broad",
                          psf_shapes="bank")
     drawn = plan_jobs(sequences, config)
     shapes = {job.recipe.psf for job in drawn}

@@ -6,7 +6,7 @@ import torch
 from dualpixel.optics.psf import PSFParams
 from dualpixel.optics.thin_lens import CAMERA_PRESETS
 from dualpixel.synthesis.convolution import convolve_same
-from dualpixel.synthesis.frame import draw_recipe, synthesize_frame
+from dualpixel.synthesis.frame import draw_sequence, synthesize_frame
 from dualpixel.synthesis.renderer import quantise_layers, render_dp_views
 
 H, W = 96, 128
@@ -36,8 +36,8 @@ def test_in_focus_plane_gives_identical_views_and_target():
     depth = np.full((H, W), camera.focus_distance, np.float32)
     rgb = textured().permute(1, 2, 0).numpy()
     for distortion in (False, True):
-        recipe = draw_recipe(0, "set1", noise=False, distortion=distortion)
-        frame = synthesize_frame(rgb, depth, recipe)
+        draw = draw_sequence(0, "set1", noise=False, distortion=distortion)
+        frame = synthesize_frame(rgb, depth, draw)
         assert torch.equal(frame.left, frame.right)
         assert float((frame.left - frame.target).abs().max()) < 1e-6
         assert float(frame.defocus.abs().max()) == 0.0
@@ -208,14 +208,14 @@ def test_linear_light_blur_conserves_light_not_stored_values():
     from dualpixel.optics.psf import PSFParams
     from dualpixel.optics.thin_lens import ThinLensCamera
     from dualpixel.optics.tone import srgb_to_linear
-    from dualpixel.synthesis.frame import SequenceRecipe, synthesize_frame
+    from dualpixel.synthesis.frame import SequenceDraw, synthesize_frame
 
     image = np.full((64, 96, 3), 0.05, np.float32)
     image[:, 40:56] = 0.9  # a bright bar on a dark ground
     depth = np.full((64, 96), 8.0, np.float32)
     lens = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=1.0)
     camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 8.0)
-    frames = {light: synthesize_frame(image, depth, SequenceRecipe(
+    frames = {light: synthesize_frame(image, depth, SequenceDraw(
         camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None, light=light))
         for light in ("encoded", "linear")}
     inner = (slice(None), slice(None), slice(16, 80))  # away from the frame's borders
@@ -229,3 +229,14 @@ def test_linear_light_blur_conserves_light_not_stored_values():
     torch.testing.assert_close(frames["linear"].target, frames["encoded"].target, atol=1e-5,
                                rtol=0)
     torch.testing.assert_close(linear[:, :, :4], encoded[:, :, :4], atol=1e-4, rtol=0)
+
+
+def test_the_old_names_of_a_sequence_draw_still_import_with_a_warning():
+    import dualpixel.synthesis as synthesis
+
+    with pytest.warns(FutureWarning, match="draw_recipe is now draw_sequence"):
+        assert synthesis.draw_recipe is synthesis.draw_sequence
+    with pytest.warns(FutureWarning, match="SequenceRecipe is now SequenceDraw"):
+        assert synthesis.SequenceRecipe is synthesis.SequenceDraw
+    with pytest.raises(AttributeError):
+        synthesis.no_such_name  # noqa: B018

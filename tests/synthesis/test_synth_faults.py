@@ -19,13 +19,13 @@ from dualpixel.io.lock import LOCK_NAME
 from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 
-CONFIG = {"cameras": ("set0", "set4"), "max_layers": 40, "seed": 3}
+CONFIG = {"lens_sets": ("set0", "set4"), "max_layers": 40, "seed": 3}
 
 _CHILD = textwrap.dedent("""
     import sys
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
     synthesize_dataset(sys.argv[1], "rgbd", sys.argv[2],
-                       SynthConfig(cameras=("set0", "set4"), max_layers=40, seed=3),
+                       SynthConfig(lens_sets=("set0", "set4"), max_layers=40, seed=3),
                        workers=2, progress=False)
 """)
 
@@ -104,7 +104,7 @@ def test_three_shards_merged_equal_the_single_run(scenes, tmp_path):
 
     synthesize_dataset(scenes, "rgbd", tmp_path / "single", SynthConfig(**CONFIG), workers=2,
                        progress=False)
-    args = ["synth", "--input", str(scenes), "--cameras", "set0,set4", "--layers", "40",
+    args = ["synth", "--input", str(scenes), "--lens-sets", "set0,set4", "--layers", "40",
             "--seed", "3", "--workers", "2"]
     runner = CliRunner()
     for k in range(3):
@@ -129,7 +129,7 @@ def test_paths_from_manifests_and_options_stay_inside_their_folders(scenes, tmp_
     from dualpixel.cli.main import cli
 
     runner = CliRunner()
-    args = ["synth", "--input", str(scenes), "--cameras", "set0", "--layers", "40", "--seed", "3"]
+    args = ["synth", "--input", str(scenes), "--lens-sets", "set0", "--layers", "40", "--seed", "3"]
     parts = []
     for k in range(2):
         part = tmp_path / f"part{k}"
@@ -177,7 +177,7 @@ def test_two_writers_into_one_folder_one_is_refused(scenes, tmp_path):
                               text=True)
     try:
         assert holder.stdout.readline().strip() == "locked"
-        args = ["synth", "--input", str(scenes), "--output", str(out), "--cameras", "set0",
+        args = ["synth", "--input", str(scenes), "--output", str(out), "--lens-sets", "set0",
                 "--layers", "40"]
         result = CliRunner().invoke(cli, args)
         assert result.exit_code == 1, result.output
@@ -240,7 +240,7 @@ def test_workers_die_with_their_parent(scenes, tmp_path):
     """Issue #34: `synth --workers 2` killed by SIGKILL leaves no worker behind (each watches
     its parent), and nothing is written after the kill."""
     command = [sys.executable, "-m", "dualpixel", "-q", "synth", "--input", str(scenes),
-               "--output", str(tmp_path / "data"), "--cameras", "set0,set1,set2,set3,set4",
+               "--output", str(tmp_path / "data"), "--lens-sets", "set0,set1,set2,set3,set4",
                "--workers", "2"]
     parent = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                               start_new_session=True)

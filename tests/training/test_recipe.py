@@ -99,7 +99,7 @@ def _tiny_recipe(tmp_path: Path, **changes) -> Path:
         "description": "a tiny model",
         "data": [
             {"name": "scenes", "scenes": {**TINY_SCENES, "seed": 1}},
-            {"name": "synth", "synth": {"input": "scenes", "cameras": ["set1"],
+            {"name": "synth", "synth": {"input": "scenes", "lens_sets": ["set1"],
                                         "max_layers": 40, "noise_sigmas": [0.01]}},
         ],
         "train": {"model": "rdpd", "synthetic_data": "synth", "val_data": "synth",
@@ -183,6 +183,18 @@ def test_bad_recipes_are_refused_before_any_work(tmp_path, changes, message):
     assert not (tmp_path / "run").exists()
 
 
+def test_a_recipe_with_the_old_name_of_lens_sets_is_read_with_a_warning(tmp_path):
+    from dualpixel.training.recipe import synth_config
+
+    path = _tiny_recipe(tmp_path, data=[
+        {"name": "scenes", "scenes": {**TINY_SCENES, "seed": 1}},
+        {"name": "synth", "synth": {"input": "scenes", "cameras": ["set1", "set3"]}}])
+    recipe = load_recipe(path)
+    with pytest.warns(FutureWarning, match=r"data step synth: cameras is now lens_sets"):
+        config, _, _ = synth_config(recipe, recipe.data[1], tmp_path / "run")
+    assert config.lens_sets == ("set1", "set3")
+
+
 def test_missing_recipe_is_named(tmp_path):
     with pytest.raises(InputFileError, match="recipe not found"):
         load_recipe(tmp_path / "none.yaml")
@@ -193,14 +205,14 @@ def test_a_recipe_extends_another_by_name(tmp_path):
     child = tmp_path / "child.yaml"
     child.write_text(yaml.safe_dump({
         "name": "child", "extends": base.name,
-        "data": [{"name": "synth", "synth": {"input": "scenes", "cameras": ["set2"],
+        "data": [{"name": "synth", "synth": {"input": "scenes", "lens_sets": ["set2"],
                                              "max_layers": 40, "noise_sigmas": [0.01]}}],
         "train": {"learning_rate": 5e-4},
         "phases": [{"name": "second", "set": {"epochs": 2}}, {"name": "third"}],
         "ship": {"tag": "child.v1"}}, sort_keys=False))
     parent, recipe = load_recipe(base), load_recipe(child)
     assert [s.name for s in recipe.data] == ["scenes", "synth"]  # replaced in place
-    assert recipe.data[1].args["cameras"] == ["set2"] and recipe.data[0] == parent.data[0]
+    assert recipe.data[1].args["lens_sets"] == ["set2"] and recipe.data[0] == parent.data[0]
     assert recipe.train == {**parent.train, "learning_rate": 5e-4}
     assert [p.name for p in recipe.phases] == ["first", "second", "third"]
     assert recipe.phases[1].settings == {"epochs": 2} and recipe.phases[0] == parent.phases[0]

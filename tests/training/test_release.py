@@ -26,7 +26,7 @@ def finished_run(tmp_path_factory) -> Path:
     raw = {
         "name": "tiny",
         "data": [{"name": "scenes", "scenes": {**TINY_SCENES, "seed": 1}},
-                 {"name": "synth", "synth": {"input": "scenes", "cameras": ["set1"],
+                 {"name": "synth", "synth": {"input": "scenes", "lens_sets": ["set1"],
                                              "max_layers": 40, "noise_sigmas": [0.01]}}],
         "train": {"model": "rdpd", "synthetic_data": "synth", "val_data": "synth",
                   "val_split": "train", **TINY_PHASE, "width": 0.5, "residual": True},

@@ -1,5 +1,5 @@
 """Camera files that ship with the package, by name (``synth --camera canon-840-linear``,
-``synthesize(camera_file="pixel4")``, ``camera: pixel4`` in a recipe).
+``synthesize(camera="pixel4")``, ``camera: pixel4`` in a recipe).
 
 - ``canon-840``, ``canon-hd``: the Canon EOS 5D Mark IV measured on the seven Canon dev pairs at
   840x512 and 1620x980 by ``dualpixel calibrate camera`` (PSF shape, per-channel disparity

@@ -27,20 +27,25 @@ _CHECKPOINT_HELP = "Checkpoint: a registry name (dualpixel models) or a .safeten
 @click.option("--depth", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=None, help="Its depth map (.npy metres, or 16-bit PNG x --depth-scale).")
 @click.option("--depth-scale", type=float, default=0.001, help="Metres per 16-bit PNG unit.")
-@click.option("--camera", default="dslr-840",
-              help="Defocus profile (dslr-840) or camera preset (set0..set4) for synthesis.")
+@click.option("--lens-set", default="dslr-840",
+              help="What blurs the synthesised frames: a blur profile relative to the frame "
+                   "(dslr-840) or one of the paper's camera parameter sets (set0..set4).")
+@click.option("--camera", "old_lens_set", default=None, hidden=True,
+              help="Old name of --lens-set (until release 0.3).")
 @click.option("--frames", type=click.IntRange(1, 30), default=3, help="Procedural frames.")
 @click.option("--seed", type=int, default=2026, help="Procedural scene seed.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--tile", type=int, default=None,
               help="Tile size (multiple of 16) for bounded memory; default: whole frames.")
 def demo(output: Path, checkpoint: str, left, right, target, rgb, depth, depth_scale: float,
-         camera: str, frames: int, seed: int, device: str, tile: int | None) -> None:
+         lens_set: str, old_lens_set: str | None, frames: int, seed: int, device: str,
+         tile: int | None) -> None:
     """Synthesise, deblur with the shipped model, evaluate, and write an HTML report."""
     from dualpixel.demo import run_demo
 
     result = run_demo(output, checkpoint=checkpoint, left=left, right=right, target=target,
-                      rgb=rgb, depth=depth, depth_scale=depth_scale, camera=camera,
+                      rgb=rgb, depth=depth, depth_scale=depth_scale, lens_set=lens_set,
+                      camera=old_lens_set,
                       frames=frames, seed=seed, device=device, tile=tile)
     mean = result.metrics.get("mean")
     if mean:

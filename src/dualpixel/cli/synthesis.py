@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import click
@@ -12,6 +13,7 @@ from dualpixel.names import (
     PSF_BANK_NAMES,
     PSF_MODELS,
     PSF_SHAPE_SOURCES,
+    RENAMED_UNTIL,
     SCENE_LAYOUTS,
 )
 
@@ -81,9 +83,13 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               help="Input layout.")
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path),
               required=True, help="Dataset folder (DPDD layout).")
-@click.option("--cameras", default="set0,set1,set2,set3,set4",
-              help="Camera presets set0..set4 and/or defocus profiles relative to the frame "
-                   "(e.g. dslr-840), comma-separated; one output sequence per input and camera.")
+@click.option("--lens-sets", default=None,
+              help="What blurs the frames: the paper's camera parameter sets set0..set4 (focal "
+                   "length, aperture, focus distance) and/or blur profiles relative to the "
+                   "frame (e.g. dslr-840), comma-separated; one output sequence per input and "
+                   "lens set  [default: set0,set1,set2,set3,set4].")
+@click.option("--cameras", "old_lens_sets", default=None, hidden=True,
+              help="Old name of --lens-sets (until release 0.3).")
 @click.option("--layers", type=click.IntRange(1), default=500, help="Maximum depth layers.")
 @click.option("--render-mode", type=click.Choice(["fast", "exact"]), default="fast",
               show_default=True,
@@ -131,7 +137,8 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--shard", default=None, callback=lambda _c, p, v: _shard(p, v), metavar="K/N",
               help="Render only the K-th of N interleaved parts of the frames (0-based), e.g. "
                    "K=$SLURM_ARRAY_TASK_ID; join the N folders with `dualpixel merge-shards`.")
-def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, render_mode: str,
+def synth(input_dir: Path, fmt: str, output: Path, lens_sets: str | None,
+          old_lens_sets: str | None, layers: int, render_mode: str,
           bit_depth: str,
           noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
           psf_model: str, psf_bank: str, camera_file: str | None, psf_shapes: str | None,
@@ -147,8 +154,16 @@ def synth(input_dir: Path, fmt: str, output: Path, cameras: str, layers: int, re
     sigmas = PAPER_NOISE_SIGMAS
     if noise_sigmas:
         sigmas = tuple(noise_sigmas)
+    if old_lens_sets is not None:
+        if lens_sets is not None:
+            raise click.BadParameter("give --lens-sets only (--cameras is its old name)",
+                                     param_hint="--cameras")
+        warnings.warn(f"--cameras is now --lens-sets; the old name goes in release "
+                      f"{RENAMED_UNTIL}", FutureWarning, stacklevel=1)
+        lens_sets = old_lens_sets
+    lens_sets = lens_sets or "set0,set1,set2,set3,set4"
     config = SynthConfig(
-        cameras=tuple(c.strip() for c in cameras.split(",") if c.strip()),
+        lens_sets=tuple(c.strip() for c in lens_sets.split(",") if c.strip()),
         psf_model=psf_model, psf_bank=psf_bank, max_layers=layers, render_mode=render_mode,
         bit_depth=int(bit_depth),
         noise=noise,

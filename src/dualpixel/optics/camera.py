@@ -1,6 +1,6 @@
 """A camera's DP blur model as a file (``camera.json``): what ``dualpixel calibrate camera``
 measures (:mod:`dualpixel.calibration.camera`) and what synthesis, recipes and the API read
-(``synth --camera``, ``camera_file=``, ``camera:``). The package ships some by name
+(``synth --camera``, ``synthesize(camera=)``, ``camera:``). The package ships some by name
 (:mod:`dualpixel.cameras`).
 """
 

@@ -10,9 +10,9 @@ Layout under the output folder, for each split (train / test) and output sequenc
     manifest.jsonl                       one JSON line per finished frame
     dataset.json                         configuration, input, version, status
 
-Each input sequence gives one output sequence per camera set (the paper: five), numbered as the
-authors did: ``seq = camera_index * n_inputs + input_index + 1``. With noise off,
-``combined == (left + right) / 2`` on disk up to integer rounding (the combined value is
+Each input sequence gives one output sequence per lens set (the paper's five camera parameter
+sets), numbered as the authors did: ``seq = set_index * n_inputs + input_index + 1``. With noise
+off, ``combined == (left + right) / 2`` on disk up to integer rounding (the combined value is
 ``ceil((left + right) / 2)`` of the stored integers).
 
 Robustness: every file is written atomically; a frame counts as done only once its manifest line
@@ -45,6 +45,7 @@ from dualpixel.io.images import check_png_compression, quantise, save_npy, write
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
 from dualpixel.io.run_folder import differing_settings, locate, same_location
+from dualpixel.names import renamed_keys
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
@@ -58,9 +59,9 @@ from dualpixel.optics.thin_lens import (
 from dualpixel.parallel import completed
 from dualpixel.progress import progress_bar
 from dualpixel.synthesis.frame import (
-    SequenceRecipe,
+    SequenceDraw,
     camera_settings,
-    draw_recipe,
+    draw_sequence,
     synthesize_frame,
 )
 from dualpixel.synthesis.inputs import (
@@ -80,7 +81,9 @@ __all__ = ["SynthConfig", "merge_shards", "read_manifest", "synthesize_dataset"]
 class SynthConfig:
     """Everything that determines a synthetic dataset's content (saved in ``dataset.json``)."""
 
-    cameras: tuple[str, ...] = tuple(CAMERA_PRESETS)  # presets setK or defocus profiles
+    # What blurs each output sequence (one per input and lens set): the paper's camera
+    # parameter sets setK, or blur profiles relative to the frame (dslr-840, ...).
+    lens_sets: tuple[str, ...] = tuple(CAMERA_PRESETS)
     psf_model: PSFModel = "ours"
     psf_bank: str = "paper"
     max_layers: int = 500
@@ -110,11 +113,11 @@ class SynthConfig:
 
     def __post_init__(self) -> None:
         known = (*CAMERA_PRESETS, *DEFOCUS_PROFILES)
-        unknown = [c for c in self.cameras if c not in known]
-        if unknown or not self.cameras:
+        unknown = [c for c in self.lens_sets if c not in known]
+        if unknown or not self.lens_sets:
             raise ParameterError(
-                f"cameras must be a non-empty subset of {', '.join(known)}, got "
-                f"{', '.join(self.cameras) or 'none'}"
+                f"lens_sets must be a non-empty subset of {', '.join(known)}, got "
+                f"{', '.join(self.lens_sets) or 'none'}"
             )
         if self.psf_bank not in PSF_BANKS:
             raise ParameterError(
@@ -130,9 +133,9 @@ class SynthConfig:
         check_plain_name(self.split, "split")
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
-        self.recipe_settings()  # refuses a bad camera description, light or psf_shapes now
+        self.draw_settings()  # refuses a bad camera description, light or psf_shapes now
 
-    def recipe_settings(self) -> tuple[PSFBank, tuple[float, ...] | None, str]:
+    def draw_settings(self) -> tuple[PSFBank, tuple[float, ...] | None, str]:
         """``(bank, disparity_ratio, light)`` of every sequence: :func:`camera_settings`."""
         return camera_settings(self.dp_camera(), PSF_BANKS[self.psf_bank],
                                psf_shapes=self.psf_shapes, light=self.light)
@@ -145,9 +148,20 @@ class SynthConfig:
 
         return DPCamera.from_dict(self.camera, "camera")
 
+    @classmethod
+    def from_dict(cls, values: dict, where: str = "dataset.json", *, warn: bool = False
+                  ) -> SynthConfig:
+        """The config of :meth:`as_dict` (or of a recipe's synth step), old key names taken
+        (:func:`~dualpixel.names.renamed_keys`; silently for files written before a rename)."""
+        values = renamed_keys(values, where, warn=warn)
+        for key in ("lens_sets", "noise_sigmas"):
+            if key in values and isinstance(values[key], list):
+                values[key] = tuple(values[key])
+        return cls(**values)
+
     def as_dict(self) -> dict:
         data = asdict(self)
-        data["cameras"] = list(self.cameras)
+        data["lens_sets"] = list(self.lens_sets)
         data["noise_sigmas"] = list(self.noise_sigmas)
         for key in ("light", "psf_shapes"):  # as recorded before the settings existed
             if data[key] is None:
@@ -159,13 +173,13 @@ class SynthConfig:
 
 @dataclass(frozen=True)
 class FrameJob:
-    """One output frame: inputs, recipe and where it goes."""
+    """One output frame: inputs, draw and where it goes."""
 
     frame: InputFrame
     split: str
     sequence: int  # output sequence number (seq_NNN)
     index: int  # frame index within the sequence
-    recipe: SequenceRecipe = field(compare=False)
+    draw: SequenceDraw = field(compare=False)
     noise_seed: int = 0
 
     @property
@@ -204,10 +218,10 @@ def _profile_camera(
 def plan_jobs(
     sequences: list[InputSequence], config: SynthConfig, fmt: InputFormat = "rgbd"
 ) -> list[FrameJob]:
-    """Every output frame, with the recipe of its sequence drawn from the seed."""
+    """Every output frame, with the draw of its sequence drawn from the seed."""
     jobs = []
-    bank, disparity_ratio, light = config.recipe_settings()
-    for cam_index, camera_name in enumerate(config.cameras):
+    bank, disparity_ratio, light = config.draw_settings()
+    for cam_index, camera_name in enumerate(config.lens_sets):
         for seq_index, sequence in enumerate(sequences):
             number = cam_index * len(sequences) + seq_index + 1
             seed = (config.seed, seq_index, cam_index)
@@ -217,7 +231,7 @@ def plan_jobs(
             if camera_name in DEFOCUS_PROFILES:
                 camera = _profile_camera(DEFOCUS_PROFILES[camera_name], sequence, fmt, config,
                                          seed)
-            recipe = draw_recipe(
+            draw = draw_sequence(
                 seed, camera, psf_model=config.psf_model, bank=bank,
                 disparity_ratio=disparity_ratio, light=light,
                 distortion=distortion, noise=config.noise,
@@ -227,7 +241,7 @@ def plan_jobs(
             for index, frame in enumerate(sequence.frames):
                 noise_seed = int(np.random.SeedSequence((config.seed, number, index))
                                  .generate_state(1)[0])
-                jobs.append(FrameJob(frame, sequence.split, number, index, recipe, noise_seed))
+                jobs.append(FrameJob(frame, sequence.split, number, index, draw, noise_seed))
     return jobs
 
 
@@ -257,11 +271,11 @@ def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
     """Render one frame and hand its files to the writer threads: (its record, the writes)."""
     rgb, depth = load_frame(job.frame, fmt, max_depth=config.max_depth,
                             depth_scale=config.depth_scale)
-    result = synthesize_frame(rgb, depth, job.recipe, noise_seed=job.noise_seed, device=device)
+    result = synthesize_frame(rgb, depth, job.draw, noise_seed=job.noise_seed, device=device)
     paths = job.paths(root)
     left = _quantise(result.left, config.bit_depth)
     right = _quantise(result.right, config.bit_depth)
-    if job.recipe.light == "linear":  # the views' light summed, then encoded
+    if job.draw.light == "linear":  # the views' light summed, then encoded
         combined = _quantise(result.combined, config.bit_depth)
     else:  # (left + right) / 2 of the stored integers, rounded up
         combined = ((left.astype(np.uint32) + right + 1) >> 1).astype(left.dtype)
@@ -289,7 +303,7 @@ def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
         "frame": job.index,
         "noise_seed": job.noise_seed,
         "seed": config.seed,
-        **job.recipe.describe(),
+        **job.draw.describe(),
         "version": __version__,
     }
     return record, writes
@@ -366,10 +380,7 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
     if indices != list(range(count)) or any(d["shard"][1] != count for d in descriptions):
         raise ParameterError(f"need each of the shards 0..{count - 1} of {count} exactly once, "
                              f"got {', '.join(f'{i}/{count}' for i in indices)}")
-    values = dict(first["config"])
-    values["cameras"] = tuple(values["cameras"])
-    values["noise_sigmas"] = tuple(values["noise_sigmas"])
-    config = SynthConfig(**values)
+    config = SynthConfig.from_dict(dict(first["config"]))
     sequences = discover_sequences(first["input"], first["format"], split=config.split)
     jobs = plan_jobs(sequences, config, first["format"])
     by_index = {d["shard"][0]: root for root, d in zip(roots, descriptions)}
@@ -421,6 +432,8 @@ def _check_or_write_description(root: Path, description: dict) -> None:
     path = root / "dataset.json"
     if path.is_file():
         existing = read_mapping(path, "dataset description (remove the folder and rerun)")
+        if isinstance(existing.get("config"), dict):  # written before a setting was renamed
+            existing["config"] = renamed_keys(existing["config"], str(path), warn=False)
         mine = {k: description.get(k) for k in ("config", "format", "shard")}
         differ = differing_settings(mine, {k: existing.get(k) for k in mine})
         if not _same_input(description, existing):
@@ -465,7 +478,7 @@ def synthesize_dataset(
         input_dir: SYNTHIA-SF root or RGB-D folder.
         fmt: "synthia" or "rgbd".
         output_dir: dataset root.
-        config: content settings; defaults to all five cameras, noise and distortion on.
+        config: content settings; defaults to the paper's five lens sets, noise and distortion on.
         workers: frames rendered in parallel processes.
         device: torch device for rendering ("cpu", "cuda").
         progress: show a progress bar.

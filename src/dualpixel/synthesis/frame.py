@@ -1,7 +1,7 @@
 """One synthetic DP frame: CoC -> layered DP views -> radial distortion -> noise (paper Sec. 3).
 
-A :class:`SequenceRecipe` fixes what the paper keeps constant over a sequence (camera, PSF shape,
-distortion set, noise strength); :func:`draw_recipe` draws it reproducibly from a seed.
+A :class:`SequenceDraw` fixes what the paper keeps constant over a sequence (camera, PSF shape,
+distortion set, noise strength); :func:`draw_sequence` draws it reproducibly from a seed.
 """
 
 from __future__ import annotations
@@ -33,11 +33,11 @@ from dualpixel.synthesis.renderer import render_dp_views
 if TYPE_CHECKING:
     from dualpixel.optics.camera import DPCamera
 
-__all__ = ["DPFrame", "SequenceRecipe", "camera_settings", "draw_recipe", "synthesize_frame"]
+__all__ = ["DPFrame", "SequenceDraw", "camera_settings", "draw_sequence", "synthesize_frame"]
 
 
 @dataclass(frozen=True)
-class SequenceRecipe:
+class SequenceDraw:
     """Everything that stays fixed over one synthetic sequence."""
 
     camera: ThinLensCamera
@@ -91,7 +91,7 @@ def camera_settings(
     psf_shapes: str | None = None,
     light: str | None = None,
 ) -> tuple[PSFBank, tuple[float, ...] | None, Light]:
-    """What a calibrated camera (``dualpixel calibrate camera``) sets for :func:`draw_recipe`:
+    """What a calibrated camera (``dualpixel calibrate camera``) sets for :func:`draw_sequence`:
     ``(bank, disparity_ratio, light)``.
 
     The camera's fitted PSF shape replaces ``bank`` unless ``psf_shapes`` is "bank"; its
@@ -113,7 +113,7 @@ def camera_settings(
     return shapes, camera.disparity_ratio, light or camera.light  # type: ignore[return-value]
 
 
-def draw_recipe(
+def draw_sequence(
     seed: int | tuple[int, ...],
     camera: str | ThinLensCamera,
     *,
@@ -127,7 +127,7 @@ def draw_recipe(
     render_mode: str = "fast",
     disparity_ratio: tuple[float, ...] | None = None,
     light: Light = "encoded",
-) -> SequenceRecipe:
+) -> SequenceDraw:
     """Draw a sequence's PSF shape and noise strength from ``seed`` for a camera.
 
     A preset camera ``setK`` gets the matching distortion preset ``setK`` (supplement S3); any
@@ -148,7 +148,7 @@ def draw_recipe(
     if warp is None:
         presets = list(DISTORTION_PRESETS.values())
         warp = presets[int(np.random.default_rng((*np.atleast_1d(seed), 2)).integers(len(presets)))]
-    return SequenceRecipe(
+    return SequenceDraw(
         camera=camera,
         psf=psf,
         distortion=warp if distortion else None,
@@ -167,7 +167,7 @@ class DPFrame:
     """A synthetic frame, torch tensors with values in [0, 1] (defocus in pixels).
 
     ``left`` and ``right`` are at the brightness of the combined image (DPDD convention), so
-    ``combined = (left + right) / 2`` (in linear light where the recipe's ``light`` is
+    ``combined = (left + right) / 2`` (in linear light where the draw's ``light`` is
     "linear"); the paper's half-brightness views are ``left / 2``.
     """
 
@@ -178,17 +178,17 @@ class DPFrame:
     defocus: torch.Tensor  # (H, W), signed CoC radius in pixels
 
 
-def _noisy_view(view: torch.Tensor, recipe: SequenceRecipe, seed: int) -> torch.Tensor:
+def _noisy_view(view: torch.Tensor, draw: SequenceDraw, seed: int) -> torch.Tensor:
     generator = torch.Generator(device=view.device).manual_seed(seed)
     # Noise is added to the paper's half-brightness view I_l = view / 2 (Eq. 7).
-    half = add_noise(view / 2.0, recipe.noise_sigma, generator=generator, model=recipe.noise_model)
+    half = add_noise(view / 2.0, draw.noise_sigma, generator=generator, model=draw.noise_model)
     return 2.0 * half
 
 
 def synthesize_frame(
     rgb: np.ndarray | torch.Tensor,
     depth: np.ndarray | torch.Tensor,
-    recipe: SequenceRecipe,
+    draw: SequenceDraw,
     *,
     noise_seed: int = 0,
     device: str | torch.device = "cpu",
@@ -198,7 +198,7 @@ def synthesize_frame(
     Args:
         rgb: ``(H, W, 3)`` NumPy or ``(3, H, W)`` torch image in [0, 1].
         depth: ``(H, W)`` depth, same unit as the camera, finite and > 0.
-        recipe: camera, PSF, distortion and noise of the sequence.
+        draw: camera, PSF, distortion and noise of the sequence.
         noise_seed: seed of this frame's noise; the views draw independent noise from it.
         device: where to compute ("cpu", "cuda", ...).
 
@@ -214,26 +214,26 @@ def synthesize_frame(
             f"rgb and depth must be the same size; got rgb {tuple(image.shape)} and depth "
             f"{tuple(depth_t.shape)}"
         )
-    coc = coc_radius(depth_t, recipe.camera)
-    linear = recipe.light == "linear"
+    coc = coc_radius(depth_t, draw.camera)
+    linear = draw.light == "linear"
     scene = srgb_to_linear(image) if linear else image
     left, right = render_dp_views(
-        scene, coc, recipe.psf, model=recipe.psf_model, max_layers=recipe.max_layers,
-        mode=recipe.render_mode,
+        scene, coc, draw.psf, model=draw.psf_model, max_layers=draw.max_layers,
+        mode=draw.render_mode,
     )
-    if recipe.disparity_ratio is not None:
-        left, right = apply_crosstalk(left, right, recipe.disparity_ratio)
+    if draw.disparity_ratio is not None:
+        left, right = apply_crosstalk(left, right, draw.disparity_ratio)
     target, defocus = scene, coc
-    if recipe.distortion is not None:
+    if draw.distortion is not None:
         # one warp for all planes: the inverse-distortion grid is computed once per frame
-        warped = distort_image(torch.cat((left, right, target, coc[None])), recipe.distortion)
+        warped = distort_image(torch.cat((left, right, target, coc[None])), draw.distortion)
         left, right, target, defocus = warped.split((3, 3, 3, 1))
         defocus = defocus[0]
     if linear:  # the tone curve after the optics; noise is added to the stored values
         left, right, target = (linear_to_srgb(t) for t in (left, right, target))
-    if recipe.noise_sigma is not None and recipe.noise_sigma > 0:
-        left = _noisy_view(left, recipe, noise_seed * 2)
-        right = _noisy_view(right, recipe, noise_seed * 2 + 1)
+    if draw.noise_sigma is not None and draw.noise_sigma > 0:
+        left = _noisy_view(left, draw, noise_seed * 2)
+        right = _noisy_view(right, draw, noise_seed * 2 + 1)
     left, right, target = (t.clamp(0.0, 1.0) for t in (left, right, target))
     if linear:  # the two photodiodes' light summed, then the tone curve
         combined = linear_to_srgb((srgb_to_linear(left) + srgb_to_linear(right)) / 2.0)

@@ -49,7 +49,7 @@ from typing import Any
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.paths import check_plain_name
-from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES
+from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES, renamed_keys
 from dualpixel.training.config import MACHINE_KEYS
 
 __all__ = ["MACHINE_SETTINGS", "OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe",
@@ -318,7 +318,8 @@ def synth_config(recipe: Recipe, step: DataStep, output: Path):
         raise ParameterError("needs input (a data step's name or a folder)")
     source = _data_folder(recipe, output, args.pop("input"))
     fmt = args.pop("format", "rgbd")
-    for key in ("cameras", "noise_sigmas"):
+    args = renamed_keys(args, f"{recipe.path}: data step {step.name}")
+    for key in ("lens_sets", "noise_sigmas"):
         if key in args:
             args[key] = tuple(args[key])
     if "camera" in args:
