@@ -18,7 +18,7 @@
 #                               (render only) on cuda, nvidia-smi (~5 minutes);
 #                               not while a run trains (they would share the GPU)
 #
-# e.g. device run: bash experiments/scripts/gpu_lease.sh start recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
+# e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
 command=${1:?start, wait, stop, collect or figures}; shift
 
