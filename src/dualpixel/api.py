@@ -187,14 +187,20 @@ def _old_camera_arguments(lens_set: str, camera: Any, camera_file: Any) -> tuple
     return lens_set, camera
 
 
-def synthesize(rgb: Any, depth: Any, *, lens_set: str = "set1", seed: int = 0,
-               psf_bank: str = "paper", noise: bool = True, noise_model: str = "multiplicative",
-               noise_sigmas: tuple[float, ...] | None = None, distortion: bool = True,
+def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int = 0,
+               settings: str = "shipped", psf_bank: str | None = None, noise: bool = True,
+               noise_model: str | None = None, noise_sigmas: tuple[float, ...] | None = None,
+               distortion: bool = True,
                camera: str | Path | DPCamera | None = None, psf_shapes: str | None = None,
                light: str | None = None, device: str = "cpu",
                camera_file: str | Path | DPCamera | None = None) -> dict[str, Any]:
     """Synthesise a DP frame from an all-in-focus image and its depth (metres, ``(H, W)``).
 
+    ``settings``: where ``lens_set``, ``psf_bank``, ``noise_model`` and ``noise_sigmas`` start
+    when not given (:data:`~dualpixel.synthesis.dataset.SYNTH_SETTINGS`): ``"shipped"``, what
+    the shipped default model was trained on (lens set ``dslr-840``, Pixel 4 PSF shapes, a real
+    camera's Poisson-Gaussian noise), or ``"paper"`` (``set1``, the paper's PSF bank and
+    multiplicative noise, about six times a real photograph's).
     ``lens_set``: what blurs the frame: one of the paper's camera parameter sets ``set0``..
     ``set4`` or a blur profile such as ``dslr-840`` (focused at the depth map's 30th
     percentile, :func:`~dualpixel.optics.thin_lens.focus_from_depth`).
@@ -214,9 +220,9 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str = "set1", seed: int = 0,
     """
     from dualpixel.device import resolve_device
     from dualpixel.io.images import check_depth_map
-    from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
     from dualpixel.optics.psf_bank import PSF_BANKS
     from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES, focus_from_depth
+    from dualpixel.synthesis.dataset import synthesis_settings
     from dualpixel.synthesis.frame import camera_settings, draw_sequence, synthesize_frame
 
     images, layout = as_image_batch(rgb, "rgb")
@@ -226,9 +232,14 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str = "set1", seed: int = 0,
     if depth_map.shape[:2] != images.shape[1:3]:
         raise ParameterError(f"depth {depth_map.shape} must be (H, W) of rgb {images.shape[1:3]}")
     depth_map = check_depth_map(depth_map)
+    lens_set, camera = _old_camera_arguments(lens_set, camera, camera_file)
+    defaults = synthesis_settings(settings)
+    lens_set = lens_set or defaults["lens_sets"][0]
+    psf_bank = psf_bank or defaults["psf_bank"]
+    noise_model = noise_model or defaults["noise_model"]
+    noise_sigmas = defaults["noise_sigmas"] if noise_sigmas is None else tuple(noise_sigmas)
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
-    lens_set, camera = _old_camera_arguments(lens_set, camera, camera_file)
     if camera is not None:
         from dualpixel.optics.camera import DPCamera, load_camera
 
@@ -250,9 +261,7 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str = "set1", seed: int = 0,
         raise ParameterError(f"lens_set must be one of {known}, got {lens_set!r}")
     draw = draw_sequence(seed, lens, bank=bank, disparity_ratio=disparity_ratio,
                          light=light_space, distortion=distortion,
-                         noise=noise, noise_model=noise_model,
-                         noise_sigmas=PAPER_NOISE_SIGMAS if noise_sigmas is None
-                         else tuple(noise_sigmas))
+                         noise=noise, noise_model=noise_model, noise_sigmas=noise_sigmas)
     frame = synthesize_frame(images[0], depth_map, draw, noise_seed=seed,
                              device=resolve_device(device))
     result: dict[str, Any] = {}

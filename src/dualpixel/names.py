@@ -6,7 +6,7 @@ from __future__ import annotations
 __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS",
            "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "OVERSHOOT_MODES", "PRECISIONS",
            "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RENAMED", "RENAMED_UNTIL",
-           "SCENE_LAYOUTS", "output_modes_suffix", "renamed_keys"]
+           "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES", "output_modes_suffix", "renamed_keys"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -21,6 +21,9 @@ PSF_SHAPE_SOURCES: tuple[str, ...] = ("camera", "bank")
 #: Where synthesis blurs (:mod:`dualpixel.optics.tone`): the stored (sRGB-encoded) values, the
 #: paper's generator, or linear light with the sRGB curve after, as a lens does.
 LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")
+#: Named synthesis settings (:data:`dualpixel.synthesis.dataset.SYNTH_SETTINGS`): what the
+#: shipped default model was trained on, or the paper's.
+SYNTH_SETTINGS_NAMES: tuple[str, ...] = ("shipped", "paper")
 #: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`).
 SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo")
 #: Inference precisions (:mod:`dualpixel.inference.precision`).

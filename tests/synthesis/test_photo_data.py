@@ -95,11 +95,11 @@ def test_every_sequence_gets_its_own_profile_camera(tmp_path):
     assert len(jobs) == 8
     for job in jobs:
         scene = json.loads((job.frame.rgb.parent.parent / "scene.json").read_text())
-        camera = job.recipe.camera
+        camera = job.draw.camera
         assert camera.name == ("dslr-840" if job.sequence <= 4 else "dslr-840-mild")
         assert camera.focus_distance == pytest.approx(scene["focus_distance"])
-    assert len({job.recipe.camera.focus_distance for job in jobs}) == 4
-    assert len({job.recipe.camera.pixel_pitch for job in jobs}) == 8  # blur scale per sequence
+    assert len({job.draw.camera.focus_distance for job in jobs}) == 4
+    assert len({job.draw.camera.pixel_pitch for job in jobs}) == 8  # blur scale per sequence
 
 
 def test_pixel4_bank_spans_the_fitted_shapes():
@@ -142,14 +142,14 @@ def test_a_camera_can_keep_its_ratios_and_light_with_the_banks_shapes(tmp_path):
                       light="linear").to_dict()
     own = plan_jobs(sequences, SynthConfig(lens_sets=("dslr-840",), camera=camera,
                                            psf_bank="broad"))
-    assert {job.recipe.psf for job in own} == {fitted}  # default: the camera's fitted shape
+    assert {job.draw.psf for job in own} == {fitted}  # default: the camera's fitted shape
     config = SynthConfig(lens_sets=("dslr-840",), camera=camera, psf_bank="broad",
                          psf_shapes="bank")
     drawn = plan_jobs(sequences, config)
-    shapes = {job.recipe.psf for job in drawn}
+    shapes = {job.draw.psf for job in drawn}
     assert len(shapes) >= 6 and shapes <= set(BROAD_PSF_BANK)
-    assert all(job.recipe.disparity_ratio == (0.7, 0.96, 1.0) for job in drawn)
-    assert all(job.recipe.light == "linear" for job in drawn)
+    assert all(job.draw.disparity_ratio == (0.7, 0.96, 1.0) for job in drawn)
+    assert all(job.draw.light == "linear" for job in drawn)
     assert config.as_dict()["psf_shapes"] == "bank"
     assert "psf_shapes" not in SynthConfig(camera=camera).as_dict()  # old datasets unchanged
     with pytest.raises(ParameterError, match="needs a camera"):

@@ -104,7 +104,8 @@ def test_three_shards_merged_equal_the_single_run(scenes, tmp_path):
 
     synthesize_dataset(scenes, "rgbd", tmp_path / "single", SynthConfig(**CONFIG), workers=2,
                        progress=False)
-    args = ["synth", "--input", str(scenes), "--lens-sets", "set0,set4", "--layers", "40",
+    args = ["synth", "--input", str(scenes), "--settings", "paper", "--lens-sets", "set0,set4",
+            "--layers", "40",
             "--seed", "3", "--workers", "2"]
     runner = CliRunner()
     for k in range(3):

@@ -166,3 +166,25 @@ def test_a_shipped_model_runs_with_its_own_settings_unless_told(monkeypatch):
                              brightness="model", overshoot="model")
     np.testing.assert_array_equal(by_default, told)
     assert np.abs(by_default - plain).max() > 1e-4
+
+
+def test_synthesis_starts_from_what_the_default_model_was_trained_on(tmp_path):
+    """`synth` and `synthesize()` default to SYNTH_SETTINGS["shipped"]: the blur, PSF shapes
+    and noise of the default model's last phase's synthetic data, read from its recipe."""
+    from dualpixel.synthesis.dataset import SYNTH_SETTINGS
+    from dualpixel.training.recipe import phase_config
+
+    weights = WEIGHTS[ALIASES[DEFAULT_CHECKPOINT]]
+    recipe = load_recipe(RECIPES / weights.recipe)
+    config = phase_config(recipe, recipe.phase_index(weights.phase), tmp_path, None)
+    folders = config.synthetic_data if isinstance(config.synthetic_data, list) else [
+        config.synthetic_data]
+    steps = {str(tmp_path / "data" / s.name): s for s in recipe.data}
+    shipped = SYNTH_SETTINGS["shipped"]
+    for folder in folders:
+        args = steps[str(folder)].args
+        assert tuple(args["lens_sets"]) == shipped["lens_sets"]
+        assert tuple(args["noise_sigmas"]) == shipped["noise_sigmas"]
+        assert args["psf_bank"] == shipped["psf_bank"]
+        assert args["noise_model"] == shipped["noise_model"]
+        assert "camera" not in args  # the paper's DP model, blurred in the stored values

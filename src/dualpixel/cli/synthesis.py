@@ -15,6 +15,7 @@ from dualpixel.names import (
     PSF_SHAPE_SOURCES,
     RENAMED_UNTIL,
     SCENE_LAYOUTS,
+    SYNTH_SETTINGS_NAMES,
 )
 
 
@@ -83,11 +84,17 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               help="Input layout.")
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path),
               required=True, help="Dataset folder (DPDD layout).")
+@click.option("--settings", "settings_name", type=click.Choice(SYNTH_SETTINGS_NAMES),
+              default="shipped", show_default=True,
+              help="Where the options below start: what the shipped default model was trained "
+                   "on (blur profiles dslr-840 and dslr-840-mild, Pixel 4 PSF shapes, a real "
+                   "camera's Poisson-Gaussian noise 0.006-0.025), or the paper's Sec. 3 (camera "
+                   "sets set0..set4, its 48 PSF shapes, multiplicative noise 0.05-0.5).")
 @click.option("--lens-sets", default=None,
               help="What blurs the frames: the paper's camera parameter sets set0..set4 (focal "
                    "length, aperture, focus distance) and/or blur profiles relative to the "
                    "frame (e.g. dslr-840), comma-separated; one output sequence per input and "
-                   "lens set  [default: set0,set1,set2,set3,set4].")
+                   "lens set  [default: from --settings].")
 @click.option("--cameras", "old_lens_sets", default=None, hidden=True,
               help="Old name of --lens-sets (until release 0.3).")
 @click.option("--layers", type=click.IntRange(1), default=500, help="Maximum depth layers.")
@@ -98,16 +105,16 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--bit-depth", type=click.Choice(["8", "16"]), default="16", help="PNG bit depth.")
 @click.option("--noise/--no-noise", default=True, help="Signal-dependent noise (Sec. 2.3).")
 @click.option("--noise-model", type=click.Choice(["multiplicative", "poisson-gaussian"]),
-              default="multiplicative", help="The paper's formula, or Foi et al.'s model.")
+              default=None, help="The paper's formula, or Foi et al.'s model  [default: from "
+                                 "--settings].")
 @click.option("--noise-sigmas", default=None, callback=float_list,
-              help="Noise strengths to draw from, comma-separated [default: the paper's "
-                   "0.05, 0.055, ..., 0.5].")
+              help="Noise strengths to draw from, comma-separated  [default: from --settings].")
 @click.option("--distortion/--no-distortion", default=True, help="Radial distortion (Eq. 5).")
 @click.option("--psf-model", type=click.Choice(PSF_MODELS),
               default="ours", help="DP PSF model (the others for the paper's ablations).")
-@click.option("--psf-bank", type=click.Choice(PSF_BANK_NAMES), default="paper",
+@click.option("--psf-bank", type=click.Choice(PSF_BANK_NAMES), default=None,
               help="PSF shapes to draw from: the paper's 48, around the real Pixel 4 fits, or "
-                   "broad (fuller and smoother shapes too).")
+                   "broad (fuller and smoother shapes too)  [default: from --settings].")
 @click.option("--camera", "camera_file", default=None,
               help="A calibrated camera: a shipped one by name (canon-840, canon-840-linear, "
                    "canon-hd, canon-hd-linear, pixel4) or a file of `dualpixel calibrate "
@@ -137,23 +144,21 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--shard", default=None, callback=lambda _c, p, v: _shard(p, v), metavar="K/N",
               help="Render only the K-th of N interleaved parts of the frames (0-based), e.g. "
                    "K=$SLURM_ARRAY_TASK_ID; join the N folders with `dualpixel merge-shards`.")
-def synth(input_dir: Path, fmt: str, output: Path, lens_sets: str | None,
+def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets: str | None,
           old_lens_sets: str | None, layers: int, render_mode: str,
           bit_depth: str,
-          noise: bool, noise_model: str, noise_sigmas: list[float] | None, distortion: bool,
-          psf_model: str, psf_bank: str, camera_file: str | None, psf_shapes: str | None,
+          noise: bool, noise_model: str | None, noise_sigmas: list[float] | None,
+          distortion: bool, psf_model: str, psf_bank: str | None, camera_file: str | None,
+          psf_shapes: str | None,
           light: str | None, grey: bool,
           split: str, max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
           png_compression: int | None, shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
     from dualpixel.optics.camera import load_camera
-    from dualpixel.optics.noise import PAPER_NOISE_SIGMAS
-    from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
+    from dualpixel.synthesis.dataset import SynthConfig, synthesis_settings, synthesize_dataset
 
-    sigmas = PAPER_NOISE_SIGMAS
-    if noise_sigmas:
-        sigmas = tuple(noise_sigmas)
+    settings = synthesis_settings(settings_name)
     if old_lens_sets is not None:
         if lens_sets is not None:
             raise click.BadParameter("give --lens-sets only (--cameras is its old name)",
@@ -161,13 +166,17 @@ def synth(input_dir: Path, fmt: str, output: Path, lens_sets: str | None,
         warnings.warn(f"--cameras is now --lens-sets; the old name goes in release "
                       f"{RENAMED_UNTIL}", FutureWarning, stacklevel=1)
         lens_sets = old_lens_sets
-    lens_sets = lens_sets or "set0,set1,set2,set3,set4"
+    if lens_sets is not None:
+        settings["lens_sets"] = tuple(c.strip() for c in lens_sets.split(",") if c.strip())
+    for key, value in (("psf_bank", psf_bank), ("noise_model", noise_model),
+                       ("noise_sigmas", tuple(noise_sigmas) if noise_sigmas else None)):
+        if value is not None:
+            settings[key] = value
     config = SynthConfig(
-        lens_sets=tuple(c.strip() for c in lens_sets.split(",") if c.strip()),
-        psf_model=psf_model, psf_bank=psf_bank, max_layers=layers, render_mode=render_mode,
+        **settings,
+        psf_model=psf_model, max_layers=layers, render_mode=render_mode,
         bit_depth=int(bit_depth),
-        noise=noise,
-        noise_model=noise_model, noise_sigmas=sigmas, distortion=distortion, seed=seed,
+        noise=noise, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
         camera=None if camera_file is None else load_camera(camera_file).to_dict(),
         psf_shapes=psf_shapes, light=light, grey=grey,
