@@ -442,3 +442,35 @@ def test_validation_keeps_the_training_memory_format(tiny_synthetic_dataset, mem
     assert score == score and model.training  # a number (not NaN), back in training mode
     weight = next(p for p in model.parameters() if p.ndim == 4 and p.shape[-1] > 1)
     assert weight.is_contiguous(memory_format=memory)
+
+
+def test_the_fused_optimiser_takes_the_steps_of_the_loop():
+    from dualpixel.training.config import TrainConfig
+    from dualpixel.training.trainer import make_optimizer
+
+    torch.manual_seed(0)
+    nets = [build_model("rdpd", width=0.125, residual=True, refiner=[4, 8], lstm_dropout=0.0)
+            for _ in range(2)]
+    nets[1].load_state_dict(nets[0].state_dict())
+    config = TrainConfig(synthetic_data="unused", refiner=[4, 8], learning_rate=1e-3)
+    fused = make_optimizer(nets[0], config, torch.device("cpu"))
+    loop = torch.optim.Adam(_groups_of(fused, nets[0], nets[1]), lr=config.learning_rate,
+                            foreach=False)
+    assert fused.defaults["fused"] is True
+    x = torch.rand(1, 2, 7, 32, 32)
+    for _ in range(3):
+        for net, optimizer in zip(nets, (fused, loop), strict=True):
+            optimizer.zero_grad()
+            net(x)[0].square().mean().backward()
+            optimizer.step()
+    for a, b in zip(nets[0].parameters(), nets[1].parameters(), strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-6)
+
+
+def _groups_of(optimizer, source, target):
+    """``optimizer``'s parameter groups of ``source``, mapped onto ``target``'s parameters."""
+    index = {id(p): k for k, p in enumerate(source.parameters())}
+    params = list(target.parameters())
+    return [{k: v for k, v in g.items() if k not in ("params", "fused", "foreach")}
+            | {"params": [params[index[id(p)]] for p in g["params"]]}
+            for g in optimizer.param_groups]
