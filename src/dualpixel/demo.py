@@ -261,7 +261,7 @@ def _intro(mode, checkpoint, draw, count, seconds, timings) -> str:
         draw_info = draw.describe()
         cam, psf = draw_info["camera"], draw_info["psf"]
         distortion = draw_info["distortion"]["name"] if draw_info["distortion"] else "off"
-        text += (f"Synthesis: camera {cam['name']} (f = {cam['focal_length']:g} m, "
+        text += (f"Synthesis: lens set {cam['name']} (f = {cam['focal_length']:g} m, "
                  f"f/{cam['f_number']:g}, focused at {cam['focus_distance']:.2f} m), PSF n = "
                  f"{psf['n']}, "
                  f"alpha = {psf['alpha']}, beta = {psf['beta']}, kappa = {psf['kappa']}, "

@@ -100,6 +100,48 @@ def test_full_disk_names_the_path(tmp_path):
     assert not list(tmp_path.iterdir())  # nothing half-written left behind
 
 
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 64 KiB file system, filled (a tmpfs; skipped where this user may not mount one)."""
+    import subprocess
+
+    folder = tmp_path / "full"
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)],
+                             capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a small file system here")
+    try:
+        (folder / "fill").write_bytes(b"x" * 60_000)
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=False)
+
+
+@pytest.mark.parametrize("command", [
+    ["deblur", "--left", "{v}/l.png", "--right", "{v}/r.png", "--output", "{f}/out.png",
+     "--checkpoint", "{c}"],
+    ["psf", "--output", "{f}/psf.png", "--radii=-12,12"],
+    ["pattern", "--kind", "disks", "--size", "640x480", "--spacing", "60", "--output",
+     "{f}/p.png"],
+    ["scenes", "--output", "{f}/scenes", "--sequences", "1", "--frames", "1", "--size", "96x64"],
+])
+def test_a_full_disk_names_the_output_and_leaves_nothing_half_written(command, full_disk,
+                                                                      tiny_checkpoint, tmp_path):
+    views = tmp_path / "views"
+    views.mkdir()
+    rng = np.random.default_rng(0)
+    for name in ("l", "r"):
+        cv2.imwrite(str(views / f"{name}.png"), rng.integers(0, 255, (64, 96, 3), np.uint8))
+    args = [a.format(v=views, f=full_disk, c=tiny_checkpoint) for a in command]
+    result = invoke(*args)
+    assert result.exit_code == 1, result.output
+    assert "no space left on device" in result.output and str(full_disk) in result.output
+    assert "Traceback" not in result.output
+    leftovers = [p.name for p in full_disk.rglob("*") if p.is_file() and p.name != "fill"]
+    assert not [n for n in leftovers if "tmp" in n or "partial" in n], leftovers
+
+
 def test_eval_refuses_an_output_file_before_evaluating(files, tmp_path):
     (tmp_path / "report").write_text("a file")
     assert_clear(invoke("eval", "--dataset", files, "--output", tmp_path / "report"), 2,

@@ -81,11 +81,22 @@ def _paths_of(ctx: click.Context) -> tuple[dict[str, list[Path]], dict[str, Path
     return inputs, outputs
 
 
+#: The package's folder: warnings raised from code in it are the library's own.
+_PACKAGE = str(Path(__file__).resolve().parents[1])
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """``warnings.showwarning`` for the command: the message alone, above progress bars."""
+    """``warnings.showwarning`` for the command: the library's warnings as their message alone,
+    above progress bars; other packages' notices of their own API changes (deprecations) are
+    not the user's to act on and are left out; anything else as Python prints it."""
     from tqdm import tqdm
 
-    tqdm.write(f"Warning: {message}", file=sys.stderr)
+    if str(filename).startswith(_PACKAGE):
+        tqdm.write(f"Warning: {message}", file=sys.stderr)
+    elif not issubclass(category, (DeprecationWarning, PendingDeprecationWarning,
+                                   FutureWarning)):
+        tqdm.write(warnings.formatwarning(message, category, filename, lineno, line).rstrip(),
+                   file=sys.stderr)
 
 
 class DPCommand(click.Command):
