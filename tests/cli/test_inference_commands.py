@@ -194,6 +194,19 @@ def test_export_command(checkpoint, tmp_path):
     assert (tmp_path / "m.onnx").stat().st_size > 1000
 
 
+def test_export_at_a_size_that_cannot_fit_is_refused_before_tracing(checkpoint, tmp_path,
+                                                                     monkeypatch):
+    import dualpixel.memory
+
+    monkeypatch.setattr(dualpixel.memory, "available_memory", lambda: 8 * 1024**3)
+    result = run("export", "--checkpoint", checkpoint, "--output", tmp_path / "m.onnx",
+                 "--size", "16384x16384")
+    assert result.exit_code == 2, result.output
+    assert "exporting at 16384x16384 needs about" in result.output
+    assert "8.0 GiB is available" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "m.onnx").exists()
+
+
 def test_deblur_never_overwrites_its_inputs(checkpoint, tiny_synthetic_dataset, tmp_path):
     """Issue #34: an output that is an input, or a folder holding one, is refused before any
     work (symlinks resolved); one-frame sequences with repeated frame names keep apart."""

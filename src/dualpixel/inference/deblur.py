@@ -65,7 +65,7 @@ from dualpixel.inference.overshoot import DEFAULT_OVERSHOOT, check_overshoot, li
 from dualpixel.inference.precision import Precision, resolve_precision
 from dualpixel.inference.tiling import MAX_BATCH, TileGrid, deblur_tiled
 from dualpixel.memory import GIB, available_memory
-from dualpixel.models.unet import DeblurNet
+from dualpixel.models.unet import DeblurNet, pass_memory
 
 #: Smallest tile and overlap (px) whose output matches whole-frame deblurring closely: below
 #: them a tile's border sees too little of the image, and outputs change by tens of levels.
@@ -96,22 +96,6 @@ def default_overlap(tile: int) -> int:
     (64, 32)
     """
     return min(DEFAULT_OVERLAP, tile // 2 // 16 * 16)
-
-
-def pass_memory(model: DeblurNet, pixels: int) -> int:
-    """Bytes one network pass over ``pixels`` (members x height x width) takes at its peak, in
-    float32, with margin: 20 bytes per channel of the first encoder and refiner level, plus 128
-    for the frame's input and output. Measured peaks on the CPU: the default model (16 + 32
-    channels) 650-800 bytes a pixel at 1620x980 and 840x512, estimated 1088; rdpd-wide
-    (32 + 32) 1230, estimated 1408.
-
-    >>> from dualpixel.models import build_model
-    >>> pass_memory(build_model("rdpd", width=0.5, refiner=(32, 64, 128)), 1000)
-    1088000
-    """
-    shape = model.shape
-    channels = shape.encoder[0] + (shape.refiner[0] if shape.refiner else 0)
-    return (20 * channels + 128) * pixels
 
 
 def load_sequence_frames(sequence: DPSequence) -> list[dict[str, np.ndarray]]:

@@ -22,7 +22,8 @@ from torch import nn
 
 from dualpixel.errors import ParameterError
 from dualpixel.io.atomic import atomic_path
-from dualpixel.models.unet import SIZE_MULTIPLE, DeblurNet
+from dualpixel.memory import require_memory
+from dualpixel.models.unet import SIZE_MULTIPLE, DeblurNet, pass_memory
 
 __all__ = ["METADATA_KEY", "export_onnx", "graph_metadata", "run_onnx", "state_shape"]
 
@@ -77,6 +78,10 @@ def export_onnx(
     traced at batch 1 keeps it at 1)."""
     if batch < 1:
         raise ParameterError(f"batch must be >= 1, got {batch}")
+    # tracing runs the network once at this size, with the input beside it: refused up front
+    require_memory(pass_memory(model, batch * height * width)
+                   + 4 * model.shape.in_channels * batch * height * width,
+                   f"exporting at {width}x{height}")
     check_export_packages()
     model = model.cpu().eval()
     x = torch.rand(batch, model.shape.in_channels, height, width)

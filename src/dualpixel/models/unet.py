@@ -31,7 +31,7 @@ from dualpixel.models.padding import SIZE_MULTIPLE, pad_to_multiple
 from dualpixel.models.refiner import Refiner
 from dualpixel.models.spec import ModelSpec
 
-__all__ = ["SIZE_MULTIPLE", "DeblurNet", "NetworkShape", "pad_to_multiple"]
+__all__ = ["SIZE_MULTIPLE", "DeblurNet", "NetworkShape", "pad_to_multiple", "pass_memory"]
 
 
 @dataclass(frozen=True)
@@ -248,3 +248,19 @@ class DeblurNet(nn.Module):
             out, state = self.step(frames[:, t], state)
             outputs.append(out)
         return torch.stack(outputs, dim=1), state
+
+
+def pass_memory(model: DeblurNet, pixels: int) -> int:
+    """Bytes one network pass over ``pixels`` (members x height x width) takes at its peak, in
+    float32, with margin: 20 bytes per channel of the first encoder and refiner level, plus 128
+    for the frame's input and output. Measured peaks on the CPU: the default model (16 + 32
+    channels) 650-800 bytes a pixel at 1620x980 and 840x512, estimated 1088; rdpd-wide
+    (32 + 32) 1230, estimated 1408.
+
+    >>> from dualpixel.models.registry import build_model
+    >>> pass_memory(build_model("rdpd", width=0.5, refiner=(32, 64, 128)), 1000)
+    1088000
+    """
+    shape = model.shape
+    channels = shape.encoder[0] + (shape.refiner[0] if shape.refiner else 0)
+    return (20 * channels + 128) * pixels
