@@ -474,3 +474,11 @@ def _groups_of(optimizer, source, target):
     return [{k: v for k, v in g.items() if k not in ("params", "fused", "foreach")}
             | {"params": [params[index[id(p)]] for p in g["params"]]}
             for g in optimizer.param_groups]
+
+
+def test_a_runs_thread_count_does_not_outlive_it(tiny_synthetic_dataset, tmp_path):
+    before = torch.get_num_threads()
+    other = 1 if before != 1 else 2
+    train(tiny_config(tiny_synthetic_dataset, epochs=1, threads=other), tmp_path / "run",
+          progress=False)
+    assert torch.get_num_threads() == before

@@ -313,8 +313,12 @@ class Trainer:
         from dualpixel.io.lock import folder_lock
 
         # one writer per run folder (the main process; torchrun's others write nothing)
-        with folder_lock(self.output, "train") if self.main else contextlib.nullcontext():
-            return self._run()
+        threads = torch.get_num_threads()
+        try:
+            with folder_lock(self.output, "train") if self.main else contextlib.nullcontext():
+                return self._run()
+        finally:  # ``threads`` sets torch's for the run only, not for the caller afterwards
+            torch.set_num_threads(threads)
 
     def _run(self) -> TrainResult:
         self.check_folder()
