@@ -184,3 +184,40 @@ def test_import_writes_a_dpdd_folder_deblur_reads(scene, tmp_path, monkeypatch):
 
     pairs = discover_dp_dataset(tmp_path / "dp", "test", require_target=False)
     assert len(pairs) == 2 and all(p.frames[0].combined is not None for p in pairs)
+
+
+def test_clipped_highlights_take_b_from_a_and_are_flagged(scene):
+    raw = _raw_of(scene["left"], scene["right"])
+    combined = raw.combined.copy()
+    combined[:8, :] = WHITE  # the sum clipped in the top rows, A not
+    clipped = DualPixelRaw(**{**vars(raw), "combined": combined})
+    a_view, b_view, _ = split_dual_pixel(clipped)
+    np.testing.assert_array_equal(b_view[:8], a_view[:8])  # estimated from A, not (W - A)
+    views = develop_views(clipped, a_view="left")
+    assert views.clipped == pytest.approx(8 / raw.combined.shape[0], rel=0.05)
+    assert develop_views(raw, a_view="left").clipped == 0.0
+
+
+def test_import_scales_down_and_warns_on_clipping_and_on_full_size_frames(scene, tmp_path,
+                                                                          monkeypatch):
+    import dualpixel.data.dpraw as dpraw
+
+    raw = _raw_of(scene["left"], scene["right"])
+    combined = raw.combined.copy()
+    combined[:8, :] = WHITE
+    clipped = DualPixelRaw(**{**vars(raw), "combined": combined})
+    monkeypatch.setattr(dpraw, "read_dual_pixel_raw", lambda path: clipped)
+    with pytest.warns(UserWarning, match=r"one\.CR2: .* % of the frame is clipped"):
+        [(_, views)] = dpraw.import_dual_pixel_raws([tmp_path / "one.CR2"], tmp_path / "dp",
+                                                    scale=0.5, a_view="left")
+    height, width = scene["left"].shape[:2]
+    assert views.left.shape == (height // 2, width // 2, 3)
+    full = np.tile(raw.combined, (1, 40))  # a frame wider than twice the training width
+    wide = DualPixelRaw(**{**vars(raw), "combined": full, "a_only": np.tile(raw.a_only, (1, 40))})
+    monkeypatch.setattr(dpraw, "read_dual_pixel_raw", lambda path: wide)
+    monkeypatch.setattr(dpraw, "develop_views", lambda *a, **k: views)  # the size alone matters
+    with pytest.warns(UserWarning, match=r"wide\.CR2: a \d+-px frame carries about .* --scale"):
+        dpraw.import_dual_pixel_raws([tmp_path / "wide.CR2"], tmp_path / "dp2", a_view="left")
+    with pytest.raises(ParameterError, match="scale must be in"):
+        dpraw.import_dual_pixel_raws([tmp_path / "x.CR2"], tmp_path / "dp3", scale=0.0)
+    assert not (tmp_path / "dp3").exists()

@@ -6,12 +6,20 @@ the A sub-pixels alone; LibRaw reaches the second with ``shot_select=1`` (rawpy 
 
 The development is deliberately simple and documented, the same for all three images:
 
-1. black level subtracted, scaled by the white level to [0, 1] (linear);
+1. black level subtracted, scaled by the white level to [0, 1] (linear); where the combined
+   frame clipped and A did not, B = (A+B) - A is too dark, and B is estimated as A there (the
+   two halves of a pixel see nearly the same light in highlights; :attr:`DualPixelViews.clipped`
+   says on what share of the frame, and the import warns);
 2. the views doubled, so that each is as bright as the combined image (the DPDD convention the
    models are trained on: the combined image is the views' mean);
 3. the camera's white balance (as shot) per colour site, clipped to [0, 1];
 4. demosaicing (OpenCV, edge-aware bilinear), no colour matrix;
-5. the sRGB transfer curve, the encoding of the photographs the training data is made from.
+5. the sRGB transfer curve, the encoding of the photographs the training data is made from;
+6. optionally (``scale`` < 1) an area-averaging downscale: the shipped models were trained on
+   the blur of 840- to 1680-px-wide frames, and a full 6720-px frame of a 30 MP camera carries
+   four to eight times that blur (the import warns on frames over :data:`MODEL_WIDTH` x 2).
+
+CR3 files (EOS R, R5 and later) are not supported: only CR2 Dual Pixel RAW has been read here.
 
 Which of A and B is the left view is decided by measurement (``a_view="auto"``): in most
 photographs the defocused content lies behind the focus plane, where the right view shows it
@@ -47,6 +55,10 @@ __all__ = [
 ]
 
 A_VIEWS = ("auto", "left", "right")
+#: Widest frames (px) the shipped models' training blur was made for.
+MODEL_WIDTH = 1680
+#: A raw value at or above this share of the white level counts as clipped.
+CLIP_LEVEL = 0.995
 _LIBRAW_FLIP_TO_EXIF = {0: 1, 3: 3, 5: 8, 6: 6}
 #: OpenCV's demosaicing code for each 2x2 pattern (OpenCV names it from the second row).
 _DEMOSAIC = {"RGGB": cv2.COLOR_BayerBG2RGB_EA, "BGGR": cv2.COLOR_BayerRG2RGB_EA,
@@ -80,6 +92,7 @@ class DualPixelViews:
     combined: np.ndarray
     a_view: str  # "left" or "right": which view the A sub-pixels gave
     evidence: str  # how a_view was decided
+    clipped: float = 0.0  # share of the frame where A+B clipped and A did not (B estimated)
 
 
 def _rawpy():
@@ -145,8 +158,16 @@ def split_dual_pixel(raw: DualPixelRaw) -> tuple[np.ndarray, np.ndarray, np.ndar
     combined = np.clip((raw.combined - black) / scale, 0.0, None)
     a_only = np.clip((raw.a_only - black) / scale, 0.0, None)
     b_only = np.clip(combined - a_only, 0.0, None)
+    clipped = _clipped_sites(raw)
+    b_only[clipped] = a_only[clipped]  # the sum clipped: B from A, not from the clipped sum
     return (2.0 * a_only).astype(np.float32), (2.0 * b_only).astype(np.float32), \
         combined.astype(np.float32)
+
+
+def _clipped_sites(raw: DualPixelRaw) -> np.ndarray:
+    """Sites where the combined frame reached the white level and the A frame did not."""
+    level = CLIP_LEVEL * raw.white_level
+    return (raw.combined >= level) & (raw.a_only < level)
 
 
 def develop_mosaic(mosaic: np.ndarray, pattern: str,
@@ -165,13 +186,18 @@ def develop_mosaic(mosaic: np.ndarray, pattern: str,
     return linear_to_srgb_array(rgb)
 
 
-def develop_views(raw: DualPixelRaw, *, a_view: str = "auto") -> DualPixelViews:
+def develop_views(raw: DualPixelRaw, *, a_view: str = "auto", scale: float = 1.0
+                  ) -> DualPixelViews:
     """Left, right and combined images of a DPRAW capture; ``a_view``: ``"left"``, ``"right"``
-    or ``"auto"`` (by measurement, see the module docstring)."""
+    or ``"auto"`` (by measurement, see the module docstring); ``scale`` in (0, 1]: the images'
+    size as a fraction of the frame's (area-averaged)."""
     if a_view not in A_VIEWS:
         raise ParameterError(f"a_view must be one of {', '.join(A_VIEWS)}, got {a_view!r}")
+    if not 0.0 < scale <= 1.0:
+        raise ParameterError(f"scale must be in (0, 1], got {scale}")
     a_mosaic, b_mosaic, combined_mosaic = split_dual_pixel(raw)
-    a_image, b_image, combined = (develop_mosaic(m, raw.pattern, raw.white_balance)
+    a_image, b_image, combined = (_resized(develop_mosaic(m, raw.pattern, raw.white_balance),
+                                           scale)
                                   for m in (a_mosaic, b_mosaic, combined_mosaic))
     if a_view == "auto":
         counts = defocus_shift_counts(a_image, b_image)
@@ -185,17 +211,30 @@ def develop_views(raw: DualPixelRaw, *, a_view: str = "auto") -> DualPixelViews:
     else:
         evidence = f"A as the {a_view} view, as asked"
     left, right = (a_image, b_image) if a_view == "left" else (b_image, a_image)
-    return DualPixelViews(left, right, combined, a_view, evidence)
+    return DualPixelViews(left, right, combined, a_view, evidence,
+                          float(_clipped_sites(raw).mean()))
+
+
+def _resized(image: np.ndarray, scale: float) -> np.ndarray:
+    if scale == 1.0:
+        return image
+    height, width = image.shape[:2]
+    size = (max(1, round(width * scale)), max(1, round(height * scale)))
+    return cv2.resize(image, size, interpolation=cv2.INTER_AREA)
 
 
 def import_dual_pixel_raws(
     paths: list[Path], output: str | Path, *, split: str = "test", a_view: str = "auto",
-    suffix: str = ".png", progress: bool = False,
+    suffix: str = ".png", progress: bool = False, scale: float = 1.0,
 ) -> list[tuple[Path, DualPixelViews]]:
     """Develop DPRAW files into a DPDD-layout folder (``{split}_l/source``, ``{split}_r/source``,
     ``{split}_c/source``; 16-bit, the file's orientation in EXIF), ready for ``dualpixel deblur
     --input``. Each file's three images are written atomically once it is developed; a bad file
-    stops the import with an error naming it. Returns each source with its views."""
+    stops the import with an error naming it. Warns, naming the file, when over 0.1 % of a frame
+    had clipped highlights (B estimated there) and when a frame is wider than twice
+    :data:`MODEL_WIDTH` at ``scale`` 1. Returns each source with its views."""
+    import warnings
+
     from dualpixel.io.atomic import check_writable
     from dualpixel.io.images import check_image_path, write_png
     from dualpixel.io.metadata import ImageMetadata
@@ -207,6 +246,8 @@ def import_dual_pixel_raws(
         raise ParameterError("two raw files share a name; import them into separate folders")
     folders = {role: output / f"{split}_{role}" / "source" for role in ("l", "r", "c")}
     check_image_path(folders["l"] / f"probe{suffix}")
+    if not 0.0 < scale <= 1.0:  # before any folder is made
+        raise ParameterError(f"scale must be in (0, 1], got {scale}")
     made = [f for folder in folders.values() for f in (folder, folder.parent, output)
             if not f.exists()]  # removed again, empty, if the import fails
     for folder in folders.values():
@@ -215,7 +256,17 @@ def import_dual_pixel_raws(
     try:
         for path in progress_bar(paths, desc="developing", unit="file", enabled=progress):
             raw = read_dual_pixel_raw(path)  # one at a time: 30 MP frames are large
-            views = develop_views(raw, a_view=a_view)
+            views = develop_views(raw, a_view=a_view, scale=scale)
+            width = raw.combined.shape[1]
+            if scale == 1.0 and width > 2 * MODEL_WIDTH:
+                warnings.warn(f"{path}: a {width}-px frame carries about "
+                              f"{width / MODEL_WIDTH:.0f}x the blur the shipped models were "
+                              f"trained on; import with --scale {MODEL_WIDTH / width:.2f} for "
+                              "them", stacklevel=2)
+            if views.clipped > 0.001:
+                warnings.warn(f"{path}: {100 * views.clipped:.1f} % of the frame is clipped in "
+                              "the combined exposure but not in A; the B view is estimated "
+                              "from A there", stacklevel=2)
             metadata = ImageMetadata.from_orientation(raw.orientation)
             for role, image in (("l", views.left), ("r", views.right), ("c", views.combined)):
                 write_png(folders[role] / f"{Path(path).stem}{suffix}", image, bit_depth=16,
