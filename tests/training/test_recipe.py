@@ -167,6 +167,10 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
     ({"ship": {"tag": "Tiny"}}, "ship: tag .* is not ARCHITECTURE.vN"),
     ({"ship": {"tag": "../x.v1"}}, "ship: .*plain name"),
     ({"ship": {"tag": "x.v1", "output": {"flips": "yes"}}}, "ship output flips: .yes. is not"),
+    ({"train": {"architecture": "rdpd-huge", "synthetic_data": "synth"}},
+     "architecture must be one of rdpd-light"),
+    ({"train": {"architecture": "rdpd-light", "width": 1.0, "synthetic_data": "synth"}},
+     "architecture rdpd-light sets width; give one or the other"),
     ({"phases": [{"name": "first", "set": {"workers": 12}}]},
      "phase first: workers: machine settings are not part of a model's recipe.*--loader-workers"),
     ({"train": {"model": "rdpd", "synthetic_data": "synth", "frame_store": "runs/x"}},
@@ -181,6 +185,19 @@ def test_bad_recipes_are_refused_before_any_work(tmp_path, changes, message):
     assert str(path) in result.output or "tiny.yaml" in result.output
     assert re.search(message, result.output), result.output
     assert not (tmp_path / "run").exists()
+
+
+def test_architecture_by_its_registry_name_stands_for_its_keys(tmp_path):
+    from dualpixel.training.recipe import phase_config
+
+    path = _tiny_recipe(tmp_path, train={
+        "architecture": "rdpd-light", "synthetic_data": "synth", "val_data": "synth",
+        "val_split": "train", **{k: v for k, v in TINY_PHASE.items() if k != "width"}})
+    recipe = load_recipe(path)
+    first = phase_config(recipe, 0, tmp_path / "run", None)
+    assert (first.model, first.width, first.residual, first.refiner) == (
+        "rdpd", 0.5, True, [32, 64, 128])
+    assert phase_config(recipe, 1, tmp_path / "run", "w").refiner == [4, 8]  # the phase's own
 
 
 def test_a_recipe_with_the_old_name_of_lens_sets_is_read_with_a_warning(tmp_path):

@@ -9,7 +9,9 @@ with phases inside it) holds:
   ``input``, a step's name or a folder, and ``format``; ``camera`` is a shipped camera's name
   (:mod:`dualpixel.cameras`) or a camera file, relative to the recipe). Step NAME writes
   ``OUTPUT/data/NAME``;
-- ``train``: :class:`TrainConfig` keys shared by every phase, except the machine settings
+- ``train``: :class:`TrainConfig` keys shared by every phase (``architecture: rdpd-light``, a
+  name of :data:`~dualpixel.models.spec.ARCHITECTURES`, stands for its model, width, residual
+  and refiner keys; a phase may name another), except the machine settings
   (:data:`MACHINE_SETTINGS`: loader workers, threads, device, caches), which are the
   ``machine`` argument of :func:`reproduce` (``dualpixel reproduce`` options), never part of a
   model's recipe: they change how fast a run goes, not what it makes. In the data keys
@@ -334,7 +336,8 @@ def phase_config(recipe: Recipe, index: int, output: Path, init_weights: str | N
     """The :class:`TrainConfig` of phase ``index`` (shared settings, then the phase's)."""
     from dualpixel.training.config import load_config
 
-    values = {**recipe.train, **recipe.phases[index].settings}
+    values = _architecture_keys(recipe.train)
+    values.update(_architecture_keys(recipe.phases[index].settings))
     if "init_weights" in values:
         raise ParameterError("init_weights is set by the phase's init (previous, none or a tag)")
     for key in _DATA_KEYS:
@@ -342,6 +345,27 @@ def phase_config(recipe: Recipe, index: int, output: Path, init_weights: str | N
             values[key] = _data_folder(recipe, output, values[key])
     values["init_weights"] = init_weights
     return load_config(None, values)
+
+
+def _architecture_keys(settings: dict[str, Any]) -> dict[str, Any]:
+    """``settings`` with ``architecture: NAME`` replaced by that architecture's keys; a key
+    given beside it with another value is refused."""
+    from dualpixel.models.spec import ARCHITECTURES
+
+    settings = dict(settings)
+    if "architecture" not in settings:
+        return settings
+    name = str(settings.pop("architecture"))
+    if name not in ARCHITECTURES:
+        raise ParameterError(f"architecture must be one of {', '.join(ARCHITECTURES)}, got "
+                             f"{name!r}")
+    keys = {k: list(v) if isinstance(v, tuple) else v for k, v in ARCHITECTURES[name].items()}
+    keys.setdefault("refiner", None)  # an architecture without one has none
+    clash = [k for k, v in keys.items() if k in settings and settings[k] != v]
+    if clash:
+        raise ParameterError(f"architecture {name} sets {', '.join(clash)}; give one or the "
+                             "other")
+    return {**settings, **keys}
 
 
 def check_recipe(recipe: Recipe, output: Path = Path("OUTPUT")) -> None:
