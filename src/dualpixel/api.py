@@ -170,7 +170,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
 def _old_camera_arguments(lens_set: str, camera: Any, camera_file: Any) -> tuple[str, Any]:
     """``(lens_set, camera)`` with the arguments' old meanings taken, with a warning: before
     release 0.2, ``camera`` named the lens set and ``camera_file`` the calibrated camera."""
-    from dualpixel.names import RENAMED_UNTIL
+    from dualpixel.names import RENAMED_UNTIL, warn_renamed
     from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES
 
     if isinstance(camera, str) and camera in (*CAMERA_PRESETS, *DEFOCUS_PROFILES):
@@ -181,8 +181,7 @@ def _old_camera_arguments(lens_set: str, camera: Any, camera_file: Any) -> tuple
     if camera_file is not None:
         if camera is not None:
             raise ParameterError("give camera only (camera_file is its old name)")
-        warnings.warn(f"synthesize(camera_file=...) is now camera=...; the old name goes in "
-                      f"release {RENAMED_UNTIL}", FutureWarning, stacklevel=3)
+        warn_renamed("synthesize(camera_file=...)", "camera=...", stacklevel=3)
         camera = camera_file
     return lens_set, camera
 

@@ -26,7 +26,7 @@ from dualpixel.inference import Deblurrer
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import read_depth, read_rgb, write_png
 from dualpixel.models import load_model
-from dualpixel.names import renamed_keys
+from dualpixel.names import warn_renamed
 from dualpixel.progress import progress_bar
 from dualpixel.viz.comparison import render_comparison
 from dualpixel.viz.html_report import Figure, Report, write_html_report
@@ -119,7 +119,8 @@ def run_demo(
     what blurs a synthesised frame (``set0``..``set4`` or a profile such as ``dslr-840``);
     ``camera`` is its old name (until release 0.3)."""
     if camera is not None:
-        lens_set = renamed_keys({"cameras": camera}, "run_demo")["lens_sets"]
+        warn_renamed("run_demo(camera=...)", "lens_set=...", stacklevel=2)
+        lens_set = camera
     started = time.perf_counter()
     output = Path(output)
     output.mkdir(parents=True, exist_ok=True)

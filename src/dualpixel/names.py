@@ -6,7 +6,8 @@ from __future__ import annotations
 __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS",
            "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "OVERSHOOT_MODES", "PRECISIONS",
            "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RENAMED", "RENAMED_UNTIL",
-           "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES", "output_modes_suffix", "renamed_keys"]
+           "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES", "output_modes_suffix", "renamed_keys",
+           "warn_renamed"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -70,6 +71,15 @@ RENAMED: dict[str, str] = {"cameras": "lens_sets"}
 RENAMED_UNTIL = "0.3"
 
 
+def warn_renamed(old: str, new: str, where: str | None = None, *, stacklevel: int = 1) -> None:
+    """The warning for a setting, option or name given by its old name (``where`` prefixes the
+    message; ``stacklevel`` counts from the caller, as ``warnings.warn``'s does)."""
+    import warnings
+
+    warnings.warn(f"{where + ': ' if where else ''}{old} is now {new}; the old name goes in "
+                  f"release {RENAMED_UNTIL}", FutureWarning, stacklevel=stacklevel + 1)
+
+
 def renamed_keys(values: dict, where: str, *, warn: bool = True) -> dict:
     """``values`` with every old key of :data:`RENAMED` under its new name (a warning naming
     ``where`` unless ``warn`` is False, for files this library wrote before the rename).
@@ -77,8 +87,6 @@ def renamed_keys(values: dict, where: str, *, warn: bool = True) -> dict:
     >>> renamed_keys({"lens_sets": ["set1"], "seed": 3}, "a recipe")
     {'lens_sets': ['set1'], 'seed': 3}
     """
-    import warnings
-
     from dualpixel.errors import ParameterError
 
     values = dict(values)
@@ -88,7 +96,6 @@ def renamed_keys(values: dict, where: str, *, warn: bool = True) -> dict:
         if new in values:
             raise ParameterError(f"{where}: give {new} only ({old} is its old name)")
         if warn:
-            warnings.warn(f"{where}: {old} is now {new}; the old name goes in release "
-                          f"{RENAMED_UNTIL}", FutureWarning, stacklevel=3)
+            warn_renamed(old, new, where, stacklevel=3)
         values[new] = values.pop(old)
     return values

@@ -42,10 +42,13 @@ def demo(output: Path, checkpoint: str, left, right, target, rgb, depth, depth_s
          tile: int | None) -> None:
     """Synthesise, deblur with the shipped model, evaluate, and write an HTML report."""
     from dualpixel.demo import run_demo
+    from dualpixel.names import warn_renamed
 
+    if old_lens_set is not None:
+        warn_renamed("--camera", "--lens-set")
+        lens_set = old_lens_set
     result = run_demo(output, checkpoint=checkpoint, left=left, right=right, target=target,
                       rgb=rgb, depth=depth, depth_scale=depth_scale, lens_set=lens_set,
-                      camera=old_lens_set,
                       frames=frames, seed=seed, device=device, tile=tile)
     mean = result.metrics.get("mean")
     if mean:

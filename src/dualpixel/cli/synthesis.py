@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import click
@@ -13,9 +12,9 @@ from dualpixel.names import (
     PSF_BANK_NAMES,
     PSF_MODELS,
     PSF_SHAPE_SOURCES,
-    RENAMED_UNTIL,
     SCENE_LAYOUTS,
     SYNTH_SETTINGS_NAMES,
+    warn_renamed,
 )
 
 
@@ -163,8 +162,7 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         if lens_sets is not None:
             raise click.BadParameter("give --lens-sets only (--cameras is its old name)",
                                      param_hint="--cameras")
-        warnings.warn(f"--cameras is now --lens-sets; the old name goes in release "
-                      f"{RENAMED_UNTIL}", FutureWarning, stacklevel=1)
+        warn_renamed("--cameras", "--lens-sets")
         lens_sets = old_lens_sets
     if lens_sets is not None:
         settings["lens_sets"] = tuple(c.strip() for c in lens_sets.split(",") if c.strip())

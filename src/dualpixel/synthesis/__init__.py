@@ -12,11 +12,8 @@ _RENAMED = {"SequenceRecipe": "SequenceDraw", "draw_recipe": "draw_sequence"}
 
 def __getattr__(name: str):
     if name in _RENAMED:
-        import warnings
+        from dualpixel.names import warn_renamed
 
-        from dualpixel.names import RENAMED_UNTIL
-
-        warnings.warn(f"dualpixel.synthesis.{name} is now {_RENAMED[name]}; the old name goes "
-                      f"in release {RENAMED_UNTIL}", FutureWarning, stacklevel=2)
+        warn_renamed(f"dualpixel.synthesis.{name}", _RENAMED[name], stacklevel=2)
         return globals()[_RENAMED[name]]
     raise AttributeError(f"module 'dualpixel.synthesis' has no attribute {name!r}")
