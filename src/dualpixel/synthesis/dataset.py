@@ -29,7 +29,7 @@ import functools
 import json
 import os
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -76,29 +76,6 @@ from dualpixel.synthesis.layers import check_render_mode
 
 __all__ = ["SYNTH_SETTINGS", "SynthConfig", "merge_shards", "read_manifest", "synthesis_settings",
            "synthesize_dataset"]
-
-#: Named synthesis settings, each a set of :class:`SynthConfig` values. ``"paper"``: Sec. 3's
-#: (the five camera parameter sets, the 48 PSF shapes, its multiplicative noise of strength
-#: 0.05-0.5: about six times a real Canon photograph's). ``"shipped"``: what the shipped
-#: default model was trained on (``recipes/rdpd-light.yaml``: blur profiles dslr-840 and
-#: dslr-840-mild, PSF shapes around the Pixel 4 fits, Poisson-Gaussian noise of a real camera;
-#: a test holds them equal). ``synth`` and :func:`dualpixel.synthesize` start from "shipped";
-#: :class:`SynthConfig`'s own defaults, which recipes start from, are the paper's.
-SYNTH_SETTINGS: dict[str, dict] = {
-    "shipped": {"lens_sets": ("dslr-840", "dslr-840-mild"), "psf_bank": "pixel4",
-                "noise_model": "poisson-gaussian",
-                "noise_sigmas": (0.006, 0.009, 0.013, 0.018, 0.025)},
-    "paper": {"lens_sets": tuple(CAMERA_PRESETS), "psf_bank": "paper",
-              "noise_model": "multiplicative", "noise_sigmas": PAPER_NOISE_SIGMAS},
-}
-
-
-def synthesis_settings(name: str) -> dict:
-    """The :data:`SYNTH_SETTINGS` of ``name``, or a :class:`ParameterError` naming the choices."""
-    if name not in SYNTH_SETTINGS:
-        raise ParameterError(f"settings must be one of {', '.join(SYNTH_SETTINGS)}, got {name!r}")
-    return dict(SYNTH_SETTINGS[name])
-
 
 @dataclass(frozen=True)
 class SynthConfig:
@@ -192,6 +169,30 @@ class SynthConfig:
         if not data["grey"]:
             del data["grey"]
         return data
+
+
+#: Named synthesis settings, each a set of :class:`SynthConfig` values. ``"paper"``: Sec. 3's
+#: (the five camera parameter sets, the 48 PSF shapes, its multiplicative noise of strength
+#: 0.05-0.5: about six times a real Canon photograph's). ``"shipped"``: what the shipped
+#: default model was trained on (``recipes/rdpd-light.yaml``: blur profiles dslr-840 and
+#: dslr-840-mild, PSF shapes around the Pixel 4 fits, Poisson-Gaussian noise of a real camera;
+#: a test holds them equal). ``synth`` and :func:`dualpixel.synthesize` start from "shipped";
+#: :class:`SynthConfig`'s own defaults, which recipes start from, are the paper's.
+SYNTH_SETTINGS: dict[str, dict] = {
+    "shipped": {"lens_sets": ("dslr-840", "dslr-840-mild"), "psf_bank": "pixel4",
+                "noise_model": "poisson-gaussian",
+                "noise_sigmas": (0.006, 0.009, 0.013, 0.018, 0.025)},
+}
+#: "paper": SynthConfig's own defaults of the same settings (the paper's, as recipes start).
+SYNTH_SETTINGS["paper"] = {setting.name: setting.default for setting in fields(SynthConfig)
+                           if setting.name in SYNTH_SETTINGS["shipped"]}
+
+
+def synthesis_settings(name: str) -> dict:
+    """The :data:`SYNTH_SETTINGS` of ``name``, or a :class:`ParameterError` naming the choices."""
+    if name not in SYNTH_SETTINGS:
+        raise ParameterError(f"settings must be one of {', '.join(SYNTH_SETTINGS)}, got {name!r}")
+    return dict(SYNTH_SETTINGS[name])
 
 
 @dataclass(frozen=True)
