@@ -167,6 +167,12 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     return result
 
 
+#: The lens set :func:`synthesize` blurs one frame with when none is given, per settings: the
+#: shipped model's sharper profile, and the paper's set1 (this function's default before
+#: ``settings`` existed).
+_FRAME_LENS_SET = {"shipped": "dslr-840", "paper": "set1"}
+
+
 def _old_camera_arguments(lens_set: str, camera: Any, camera_file: Any) -> tuple[str, Any]:
     """``(lens_set, camera)`` with the arguments' old meanings taken, with a warning: before
     release 0.2, ``camera`` named the lens set and ``camera_file`` the calibrated camera."""
@@ -233,7 +239,7 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
     depth_map = check_depth_map(depth_map)
     lens_set, camera = _old_camera_arguments(lens_set, camera, camera_file)
     defaults = synthesis_settings(settings)
-    lens_set = lens_set or defaults["lens_sets"][0]
+    lens_set = lens_set or _FRAME_LENS_SET[settings]
     psf_bank = psf_bank or defaults["psf_bank"]
     noise_model = noise_model or defaults["noise_model"]
     noise_sigmas = defaults["noise_sigmas"] if noise_sigmas is None else tuple(noise_sigmas)

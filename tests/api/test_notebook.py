@@ -202,3 +202,7 @@ def test_the_guides_first_example_gains_with_the_shipped_model():
     gain = dualpixel.psnr(sharp, frame["target"]) - dualpixel.psnr(frame["combined"],
                                                                     frame["target"])
     assert gain > 0.5, gain
+    # the paper's settings, one option away: its set1 unless a lens set is named
+    paper = dualpixel.synthesize(rgb, depth, seed=0, settings="paper")
+    np.testing.assert_array_equal(paper["left"], dualpixel.synthesize(
+        rgb, depth, seed=0, settings="paper", lens_set="set1")["left"])
