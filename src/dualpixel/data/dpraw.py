@@ -193,8 +193,7 @@ def develop_views(raw: DualPixelRaw, *, a_view: str = "auto", scale: float = 1.0
     size as a fraction of the frame's (area-averaged)."""
     if a_view not in A_VIEWS:
         raise ParameterError(f"a_view must be one of {', '.join(A_VIEWS)}, got {a_view!r}")
-    if not 0.0 < scale <= 1.0:
-        raise ParameterError(f"scale must be in (0, 1], got {scale}")
+    _check_scale(scale)
     a_mosaic, b_mosaic, combined_mosaic = split_dual_pixel(raw)
     a_image, b_image, combined = (_resized(develop_mosaic(m, raw.pattern, raw.white_balance),
                                            scale)
@@ -213,6 +212,11 @@ def develop_views(raw: DualPixelRaw, *, a_view: str = "auto", scale: float = 1.0
     left, right = (a_image, b_image) if a_view == "left" else (b_image, a_image)
     return DualPixelViews(left, right, combined, a_view, evidence,
                           float(_clipped_sites(raw).mean()))
+
+
+def _check_scale(scale: float) -> None:
+    if not 0.0 < scale <= 1.0:
+        raise ParameterError(f"scale must be in (0, 1], got {scale}")
 
 
 def _resized(image: np.ndarray, scale: float) -> np.ndarray:
@@ -246,8 +250,7 @@ def import_dual_pixel_raws(
         raise ParameterError("two raw files share a name; import them into separate folders")
     folders = {role: output / f"{split}_{role}" / "source" for role in ("l", "r", "c")}
     check_image_path(folders["l"] / f"probe{suffix}")
-    if not 0.0 < scale <= 1.0:  # before any folder is made
-        raise ParameterError(f"scale must be in (0, 1], got {scale}")
+    _check_scale(scale)  # before any folder is made
     made = [f for folder in folders.values() for f in (folder, folder.parent, output)
             if not f.exists()]  # removed again, empty, if the import fails
     for folder in folders.values():
