@@ -245,3 +245,17 @@ def test_eval_runs_the_view_checks(shared_dir, tmp_path):
     assert result.exit_code == 0, result.output
     findings = json.loads((out / "summary.json").read_text())["view_findings"]
     assert [f["code"] for f in findings] == ["swapped"]
+
+
+def test_a_reference_is_a_method_or_a_checkpoint_checked_one_way():
+    from dualpixel.evaluation.target_free import method_settings, reference_method
+
+    named = method_settings(["rdpd-light", "rdpd-wide"], flips=[False])
+    assert reference_method(named, "rdpd-light") == "rdpd-light+tied"  # as it ships
+    assert reference_method(named, "rdpd-wide") == "rdpd-wide"
+    assert reference_method(named, "rdpd-light+tied") == "rdpd-light+tied"
+    several = method_settings(["rdpd-light"], overshoot=["limited", "model"])
+    with pytest.raises(ParameterError, match=r"several settings.*rdpd-light\+limited\+tied"):
+        reference_method(several, "rdpd-light")
+    with pytest.raises(ParameterError, match="not one of the checked models"):
+        reference_method(named, "rdpd-plus")

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, OutputPath, parse_size
+from dualpixel.errors import ParameterError
 from dualpixel.names import (
     ALIGN_MODE_NAMES,
     BACKENDS,
@@ -434,16 +435,19 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
         check_folder,
         method_settings,
         model_methods,
+        reference_method,
         write_target_free_report,
     )
     from dualpixel.inference.encoding import ViewEncoding
 
     passes = tuple(dict.fromkeys(f == "on" for f in flips)) or None
-    names = list(method_settings(checkpoints, brightness=brightness or None,
-                                 overshoot=overshoot or None, flips=passes))
-    if reference is not None and reference not in names:
-        raise click.BadParameter(f"{reference!r} is not one of the checked models "
-                                 f"({', '.join(names)})", param_hint="--reference")
+    named = method_settings(checkpoints, brightness=brightness or None,
+                            overshoot=overshoot or None, flips=passes)
+    if reference is not None:
+        try:
+            reference = reference_method(named, reference)
+        except ParameterError as error:
+            raise click.BadParameter(str(error), param_hint="--reference") from None
     view_encoding = ViewEncoding(encoding, black_level, white_level)
     methods = model_methods(checkpoints, device=device, encoding=view_encoding, tile=tile,
                             precision=precision, brightness=brightness or None,

@@ -44,6 +44,7 @@ from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 __all__ = [
     "TargetFreeReport", "check_deblurred", "check_folder", "check_model",
     "compare_to_reference", "markdown_table", "method_settings", "model_methods", "read_pairs",
+    "reference_method",
     "summarise_reports",
     "write_target_free_report",
 ]
@@ -300,6 +301,20 @@ def method_settings(checkpoints: Iterable[str], *, brightness: Iterable[str] | N
                     named[name] = (str(checkpoint), {"brightness": tie, "overshoot": limit,
                                                      "flips": flip})
     return named
+
+
+def reference_method(named: dict[str, tuple[str, dict[str, Any]]], reference: str) -> str:
+    """The method of :func:`method_settings`' ``named`` that ``reference`` stands for: a method
+    name, or a checkpoint checked with one combination of settings (``rdpd-light`` for
+    ``rdpd-light+tied``)."""
+    if reference in named:
+        return reference
+    matches = [name for name, (checkpoint, _) in named.items() if checkpoint == reference]
+    if len(matches) == 1:
+        return matches[0]
+    what = f"checked with several settings ({', '.join(matches)}); name one" if matches else \
+        f"not one of the checked models ({', '.join(named)})"
+    raise ParameterError(f"{reference!r} is {what}")
 
 
 def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
