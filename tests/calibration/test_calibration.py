@@ -18,6 +18,7 @@ from dualpixel.calibration import (
     square_grid_pattern,
 )
 from dualpixel.cli.main import cli
+from dualpixel.errors import ParameterError
 from dualpixel.optics.distortion import DISTORTION_PRESETS, distort_image, distort_points
 from dualpixel.optics.psf import PSFParams, dp_psf
 
@@ -143,3 +144,19 @@ def test_the_shipped_pixel4_camera_matches_its_measured_psfs():
     camera = load_camera("pixel4")
     assert camera.light == "linear" and camera.width == 2016
     assert 9 <= camera.coc_percentiles["p50"] <= 11  # the measured kernels' 10-px radius
+
+
+def test_disk_location_takes_one_row_and_refuses_a_capture_without_disks():
+    """One row of disks has no row spacing to measure, and dim specks are no disks: neither
+    may end in NumPy warnings or an index error."""
+    import warnings
+
+    grid = DiskGrid(320, 64, 64, 0.1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        found = locate_disks(disk_grid_pattern(grid))
+    np.testing.assert_allclose(found, grid.centres(), atol=0.05)
+    specks = np.zeros((64, 96))
+    specks[10, 10] = specks[40, 50] = 1.0  # single pixels: below the smallest disk area
+    with pytest.raises(ParameterError, match="no disks"):
+        locate_disks(specks)

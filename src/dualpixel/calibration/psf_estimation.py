@@ -82,9 +82,14 @@ def locate_disks(image: np.ndarray, *, min_area: int = 4) -> np.ndarray:
     index = np.arange(1, count + 1)
     areas = ndimage.sum_labels(np.ones_like(image), labels, index)
     weights = np.clip(image - np.median(image), 0, None)
-    centroids = np.array(ndimage.center_of_mass(weights, labels, index))[:, ::-1]
-    centroids = centroids[areas >= min_area]
-    spacing = np.median(np.diff(np.sort(np.unique(np.round(centroids[:, 1])))))
+    mass = ndimage.sum_labels(weights, labels, index)
+    found = (areas >= min_area) & (mass > 0)  # blobs no brighter than the median have no centre
+    centroids = np.array(ndimage.center_of_mass(weights, labels, index[found]),
+                         np.float64).reshape(-1, 2)[:, ::-1]
+    if len(centroids) == 0:
+        raise ParameterError(f"no disks of at least {min_area} px found in the capture")
+    row_heights = np.unique(np.round(centroids[:, 1]))
+    spacing = np.median(np.diff(row_heights)) if row_heights.size > 1 else 1.0
     rows = np.round((centroids[:, 1] - centroids[:, 1].min()) / max(spacing, 1.0))
     return centroids[np.lexsort((centroids[:, 0], rows))]
 
