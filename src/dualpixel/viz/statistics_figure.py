@@ -51,6 +51,14 @@ def render_statistics_figure(stats: list[DatasetStatistics], output: str | Path)
             ax.hist(values, bins=edges, density=True, histtype="step", linewidth=1.6,
                     color=colour, label=label)
             ax.axvline(float(np.median(values)), color=colour, linestyle="--", linewidth=1)
+        limits = {item.max_blur for item in stats if key == "blur" and item.blur.size
+                  and float(item.blur.max()) >= item.max_blur}
+        for limit in limits:  # blocks blurrier than the search reaches pile up here
+            ax.axvline(limit, color="grey", linestyle=":", linewidth=1)
+            ax.annotate(f"search limit {limit:g} px:\nblurrier blocks pile here", (limit, 1.0),
+                        xycoords=("data", "axes fraction"), xytext=(-4, -4),
+                        textcoords="offset points", ha="right", va="top", fontsize=7,
+                        color="grey")
         ax.set_title(title, fontsize=9)
         ax.set_yticks([])
     axes[0].legend(fontsize=7, loc="upper left")
