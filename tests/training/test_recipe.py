@@ -125,6 +125,10 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
     assert result.exit_code == 0, result.output
     assert (out / "phases/first/last.safetensors").is_file()
     assert not (out / "phases/second").exists()
+    # where the run stands: each data step and phase numbered, with the time so far
+    assert re.search(r"\[data 2/2, 0:\d\d:\d\d\] synth: synth", result.output), result.output
+    assert re.search(r"\[phase 1/1, 0:00:00 into the phases\] first", result.output)
+    assert re.search(r"phases done in 0:\d\d:\d\d", result.output)
     stamp = (out / "phases/first/last.safetensors").stat().st_mtime_ns
     dry = runner.invoke(cli, ["reproduce", str(recipe_path), "--output", str(out), "--dry-run"])
     assert dry.exit_code == 0, dry.output

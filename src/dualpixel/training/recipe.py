@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -521,15 +522,22 @@ def _claim_folder(recipe: Recipe, output: Path) -> None:
         tmp.write_text(json.dumps({"name": recipe.name, "recipe": str(recipe.path)}) + "\n")
 
 
+def _elapsed(started: float) -> str:
+    """Time since ``started`` (``time.monotonic()``) as h:mm:ss."""
+    seconds = int(time.monotonic() - started)
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
+
+
 def run_data(recipe: Recipe, output: Path, *, workers: int = 1, progress: bool = True,
              log=print) -> None:
     """Every data step (each resumes; a finished one is checked and skipped)."""
     from dualpixel.synthesis.dataset import synthesize_dataset
     from dualpixel.synthesis.scenes import write_scene_folder
 
-    for step in recipe.data:
+    started = time.monotonic()
+    for number, step in enumerate(recipe.data, 1):
         folder = output / "data" / step.name
-        log(f"data {step.name}: {step.kind}")
+        log(f"[data {number}/{len(recipe.data)}, {_elapsed(started)}] {step.name}: {step.kind}")
         if step.kind == "scenes":
             config, sequences, seed = scene_config(step)
             write_scene_folder(folder, sequences, config, seed=seed, workers=workers,
@@ -681,8 +689,13 @@ def _reproduce_locked(recipe: Recipe, output: Path, first: int, last: int, until
     steps = needed_steps(recipe, output, first, last)
     run_data(dataclasses.replace(recipe, data=steps), output, workers=workers,
              progress=progress, log=log)
-    folders = {i: run_phase(recipe, i, output, overrides=machine, progress=progress, log=log)
-               for i in range(first, last + 1)}
+    started, folders = time.monotonic(), {}
+    for i in range(first, last + 1):
+        log(f"[phase {i - first + 1}/{last - first + 1}, {_elapsed(started)} into the phases] "
+            f"{recipe.phases[i].name}")
+        folders[i] = run_phase(recipe, i, output, overrides=machine, progress=progress, log=log)
+    if last >= first:
+        log(f"phases done in {_elapsed(started)}")
     if until is not None or not recipe.ship:
         return None
     phase = recipe.shipped_phase
