@@ -118,6 +118,7 @@ class _FakeRaw:
         self.white_level = int(WHITE)
         self.camera_whitebalance = [4.0, 2.0, 3.0, 2.0]
         self.sizes = type("Sizes", (), {"flip": 6})()
+        self.color_matrix = np.eye(3, 4)  # camera RGB is sRGB here: the views stay as known
 
     def __enter__(self):
         return self
@@ -147,6 +148,7 @@ def test_two_frame_raw_through_the_import_path(scene, tmp_path, monkeypatch):
     raw = dpraw.read_dual_pixel_raw(tmp_path / "IMG_0001.CR2")
     assert raw.pattern == "RGGB" and raw.white_balance == (2.0, 1.0, 1.5)
     assert raw.orientation == 6
+    np.testing.assert_array_equal(raw.colour_matrix, np.eye(3))  # read with the frames
     a_view, b_view, _ = split_dual_pixel(raw)
     known_a, known_b, _ = split_dual_pixel(stored)
     assert np.array_equal(a_view, known_a) and np.array_equal(b_view, known_b)
@@ -221,3 +223,60 @@ def test_import_scales_down_and_warns_on_clipping_and_on_full_size_frames(scene,
     with pytest.raises(ParameterError, match="scale must be in"):
         dpraw.import_dual_pixel_raws([tmp_path / "x.CR2"], tmp_path / "dp3", scale=0.0)
     assert not (tmp_path / "dp3").exists()
+
+
+#: The Canon EOS 5D Mark IV's XYZ -> camera matrix (dcraw's table, x 10000).
+EOS_5D4 = (6446, -366, -864, -4436, 12204, 2513, -952, 2496, 6348)
+
+
+def _patch_dng(path, patch: int = 16) -> None:
+    """A DNG of flat camera-RGB patches (RGGB, black 512, white 15000) with the 5D Mark IV's
+    colour matrix and an as-shot neutral of (0.5, 1, 0.5), i.e. a white balance of (2, 1, 2)."""
+    rng = np.random.default_rng(1)
+    full = np.kron(rng.uniform(0.05, 0.45, (6, 8, 3)), np.ones((patch, patch, 1)))
+    counts = np.rint(BLACK + _mosaic(full) * (WHITE - BLACK)).astype(np.uint16)
+    colour = tuple(v for m in EOS_5D4 for v in (m, 10000))
+    with tifffile.TiffWriter(path) as tiff:
+        tiff.write(np.zeros((8, 12, 3), np.uint8), photometric="rgb", subfiletype=1, subifds=1,
+                   metadata=None, extratags=[
+                       (50706, "B", 4, (1, 4, 0, 0), True), (50708, "s", 0, "Test DP", True),
+                       (50721, "2i", 9, colour, True), (50728, "2I", 3, (1, 2, 1, 1, 1, 2), True),
+                       (274, "H", 1, 1, True)])
+        tiff.write(counts, photometric=32803, subfiletype=0, metadata=None, extratags=[
+            (33421, "H", 2, (2, 2), True), (33422, "B", 4, (0, 1, 1, 2), True),
+            (50714, "H", 1, int(BLACK), True), (50717, "H", 1, int(WHITE), True)])
+
+
+def test_colour_matrix_develops_as_libraw(tmp_path):
+    """A raw frame developed here (white balance, demosaic, the camera's colour matrix) holds
+    the colours LibRaw's own development gives it (rawpy's postprocess, linear sRGB)."""
+    import dataclasses
+    import types
+
+    rawpy = pytest.importorskip("rawpy")
+    from dualpixel.data.dpraw import camera_colour_matrix
+
+    _patch_dng(tmp_path / "patches.dng")
+    with rawpy.imread(str(tmp_path / "patches.dng")) as raw:
+        frame = raw.raw_image_visible.copy()
+        matrix = camera_colour_matrix(raw)
+        reference = raw.postprocess(
+            use_camera_wb=True, no_auto_bright=True, gamma=(1, 1), output_bps=16, user_flip=0,
+            output_color=rawpy.ColorSpace.sRGB, highlight_mode=rawpy.HighlightMode.Clip,
+            demosaic_algorithm=rawpy.DemosaicAlgorithm.LINEAR) / 65535.0
+    # the frame as the combined image of a capture whose two halves saw the same light
+    half = np.rint(BLACK + (frame - BLACK) / 2.0).astype(np.uint16)
+    capture = DualPixelRaw(frame, half, "RGGB", np.full((2, 2), BLACK), WHITE, (2.0, 1.0, 2.0),
+                           colour_matrix=matrix)
+    patches = lambda image: image.reshape(6, 16, 8, 16, 3)[:, 4:-4, :, 4:-4].mean(axis=(1, 3))  # noqa: E731
+    ours = patches(_linear(develop_views(capture, a_view="left").combined))
+    assert np.abs(ours - patches(reference)).max() < 1e-3
+    plain = patches(_linear(develop_views(dataclasses.replace(capture, colour_matrix=None),
+                                          a_view="left").combined))
+    assert np.abs(plain - patches(reference)).mean() > 0.02  # the matrix is what matches
+    # a file that gives only the XYZ -> camera matrix: the same matrix, by dcraw's rule
+    xyz_only = types.SimpleNamespace(color_matrix=np.zeros((3, 4)),
+                                     rgb_xyz_matrix=np.vstack((np.reshape(EOS_5D4, (3, 3)) / 1e4,
+                                                               np.zeros((1, 3)))))
+    np.testing.assert_allclose(camera_colour_matrix(xyz_only), matrix, atol=1e-4)
+    assert camera_colour_matrix(types.SimpleNamespace()) is None  # none given: none applied

@@ -13,7 +13,9 @@ The development is deliberately simple and documented, the same for all three im
 2. the views doubled, so that each is as bright as the combined image (the DPDD convention the
    models are trained on: the combined image is the views' mean);
 3. the camera's white balance (as shot) per colour site, clipped to [0, 1];
-4. demosaicing (OpenCV, edge-aware bilinear), no colour matrix;
+4. demosaicing (OpenCV, edge-aware bilinear), then the camera's colour matrix from white-balanced
+   camera RGB to linear sRGB, as LibRaw develops (its ``color_matrix`` for the file: the same
+   patch colours as ``rawpy``'s ``postprocess`` to 1e-4), clipped to [0, 1];
 5. the sRGB transfer curve, the encoding of the photographs the training data is made from;
 6. optionally (``scale`` < 1) an area-averaging downscale: the shipped models were trained on
    the blur of 840- to 1680-px-wide frames, and a full 6720-px frame of a 30 MP camera carries
@@ -47,6 +49,7 @@ from dualpixel.optics.tone import linear_to_srgb_array
 __all__ = [
     "DualPixelRaw",
     "DualPixelViews",
+    "camera_colour_matrix",
     "develop_mosaic",
     "develop_views",
     "import_dual_pixel_raws",
@@ -60,6 +63,9 @@ MODEL_WIDTH = 1680
 #: A raw value at or above this share of the white level counts as clipped.
 CLIP_LEVEL = 0.995
 _LIBRAW_FLIP_TO_EXIF = {0: 1, 3: 3, 5: 8, 6: 6}
+#: Linear sRGB (D65) -> CIE XYZ, as dcraw and LibRaw use it.
+_XYZ_FROM_SRGB = np.array([[0.412453, 0.357580, 0.180423], [0.212671, 0.715160, 0.072169],
+                           [0.019334, 0.119193, 0.950227]])
 #: OpenCV's demosaicing code for each 2x2 pattern (OpenCV names it from the second row).
 _DEMOSAIC = {"RGGB": cv2.COLOR_BayerBG2RGB_EA, "BGGR": cv2.COLOR_BayerRG2RGB_EA,
              "GRBG": cv2.COLOR_BayerGB2RGB_EA, "GBRG": cv2.COLOR_BayerGR2RGB_EA}
@@ -81,6 +87,8 @@ class DualPixelRaw:
     white_level: float
     white_balance: tuple[float, float, float]
     orientation: int = 1  # EXIF orientation of the photograph (the pixels stay as stored)
+    #: ``(3, 3)`` white-balanced camera RGB -> linear sRGB; None: camera RGB kept.
+    colour_matrix: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -104,6 +112,23 @@ def _rawpy():
     return rawpy
 
 
+def camera_colour_matrix(raw) -> np.ndarray | None:
+    """The ``(3, 3)`` matrix from white-balanced camera RGB to linear sRGB that LibRaw develops a
+    file with (a ``rawpy`` raw object's ``color_matrix``; from its ``rgb_xyz_matrix`` by dcraw's
+    rule where that is all the file gives); None when the file carries neither."""
+    matrix = np.asarray(getattr(raw, "color_matrix", np.zeros((3, 4))), np.float64)[:3, :3]
+    if matrix.shape == (3, 3) and np.isfinite(matrix).all() and np.abs(matrix).sum() > 0:
+        return matrix
+    cam_xyz = np.asarray(getattr(raw, "rgb_xyz_matrix", np.zeros((4, 3))), np.float64)[:3, :3]
+    if cam_xyz.shape != (3, 3) or not np.isfinite(cam_xyz).all() or not np.abs(cam_xyz).sum():
+        return None
+    cam_rgb = cam_xyz @ _XYZ_FROM_SRGB
+    rows = cam_rgb.sum(axis=1, keepdims=True)
+    if np.any(np.abs(rows) < 1e-9):
+        return None
+    return np.linalg.pinv(cam_rgb / rows)  # each row of cam_rgb sums to 1: white stays white
+
+
 def read_dual_pixel_raw(path: str | Path) -> DualPixelRaw:
     """Both frames of a Canon Dual Pixel RAW file (rawpy/LibRaw)."""
     rawpy = _rawpy()
@@ -119,6 +144,7 @@ def read_dual_pixel_raw(path: str | Path) -> DualPixelRaw:
             white = float(raw.white_level)
             balance = [float(v) for v in raw.camera_whitebalance]
             orientation = _LIBRAW_FLIP_TO_EXIF.get(int(raw.sizes.flip), 1)
+            colour_matrix = camera_colour_matrix(raw)
     except rawpy.LibRawError as error:
         reason = error.args[0] if error.args else error
         if isinstance(reason, bytes):  # LibRaw's messages arrive as bytes
@@ -139,7 +165,7 @@ def read_dual_pixel_raw(path: str | Path) -> DualPixelRaw:
     green = balance[1] if balance[1] > 0 else 1.0
     white_balance = tuple(v / green if v > 0 else 1.0 for v in balance[:3])
     return DualPixelRaw(combined, a_only, pattern, black[indices], white, white_balance,
-                        orientation)
+                        orientation, colour_matrix)
 
 
 def _per_site(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -171,9 +197,10 @@ def _clipped_sites(raw: DualPixelRaw) -> np.ndarray:
 
 
 def develop_mosaic(mosaic: np.ndarray, pattern: str,
-                   white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> np.ndarray:
+                   white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0),
+                   colour_matrix: np.ndarray | None = None) -> np.ndarray:
     """A linear ``(H, W)`` mosaic in [0, 1] to an sRGB-encoded ``(H, W, 3)`` float32 image
-    (steps 3-5 of the module docstring)."""
+    (steps 3-5 of the module docstring; ``colour_matrix`` None: camera RGB kept)."""
     if pattern not in _DEMOSAIC:
         raise ParameterError(f"Bayer pattern must be one of {', '.join(_DEMOSAIC)}, "
                              f"got {pattern!r}")
@@ -183,6 +210,8 @@ def develop_mosaic(mosaic: np.ndarray, pattern: str,
     balanced = mosaic * _per_site(site_gain, mosaic.shape)
     levels = quantise(balanced, 16)
     rgb = cv2.cvtColor(levels, _DEMOSAIC[pattern]).astype(np.float32) / 65535.0
+    if colour_matrix is not None:
+        rgb = np.clip(rgb @ np.asarray(colour_matrix, np.float32).T, 0.0, 1.0)
     return linear_to_srgb_array(rgb)
 
 
@@ -195,8 +224,8 @@ def develop_views(raw: DualPixelRaw, *, a_view: str = "auto", scale: float = 1.0
         raise ParameterError(f"a_view must be one of {', '.join(A_VIEWS)}, got {a_view!r}")
     _check_scale(scale)
     a_mosaic, b_mosaic, combined_mosaic = split_dual_pixel(raw)
-    a_image, b_image, combined = (_resized(develop_mosaic(m, raw.pattern, raw.white_balance),
-                                           scale)
+    a_image, b_image, combined = (_resized(develop_mosaic(m, raw.pattern, raw.white_balance,
+                                                          raw.colour_matrix), scale)
                                   for m in (a_mosaic, b_mosaic, combined_mosaic))
     if a_view == "auto":
         counts = defocus_shift_counts(a_image, b_image)
