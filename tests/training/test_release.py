@@ -143,6 +143,11 @@ def test_a_start_that_resolves_to_nothing_or_an_unfinished_run_is_refused(finish
     record.write_text(json.dumps({"name": "/somewhere/else.safetensors", "sha256": "0" * 64}))
     result = _release(run, weights, tmp_path / "results", "--tag", TAG, recipes=recipes)
     assert result.exit_code == 1 and "resolves to nothing" in result.output, result.output
+    shipped = weights / "rdpd-light-base.v6.safetensors"  # a shipped tag the recipe never names
+    record.write_text(json.dumps({"name": "rdpd-light-base.v6", "sha256": file_sha256(shipped)}))
+    result = _release(run, weights, tmp_path / "results", "--tag", TAG, recipes=recipes)
+    assert result.exit_code == 1 and "started from rdpd-light-base.v6" in result.output
+    assert "starts it from previous" in result.output, result.output
     record.write_text(good)
     history = run / "phases" / "second" / "history.jsonl"
     history.write_text("")

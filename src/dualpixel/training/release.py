@@ -80,6 +80,11 @@ def _start(recipe, index: int, run: Path, registry: dict[str, Any]) -> dict[str,
                                      "(init.json); the start resolves to nothing")
     name, sha256 = str(record.get("name", "")), record["sha256"]
     rows = registry["weights"]
+    named = registry.get("aliases", {}).get(phase.init, phase.init)
+    if name in rows and name != named:  # another shipped tag than the recipe's start
+        raise InputFileError(record_path, f"phase {phase.name} started from {name}, but the "
+                                          f"recipe starts it from {phase.init}; the start "
+                                          "resolves to nothing the recipe names")
     if name in rows or (phase.init != "previous" and phase.init == name):
         if name not in rows or rows[name]["sha256"] != sha256:
             raise InputFileError(record_path, f"the start {name!r} is no shipped tag with this "
