@@ -15,7 +15,7 @@ The development is deliberately simple and documented, the same for all three im
 3. the camera's white balance (as shot) per colour site, clipped to [0, 1];
 4. demosaicing (OpenCV, edge-aware bilinear), then the camera's colour matrix from white-balanced
    camera RGB to linear sRGB, as LibRaw develops (its ``color_matrix`` for the file: the same
-   patch colours as ``rawpy``'s ``postprocess`` to 1e-4), clipped to [0, 1];
+   patch colours as ``rawpy``'s ``postprocess`` within 1e-3, tested), clipped to [0, 1];
 5. the sRGB transfer curve, the encoding of the photographs the training data is made from;
 6. optionally (``scale`` < 1) an area-averaging downscale: the shipped models were trained on
    the blur of 840- to 1680-px-wide frames, and a full 6720-px frame of a 30 MP camera carries
