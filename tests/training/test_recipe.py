@@ -25,9 +25,11 @@ MACHINE_OPTIONS = ["--threads", "1", "--loader-workers", "0", "--device", "cpu"]
 
 
 def _shrunk(source: Path, folder: Path, real: Path) -> Path:
-    """``source`` with tiny data and two iterations per phase, written into ``folder`` beside
-    a copy of its cameras; real-data folders point at ``real``."""
-    raw = yaml.safe_load(source.read_text())
+    """``source`` (its ``extends`` resolved) with tiny data and two iterations per phase,
+    written into ``folder`` beside a copy of its cameras; real-data folders point at ``real``."""
+    from dualpixel.training.recipe import _raw_recipe
+
+    raw = _raw_recipe(source)
     for step in raw.get("data", []):
         if "scenes" in step:
             step["scenes"].update(TINY_SCENES)
