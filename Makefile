@@ -42,7 +42,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests hubconf.py $(wildcard benchmarks)
 
 test: $(STAMP) lint browser
-	@echo "test: the suite on 2 processes (about 12 minutes on 2 CPU cores)"
+	@echo "test: the suite on 2 processes (about 8 minutes on 2 CPU cores)"
 	$(BIN)/python -m pytest -n 2 -q --doctest-modules src/dualpixel tests
 
 tables: $(STAMP)  # regenerate the README's and the model card's results tables
