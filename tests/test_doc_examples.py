@@ -33,8 +33,8 @@ from tests.test_docs import _command_lines
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data"
 #: Commands whose documented use needs what this folder does not hold (a finished run: the
-#: recipes run as --dry-run here), with what the refusal
-#: must name (a clean error, no traceback).
+#: recipes run as --dry-run here), with what the refusal must name (a clean error, no
+#: traceback).
 REFUSED = {"dualpixel release runs/rdpd-light --tag rdpd-light.v12": "runs/rdpd-light"}
 #: Canon scenes (by number) whose 480x288 middles `calibrate camera` takes.
 CALIBRATED = [2, 5]
