@@ -86,12 +86,11 @@ def _views(seed: int, width: int = WIDTH, height: int = HEIGHT) -> dict[str, np.
 
 
 def _png(path: Path, image: np.ndarray, bits: int = 8) -> None:
+    """``image`` (float, [0, 1]) as a PNG of ``bits`` bits, its folder made first."""
+    from dualpixel.io.images import write_png
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    scale = 255 if bits == 8 else 65535
-    array = np.rint(np.clip(image, 0, 1) * scale).astype(np.uint8 if bits == 8 else np.uint16)
-    if array.ndim == 3:
-        array = np.ascontiguousarray(array[..., ::-1])
-    cv2.imwrite(str(path), array)
+    write_png(path, np.asarray(image, np.float32), bit_depth=bits)
 
 
 def _crops(source: Path, target: Path, scenes: list[int], size: tuple[int, int]) -> None:
