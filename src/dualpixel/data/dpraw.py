@@ -177,6 +177,12 @@ def _per_site(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 def split_dual_pixel(raw: DualPixelRaw) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Linear ``(H, W)`` mosaics ``(A, B, A+B)`` in units of the white level, black removed,
     the views doubled to the combined image's brightness (steps 1-2 of the module docstring)."""
+    return _split(raw, _clipped_sites(raw))
+
+
+def _split(raw: DualPixelRaw, clipped: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`split_dual_pixel` with the clipped sites (:func:`_clipped_sites`) given."""
     black = _per_site(raw.black_level, raw.combined.shape)
     scale = raw.white_level - black
     if np.any(scale <= 0):
@@ -184,7 +190,6 @@ def split_dual_pixel(raw: DualPixelRaw) -> tuple[np.ndarray, np.ndarray, np.ndar
     combined = np.clip((raw.combined - black) / scale, 0.0, None)
     a_only = np.clip((raw.a_only - black) / scale, 0.0, None)
     b_only = np.clip(combined - a_only, 0.0, None)
-    clipped = _clipped_sites(raw)
     b_only[clipped] = a_only[clipped]  # the sum clipped: B from A, not from the clipped sum
     return (2.0 * a_only).astype(np.float32), (2.0 * b_only).astype(np.float32), \
         combined.astype(np.float32)
@@ -223,7 +228,8 @@ def develop_views(raw: DualPixelRaw, *, a_view: str = "auto", scale: float = 1.0
     if a_view not in A_VIEWS:
         raise ParameterError(f"a_view must be one of {', '.join(A_VIEWS)}, got {a_view!r}")
     _check_scale(scale)
-    a_mosaic, b_mosaic, combined_mosaic = split_dual_pixel(raw)
+    clipped = _clipped_sites(raw)
+    a_mosaic, b_mosaic, combined_mosaic = _split(raw, clipped)
     a_image, b_image, combined = (_resized(develop_mosaic(m, raw.pattern, raw.white_balance,
                                                           raw.colour_matrix), scale)
                                   for m in (a_mosaic, b_mosaic, combined_mosaic))
@@ -239,8 +245,7 @@ def develop_views(raw: DualPixelRaw, *, a_view: str = "auto", scale: float = 1.0
     else:
         evidence = f"A as the {a_view} view, as asked"
     left, right = (a_image, b_image) if a_view == "left" else (b_image, a_image)
-    return DualPixelViews(left, right, combined, a_view, evidence,
-                          float(_clipped_sites(raw).mean()))
+    return DualPixelViews(left, right, combined, a_view, evidence, float(clipped.mean()))
 
 
 def _check_scale(scale: float) -> None:
