@@ -374,6 +374,37 @@ def test_grey_datasets_store_the_green_channel(scene_dir, tmp_path):
         np.testing.assert_array_equal(stored, rgb[..., 1])  # BGR: green in the middle
 
 
+def test_raw_encoded_datasets_store_linear_values_above_the_black_level(scene_dir, tmp_path):
+    """``encoding="linear"``: recorded in dataset.json and per frame; the stored combined image
+    is the views' mean (light adds up in raw values); refused without linear light, and raw
+    settings are refused for sRGB images. Not recorded when sRGB, so older datasets resume."""
+    assert "encoding" not in SynthConfig(**FAST).as_dict()
+    config = SynthConfig(noise=False, light="linear", encoding="linear", black_level=0.0625,
+                         raw_gains=(0.5, 0.9), **FAST)
+    assert SynthConfig.from_dict(config.as_dict()) == config
+    out = tmp_path / "raw"
+    synthesize_dataset(scene_dir, "rgbd", out, config, progress=False)
+    saved = json.loads((out / "dataset.json").read_text())["config"]
+    assert (saved["encoding"], saved["black_level"], saved["raw_gains"]) == ("linear", 0.0625,
+                                                                             [0.5, 0.9])
+    record = json.loads((out / "manifest.jsonl").read_text().splitlines()[0])
+    assert 0.5 <= record["raw"]["gain"] <= 0.9
+    views = [read16(out / record["outputs"][k]) / 65535.0
+             for k in ("left", "right", "combined", "target")]
+    assert abs(views[2] - (views[0] + views[1]) / 2).max() < 2e-4
+    ceiling = 0.0625 + (1 - 0.0625) * record["raw"]["gain"]
+    for view in views:
+        assert view.min() >= 0.0625 - 1e-4 and view.max() <= ceiling + 1e-4
+    with pytest.raises(ParameterError, match="needs light 'linear'"):
+        SynthConfig(encoding="linear", black_level=0.0625, **FAST)
+    with pytest.raises(ParameterError, match="are for encoding 'linear'"):
+        SynthConfig(black_level=0.0625, **FAST)
+    with pytest.raises(ParameterError, match="encoding must be one of"):
+        SynthConfig(encoding="log", **FAST)
+    with pytest.raises(ParameterError, match="raw_gains must be"):
+        SynthConfig(light="linear", encoding="linear", raw_gains=(0.0, 1.0), **FAST)
+
+
 def test_the_phone_profile_blurs_crops_like_the_phone_frame():
     from dualpixel.optics.thin_lens import DEFOCUS_PROFILES, coc_radius
 
@@ -382,3 +413,7 @@ def test_the_phone_profile_blurs_crops_like_the_phone_frame():
     far = [abs(float(coc_radius(np.array([1e6]), profile.camera(rng, 1.0, 840))[0]))
            for _ in range(200)]
     assert 1.0 <= min(far) and max(far) <= 12.0  # px, whatever the crop's width
+    close = [abs(float(coc_radius(np.array([1e6]),
+                                  DEFOCUS_PROFILES["phone-2016-close"].camera(rng, 1.0, 840))[0]))
+             for _ in range(200)]
+    assert 2.0 <= min(close) and max(close) <= 24.0 and np.median(close) > 1.8 * np.median(far)

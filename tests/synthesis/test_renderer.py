@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 import torch
 
+from dualpixel.errors import ParameterError
 from dualpixel.optics.psf import PSFParams
 from dualpixel.optics.thin_lens import CAMERA_PRESETS
 from dualpixel.synthesis.convolution import convolve_same
@@ -229,6 +230,58 @@ def test_linear_light_blur_conserves_light_not_stored_values():
     torch.testing.assert_close(frames["linear"].target, frames["encoded"].target, atol=1e-5,
                                rtol=0)
     torch.testing.assert_close(linear[:, :, :4], encoded[:, :, :4], atol=1e-4, rtol=0)
+
+
+def test_raw_storage_keeps_the_light_in_the_stored_values():
+    """Views stored as raw values (``raw=(black_level, gain)``, a phone's DP data) are linear in
+    light: blurred, the combined image keeps the sharp target's mean stored value, every value
+    lies between the black level and black + (1 - black) * gain, and the target is the sRGB
+    frame's light stored so."""
+    from dualpixel.optics.psf import PSFParams
+    from dualpixel.optics.thin_lens import ThinLensCamera
+    from dualpixel.optics.tone import srgb_to_linear
+    from dualpixel.synthesis.frame import SequenceDraw, synthesize_frame
+
+    image = np.full((64, 96, 3), 0.05, np.float32)
+    image[:, 40:56] = 0.9
+    depth = np.full((64, 96), 8.0, np.float32)
+    lens = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=1.0)
+    camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 8.0)
+    black, gain = 0.0625, 0.5
+    frame = synthesize_frame(image, depth, SequenceDraw(
+        camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None, light="linear",
+        raw=(black, gain)))
+    inner = (slice(None), slice(None), slice(16, 80))
+    light = srgb_to_linear(torch.from_numpy(image).permute(2, 0, 1))
+    torch.testing.assert_close(frame.target, black + (1 - black) * gain * light, atol=1e-6,
+                               rtol=0)
+    assert float(frame.combined[inner].mean()) == pytest.approx(
+        float(frame.target[inner].mean()), rel=1e-3)
+    for view in (frame.left, frame.right, frame.combined):
+        assert float(view.min()) >= black - 1e-6
+        assert float(view.max()) <= black + (1 - black) * gain + 1e-6
+    torch.testing.assert_close(frame.combined, (frame.left + frame.right) / 2)
+    with pytest.raises(ParameterError, match="raw storage needs light 'linear'"):
+        SequenceDraw(camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None,
+                     raw=(black, gain))
+    with pytest.raises(ParameterError, match="black_level must be in"):
+        SequenceDraw(camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None,
+                     light="linear", raw=(0.7, gain))
+
+
+def test_a_raw_sequence_draws_its_exposure_gain_from_its_seed():
+    from dualpixel.synthesis.frame import draw_sequence
+
+    gains = [draw_sequence(seed, "set1", light="linear", raw_black_level=0.0625,
+                           raw_gains=(0.4, 1.0)).raw[1] for seed in range(40)]
+    assert all(0.4 <= g <= 1.0 for g in gains) and max(gains) - min(gains) > 0.3
+    again = draw_sequence(7, "set1", light="linear", raw_black_level=0.0625,
+                          raw_gains=(0.4, 1.0))
+    assert again.raw == (0.0625, gains[7])
+    assert again.describe()["raw"] == {"black_level": 0.0625, "gain": gains[7]}
+    plain = draw_sequence(7, "set1", light="linear")
+    assert plain.raw is None and "raw" not in plain.describe()
+    assert plain.psf == again.psf and plain.noise_sigma == again.noise_sigma  # same draws
 
 
 def test_the_old_names_of_a_sequence_draw_still_import_with_a_warning():

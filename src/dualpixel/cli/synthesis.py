@@ -8,6 +8,7 @@ import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath, float_list, parse_size
 from dualpixel.names import (
+    ENCODINGS,
     LIGHT_SPACES,
     PSF_BANK_NAMES,
     PSF_MODELS,
@@ -129,6 +130,16 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--grey", is_flag=True,
               help="Store every image as its green channel alone, as a phone's DP data are "
                    "(the Google Pixel's DP views are one green channel of the raw frame).")
+@click.option("--encoding", type=click.Choice(ENCODINGS), default="srgb", show_default=True,
+              help="How the images store light: display values (sRGB, as photographs), or "
+                   "linear raw values above a black level, as a phone's DP data (needs linear "
+                   "light: --light linear or a camera file that blurs in it).")
+@click.option("--black-level", type=float, default=None,
+              help="--encoding linear: the stored value of no light, a fraction of full "
+                   "scale (e.g. 0.0625, 64 of 1023)  [default: 0].")
+@click.option("--raw-gains", default=None, callback=float_list, metavar="LOW,HIGH",
+              help="--encoding linear: exposure gains to draw per sequence, so that highlights "
+                   "sit below the white level  [default: 1,1].")
 @click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
 @click.option("--depth-scale", type=float, default=0.001,
@@ -149,8 +160,8 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
           noise: bool, noise_model: str | None, noise_sigmas: list[float] | None,
           distortion: bool, psf_model: str, psf_bank: str | None, camera_file: str | None,
           psf_shapes: str | None,
-          light: str | None, grey: bool,
-          split: str, max_depth: float,
+          light: str | None, grey: bool, encoding: str, black_level: float | None,
+          raw_gains: list[float] | None, split: str, max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
           png_compression: int | None, shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
@@ -177,7 +188,9 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         noise=noise, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
         camera=None if camera_file is None else load_camera(camera_file).to_dict(),
-        psf_shapes=psf_shapes, light=light, grey=grey,
+        psf_shapes=psf_shapes, light=light, grey=grey, encoding=encoding,
+        black_level=0.0 if black_level is None else black_level,
+        raw_gains=(1.0, 1.0) if raw_gains is None else tuple(raw_gains),
     )
     summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device,
                                  shard=shard, png_compression=png_compression)

@@ -219,7 +219,9 @@ def focus_from_depth(depth: np.ndarray, percentile: float = FOCUS_PERCENTILE) ->
 #: subject blur by 3-20 px radius, near occluders by up to 30 px; "dslr-840-mild": 2-12 px, 20 px;
 #: "dslr-1680-crop": dslr-840's blur at full resolution (6-40 px, 60 px) in frames of any width;
 #: "phone-2016-crop": a phone's main camera at the size of its DP data (the Google Pixel 4's
-#: green-channel DP frame, 2016 px wide): 1-12 px, 16 px, in frames of any width.
+#: green-channel DP frame, 2016 px wide): 1-12 px, 16 px, in frames of any width;
+#: "phone-2016-close": the same phone focused close (a subject a hand's breadth away), so that
+#: backgrounds blur twice as much: 2-24 px, 32 px.
 DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
     profile.name: profile
     for profile in (
@@ -236,6 +238,10 @@ DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
                        "phone main camera (f/1.7, small pixels: DP disparity of a few px) at "
                        "the size of its DP data, 2016 px wide (Google Pixel 4; its measured "
                        "PSFs have a 10-px radius), for frames that are crops of such a capture",
+                       scale_with_width=False),
+        DefocusProfile("phone-2016-close", 2016, (2.0, 24.0), 32.0,
+                       "phone-2016-crop focused close (a subject 10-30 cm away): backgrounds "
+                       "blur twice as much, for frames that are crops of such a capture",
                        scale_with_width=False),
     )
 }

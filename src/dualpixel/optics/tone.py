@@ -23,8 +23,8 @@ import torch
 from dualpixel.errors import ParameterError
 from dualpixel.names import LIGHT_SPACES
 
-__all__ = ["LIGHT_SPACES", "Light", "check_light", "linear_to_srgb", "linear_to_srgb_array",
-           "srgb_to_linear", "srgb_to_linear_array"]
+__all__ = ["LIGHT_SPACES", "Light", "check_light", "check_raw_storage", "linear_to_raw",
+           "linear_to_srgb", "linear_to_srgb_array", "srgb_to_linear", "srgb_to_linear_array"]
 
 Light = Literal["encoded", "linear"]  # LIGHT_SPACES
 
@@ -56,3 +56,20 @@ def srgb_to_linear_array(image: np.ndarray) -> np.ndarray:
 def linear_to_srgb_array(image: np.ndarray) -> np.ndarray:
     """:func:`linear_to_srgb` for a NumPy array (any shape): float32 sRGB-encoded values."""
     return linear_to_srgb(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
+
+
+def check_raw_storage(black_level: float, gains: tuple[float, float]) -> None:
+    """Refuse a raw storage :func:`linear_to_raw` cannot make: ``black_level`` in [0, 0.5),
+    ``gains`` a ``(low, high)`` range with 0 < low <= high <= 1."""
+    if not 0.0 <= black_level < 0.5:
+        raise ParameterError(f"black_level must be in [0, 0.5) of full scale, got {black_level}")
+    if len(gains) != 2 or not 0.0 < gains[0] <= gains[1] <= 1.0:
+        raise ParameterError(f"raw_gains must be (low, high) with 0 < low <= high <= 1, got "
+                             f"{tuple(gains)}")
+
+
+def linear_to_raw(values: torch.Tensor, black_level: float, gain: float) -> torch.Tensor:
+    """Linear light in [0, 1] -> values stored as a raw sensor stores them (any shape): the black
+    level (fraction of full scale) plus the light times an exposure ``gain`` (<= 1 leaves
+    headroom below the white level), still linear in light."""
+    return black_level + (1.0 - black_level) * gain * values.clamp(0.0, 1.0)

@@ -45,7 +45,7 @@ from dualpixel.io.images import check_png_compression, quantise, save_npy, write
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
 from dualpixel.io.run_folder import differing_settings, locate, same_location
-from dualpixel.names import renamed_keys
+from dualpixel.names import ENCODINGS, renamed_keys
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
@@ -56,6 +56,7 @@ from dualpixel.optics.thin_lens import (
     ThinLensCamera,
     focus_from_depth,
 )
+from dualpixel.optics.tone import check_raw_storage
 from dualpixel.parallel import completed
 from dualpixel.progress import progress_bar
 from dualpixel.synthesis.frame import (
@@ -110,6 +111,13 @@ class SynthConfig:
     # Ours: store every image as its green channel alone (grey PNGs), as a phone's DP data are
     # (the Google Pixel's DP views are one green channel of the raw frame).
     grey: bool = False
+    # Ours: how the images store light: "srgb" (display values, as photographs and the DPDD) or
+    # "linear" (raw values, as a phone's DP data: ``black_level`` plus the light times an
+    # exposure gain drawn per sequence from ``raw_gains``; dualpixel.optics.tone.linear_to_raw).
+    # "linear" needs light "linear".
+    encoding: str = "srgb"
+    black_level: float = 0.0
+    raw_gains: tuple[float, float] = (1.0, 1.0)
 
     def __post_init__(self) -> None:
         known = (*CAMERA_PRESETS, *DEFOCUS_PROFILES)
@@ -133,7 +141,18 @@ class SynthConfig:
         check_plain_name(self.split, "split")
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
-        self.draw_settings()  # refuses a bad camera description, light or psf_shapes now
+        light = self.draw_settings()[2]  # refuses a bad camera, light or psf_shapes now
+        if self.encoding not in ENCODINGS:
+            raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, got "
+                                 f"{self.encoding!r}")
+        if self.encoding == "linear":
+            check_raw_storage(self.black_level, self.raw_gains)
+            if light != "linear":
+                raise ParameterError("encoding 'linear' (raw values) needs light 'linear': a "
+                                     "sensor's values are linear in light")
+        elif (self.black_level, tuple(self.raw_gains)) != (0.0, (1.0, 1.0)):
+            raise ParameterError("black_level and raw_gains are for encoding 'linear' (raw "
+                                 "values); sRGB-encoded images have neither")
 
     def draw_settings(self) -> tuple[PSFBank, tuple[float, ...] | None, str]:
         """``(bank, disparity_ratio, light)`` of every sequence: :func:`camera_settings`."""
@@ -154,7 +173,7 @@ class SynthConfig:
         """The config of :meth:`as_dict` (or of a recipe's synth step), old key names taken
         (:func:`~dualpixel.names.renamed_keys`; silently for files written before a rename)."""
         values = renamed_keys(values, where, warn=warn)
-        for key in ("lens_sets", "noise_sigmas"):
+        for key in ("lens_sets", "noise_sigmas", "raw_gains"):
             if key in values and isinstance(values[key], list):
                 values[key] = tuple(values[key])
         return cls(**values)
@@ -168,6 +187,11 @@ class SynthConfig:
                 del data[key]
         if not data["grey"]:
             del data["grey"]
+        if data["encoding"] == "srgb":  # as recorded before raw storage existed
+            for key in ("encoding", "black_level", "raw_gains"):
+                del data[key]
+        else:
+            data["raw_gains"] = list(self.raw_gains)
         return data
 
 
@@ -261,6 +285,8 @@ def plan_jobs(
                 distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
                 max_layers=config.max_layers, render_mode=config.render_mode,
+                raw_black_level=config.black_level if config.encoding == "linear" else None,
+                raw_gains=config.raw_gains,
             )
             for index, frame in enumerate(sequence.frames):
                 noise_seed = int(np.random.SeedSequence((config.seed, number, index))

@@ -26,7 +26,14 @@ from dualpixel.optics.noise import (
 from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
 from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
 from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
-from dualpixel.optics.tone import Light, check_light, linear_to_srgb, srgb_to_linear
+from dualpixel.optics.tone import (
+    Light,
+    check_light,
+    check_raw_storage,
+    linear_to_raw,
+    linear_to_srgb,
+    srgb_to_linear,
+)
 from dualpixel.synthesis.layers import check_render_mode
 from dualpixel.synthesis.renderer import render_dp_views
 
@@ -54,11 +61,20 @@ class SequenceDraw:
     # Ours: "linear" blurs in linear light and encodes the views and target as sRGB after
     # (dualpixel.optics.tone; a calibrated camera); "encoded": the paper's, the stored values.
     light: Light = "encoded"
+    # Ours: ``(black_level, gain)``: the views and target stored as linear raw values
+    # (dualpixel.optics.tone.linear_to_raw, as a phone's DP data), noise added to them;
+    # None: sRGB-encoded values. Needs ``light`` "linear".
+    raw: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.disparity_ratio is not None:
             check_disparity_ratio(self.disparity_ratio)
         check_light(self.light)
+        if self.raw is not None:
+            check_raw_storage(self.raw[0], (self.raw[1], self.raw[1]))
+            if self.light != "linear":
+                raise ParameterError("raw storage needs light 'linear' (a sensor's values are "
+                                     "linear in light, so the lens blurs them as stored)")
 
     def describe(self) -> dict:
         """A JSON-ready description for manifests."""
@@ -81,6 +97,8 @@ class SequenceDraw:
             **({} if self.disparity_ratio is None
                else {"disparity_ratio": list(self.disparity_ratio)}),
             **({} if self.light == "encoded" else {"light": self.light}),
+            **({} if self.raw is None
+               else {"raw": {"black_level": self.raw[0], "gain": self.raw[1]}}),
         }
 
 
@@ -127,11 +145,15 @@ def draw_sequence(
     render_mode: str = "fast",
     disparity_ratio: tuple[float, ...] | None = None,
     light: Light = "encoded",
+    raw_black_level: float | None = None,
+    raw_gains: tuple[float, float] = (1.0, 1.0),
 ) -> SequenceDraw:
     """Draw a sequence's PSF shape and noise strength from ``seed`` for a camera.
 
     A preset camera ``setK`` gets the matching distortion preset ``setK`` (supplement S3); any
-    other camera (e.g. one drawn from a defocus profile) a preset drawn from ``seed``.
+    other camera (e.g. one drawn from a defocus profile) a preset drawn from ``seed``. With a
+    ``raw_black_level`` the sequence is stored as raw values, its exposure gain drawn
+    uniformly from ``raw_gains``.
     """
     check_psf_model(psf_model)
     check_render_mode(render_mode)
@@ -148,6 +170,11 @@ def draw_sequence(
     if warp is None:
         presets = list(DISTORTION_PRESETS.values())
         warp = presets[int(np.random.default_rng((*np.atleast_1d(seed), 2)).integers(len(presets)))]
+    raw = None
+    if raw_black_level is not None:
+        check_raw_storage(raw_black_level, raw_gains)
+        gain = float(np.random.default_rng((*np.atleast_1d(seed), 3)).uniform(*raw_gains))
+        raw = (float(raw_black_level), gain)
     return SequenceDraw(
         camera=camera,
         psf=psf,
@@ -159,6 +186,7 @@ def draw_sequence(
         render_mode=render_mode,
         disparity_ratio=disparity_ratio,
         light=light,
+        raw=raw,
     )
 
 
@@ -229,13 +257,17 @@ def synthesize_frame(
         warped = distort_image(torch.cat((left, right, target, coc[None])), draw.distortion)
         left, right, target, defocus = warped.split((3, 3, 3, 1))
         defocus = defocus[0]
-    if linear:  # the tone curve after the optics; noise is added to the stored values
+    if draw.raw is not None:  # stored as raw values, still linear; noise is added to them
+        left, right, target = (linear_to_raw(t, *draw.raw) for t in (left, right, target))
+    elif linear:  # the tone curve after the optics; noise is added to the stored values
         left, right, target = (linear_to_srgb(t) for t in (left, right, target))
     if draw.noise_sigma is not None and draw.noise_sigma > 0:
         left = _noisy_view(left, draw, noise_seed * 2)
         right = _noisy_view(right, draw, noise_seed * 2 + 1)
     left, right, target = (t.clamp(0.0, 1.0) for t in (left, right, target))
-    if linear:  # the two photodiodes' light summed, then the tone curve
+    if draw.raw is not None:  # the two photodiodes' light summed, the black level once
+        combined = (left + right) / 2.0
+    elif linear:  # the two photodiodes' light summed, then the tone curve
         combined = linear_to_srgb((srgb_to_linear(left) + srgb_to_linear(right)) / 2.0)
     else:
         combined = (left + right) / 2.0
