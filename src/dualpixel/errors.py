@@ -33,6 +33,9 @@ class InputFileError(DualPixelError, ValueError):
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
 
+    def __reduce__(self):  # pickled whole, so a worker process's error reaches its parent
+        return type(self), (self.path, self.problem)
+
 
 class OutputFileError(DualPixelError, OSError):
     """An output cannot be written (a folder, no permission, disk full); names the path."""
@@ -44,6 +47,9 @@ class OutputFileError(DualPixelError, OSError):
 
     def __str__(self) -> str:
         return f"{self.path}: {self.problem}"
+
+    def __reduce__(self):  # pickled whole, so a worker process's error reaches its parent
+        return type(self), (self.path, self.problem)
 
 
 def check_range(

@@ -42,3 +42,17 @@ def test_scenes_holds_its_folder(tmp_path):
     write_scene_folder(out, 1, config, progress=False)
     assert (out / "seq_000" / "rgb" / "frame_0000.png").is_file()
     assert not list(out.rglob(PARTIAL_GLOB))
+
+
+def test_file_errors_cross_process_boundaries_whole():
+    """A worker process's error reaches the parent with its path and message (pickled), instead
+    of failing to unpickle there (a broken pool, or a multiprocessing pool that hangs)."""
+    import pickle
+
+    from dualpixel.errors import InputFileError, OutputFileError
+
+    for error in (InputFileError("a/b.png", "cannot be read"),
+                  OutputFileError("out/c.npy", "no space left on device")):
+        again = pickle.loads(pickle.dumps(error))
+        assert type(again) is type(error)
+        assert (again.path, again.problem, str(again)) == (error.path, error.problem, str(error))

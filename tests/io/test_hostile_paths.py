@@ -1,7 +1,10 @@
 """Names that become paths stay plain, and nothing is written through a planted link (#55)."""
 
 import os
+import sys
+import time
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -363,7 +366,55 @@ def test_a_killed_write_leaves_nothing_once_the_file_is_written_again(tmp_path):
     leftover.write_bytes(b"half a graph")
     other = tmp_path / f".other{PARTIAL_MARKER}k1ll3d00.onnx"  # another file's: not ours
     other.write_bytes(b"x")
+    for path in (leftover, other):  # written before the kill, a few seconds ago
+        os.utime(path, (time.time() - 5, time.time() - 5))
     with atomic_path(tmp_path / "model.onnx") as tmp:
         tmp.write_bytes(b"graph")
     assert not leftover.exists() and other.exists()
     assert (tmp_path / "model.onnx").read_bytes() == b"graph"
+
+
+def _write_often(args):
+    from dualpixel.io.atomic import atomic_path
+
+    path, seed = args
+    data = np.random.default_rng(seed).integers(0, 255, 300_000, dtype=np.uint8)
+    try:
+        for _ in range(40):
+            with atomic_path(path) as tmp:
+                np.save(tmp, data)
+    except Exception as error:  # reported as text: the parent must hear of it
+        return f"{type(error).__name__}: {error}"
+    return None
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="advisory locks are POSIX flock")
+def test_processes_writing_one_file_at_once_keep_each_others_temporary_files(tmp_path):
+    """Loader workers fill the frame store side by side and may write the same entry at once:
+    a live writer's temporary file is no leftover to the others (each holds a lock on it)."""
+    import multiprocessing
+
+    from dualpixel.io.atomic import PARTIAL_MARKER, atomic_path
+
+    path = tmp_path / "entry.npy"
+    with multiprocessing.get_context("spawn").Pool(4) as pool:
+        failures = [f for f in pool.map(_write_often, [(path, k) for k in range(4)]) if f]
+    assert not failures, failures
+    assert np.load(path).shape == (300_000,)
+    assert not list(tmp_path.glob(f".*{PARTIAL_MARKER}*"))
+    # a temporary file whose writer lives (holds its lock) stays, however old; once the writer
+    # is gone, it is a leftover
+    held = tmp_path / f".entry{PARTIAL_MARKER}h0ld1ng0.npy"
+    held.write_bytes(b"being written")
+    os.utime(held, (time.time() - 60, time.time() - 60))
+    descriptor = os.open(held, os.O_RDONLY)
+    import fcntl
+
+    fcntl.flock(descriptor, fcntl.LOCK_EX)
+    with atomic_path(path) as tmp:
+        np.save(tmp, np.zeros(3))
+    assert held.exists()
+    os.close(descriptor)
+    with atomic_path(path) as tmp:
+        np.save(tmp, np.zeros(3))
+    assert not held.exists()

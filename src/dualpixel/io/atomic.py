@@ -8,11 +8,17 @@ import glob
 import os
 import stat
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TextIO
 
 from dualpixel.errors import OutputFileError
+
+try:
+    import fcntl
+except ImportError:  # no advisory locks (Windows): a leftover is any temporary file of the name
+    fcntl = None  # type: ignore[assignment]
 
 __all__ = ["PARTIAL_GLOB", "PARTIAL_MARKER", "atomic_path", "check_writable", "open_for_append",
            "remove_partials"]
@@ -26,13 +32,40 @@ PARTIAL_GLOB = f".*{PARTIAL_MARKER}*"
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
+#: A temporary file younger than this (seconds) is never taken for a killed write's leftover:
+#: its writer may not have locked it yet (it locks it right after creating it).
+LEFTOVER_AGE = 2.0
+
+
+def _is_leftover(path: Path) -> bool:
+    """Whether ``path``, a temporary file of :func:`atomic_path`, was left by a killed write:
+    no live writer holds its lock (the kernel drops a killed writer's), and it is not new."""
+    try:
+        if not path.is_file() or time.time() - path.stat().st_mtime < LEFTOVER_AGE:
+            return False
+        if fcntl is None:
+            return True
+        descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except OSError:
+        return False  # gone already, or not ours to judge
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False  # a live writer holds it
+    finally:
+        os.close(descriptor)  # (releases the lock just taken)
+    return True
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it over ``path``, else delete it.
 
     The temporary name keeps the suffix, so writers that infer the format from it still work.
-    A temporary file of the same ``path`` that an earlier, killed write left is removed first.
+    A temporary file of the same ``path`` that an earlier, killed write left is removed first;
+    one that a live writer holds (an exclusive ``flock`` for the length of the write) is not, so
+    that processes writing the same file at once (loader workers filling the frame store) do
+    not delete each other's temporary files.
     """
     target = Path(path)
     check_writable(target)
@@ -40,10 +73,14 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     room = _name_max(target.parent) - len(PARTIAL_MARKER) - len(target.suffix) - 10
     prefix = f".{target.stem[:max(room, 1)]}{PARTIAL_MARKER}"
     for leftover in target.parent.glob(f"{glob.escape(prefix)}*{glob.escape(target.suffix)}"):
-        if leftover.is_file() and len(leftover.name) == len(prefix) + 8 + len(target.suffix):
+        if (len(leftover.name) == len(prefix) + 8 + len(target.suffix)
+                and _is_leftover(leftover)):
             leftover.unlink(missing_ok=True)  # this file's earlier write, killed mid-way
     fd, tmp_name = tempfile.mkstemp(prefix=prefix, suffix=target.suffix, dir=target.parent)
-    os.close(fd)
+    if fcntl is not None:  # held until the file is in place: not a leftover to the others
+        fcntl.flock(fd, fcntl.LOCK_EX)
+    else:
+        os.close(fd)
     tmp = Path(tmp_name)
     try:
         yield tmp
@@ -57,6 +94,9 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    finally:
+        if fcntl is not None:
+            os.close(fd)
 
 
 def _output_error(target: Path, error: OSError) -> OutputFileError:
