@@ -15,6 +15,7 @@ from dualpixel.evaluation.target_free import (
     check_deblurred,
     check_folder,
     compare_to_reference,
+    local_brightness_error,
     markdown_table,
     model_methods,
     read_pairs,
@@ -66,6 +67,22 @@ def test_the_sharp_target_keeps_brightness_and_gains_sharpness(frame):
     # the in-focus plane is the same in the target (blocks at its edge see some background)
     far_change = 255 * np.sqrt(np.mean((frame["target"] - identity(frame))[:, 160:] ** 2))
     assert far_change > 8 and report.in_focus_change < 0.2 * far_change
+
+
+def test_the_local_brightness_error_against_a_known_target(frame):
+    """Where the target is known (held-out synthetic frames): the perfect deblur scores 0, the
+    unchanged blurred input more (its low-pass differs from the target's near edges), and a
+    darkened target as much as it was darkened."""
+    target, blurred = frame["target"], identity(frame)
+    assert local_brightness_error(target, target) == 0.0
+    assert local_brightness_error(blurred, target) > 1e-4
+    darker = encoded(0.97 * linear(target))
+    assert local_brightness_error(darker, target) == pytest.approx(0.03, abs=1e-3)
+    assert local_brightness_error(darker, target) > 50 * local_brightness_error(blurred, target)
+    with pytest.raises(ParameterError, match="must share one shape"):
+        local_brightness_error(target[:, :64], target)
+    with pytest.raises(ParameterError, match="encoding must be one of"):
+        local_brightness_error(target, target, encoding="log")
 
 
 @pytest.mark.parametrize("gain", [0.95, 1.03])

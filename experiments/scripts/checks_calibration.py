@@ -1,0 +1,59 @@
+"""Target-free checks against known answers (issue #54): on held-out synthetic DP frames, what
+`dualpixel check-model`'s checks say of the sharp target (a perfect deblur) and of each model,
+beside each model's true local brightness error against the target and its PSNR.
+
+    python experiments/scripts/checks_calibration.py DATASET [DATASET ...] \\
+        --checkpoint rdpd-light --checkpoint runs/family6/ship/rdpd-light.v15.safetensors
+
+Each DATASET is a DPDD-layout folder with targets (a recipe's held-out set); its first 12 test
+frames are used. Models run with the brightness tied (as the shipped models run).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from dualpixel.data.layout import discover_any
+from dualpixel.evaluation.target_free import (
+    check_deblurred,
+    local_brightness_error,
+    model_methods,
+)
+from dualpixel.io.images import read_rgb, read_views
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("datasets", nargs="+")
+    parser.add_argument("--checkpoint", action="append", required=True)
+    parser.add_argument("--frames", type=int, default=12)
+    args = parser.parse_args()
+    methods = model_methods(args.checkpoint, device="cpu", brightness=["tied"])
+    for root in args.datasets:
+        rows: dict[str, dict[str, list[float]]] = {}
+        for sequence in discover_any(root, "test", require_target=True)[:args.frames]:
+            frame = sequence.frames[0]
+            left, right, _ = read_views(frame.left, frame.right)
+            target = read_rgb(frame.target)[..., :left.shape[2]]
+            outputs = {"target": target, **{name: method(left, right)
+                                            for name, method in methods.items()}}
+            for name, output in outputs.items():
+                report = check_deblurred(left, right, output)
+                row = rows.setdefault(name, {"shift": [], "overshoot": [], "error": [],
+                                             "psnr": []})
+                row["shift"].append(report.local_brightness)
+                row["overshoot"].append(report.overshoot)
+                row["error"].append(local_brightness_error(output, target))
+                mse = float(np.mean((output - target) ** 2))
+                row["psnr"].append(-10 * np.log10(mse) if mse > 0 else np.inf)
+        print(root)
+        for name, row in rows.items():
+            print(f"  {name:60.60} local shift {np.mean(row['shift']):.4f}  overshoot "
+                  f"{np.mean(row['overshoot']):.3f}  true local error {np.mean(row['error']):.4f}"
+                  f"  PSNR {np.mean(row['psnr']):.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
