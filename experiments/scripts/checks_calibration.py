@@ -12,6 +12,7 @@ frames are used. Models run with the brightness tied (as the shipped models run)
 from __future__ import annotations
 
 import argparse
+import json
 
 import numpy as np
 
@@ -29,7 +30,9 @@ def main() -> None:
     parser.add_argument("datasets", nargs="+")
     parser.add_argument("--checkpoint", action="append", required=True)
     parser.add_argument("--frames", type=int, default=12)
+    parser.add_argument("--json", help="also write {dataset: {method: {measure: mean}}} here")
     args = parser.parse_args()
+    summary: dict[str, dict[str, dict[str, float]]] = {}
     methods = model_methods(args.checkpoint, device="cpu", brightness=["tied"])
     for root in args.datasets:
         rows: dict[str, dict[str, list[float]]] = {}
@@ -49,10 +52,15 @@ def main() -> None:
                 mse = float(np.mean((output - target) ** 2))
                 row["psnr"].append(-10 * np.log10(mse) if mse > 0 else np.inf)
         print(root)
+        summary[str(root)] = {name: {k: float(np.mean(v)) for k, v in row.items()}
+                              for name, row in rows.items()}
         for name, row in rows.items():
             print(f"  {name:60.60} local shift {np.mean(row['shift']):.4f}  overshoot "
                   f"{np.mean(row['overshoot']):.3f}  true local error {np.mean(row['error']):.4f}"
                   f"  PSNR {np.mean(row['psnr']):.2f}", flush=True)
+    if args.json:
+        with open(args.json, "w") as file:
+            json.dump(summary, file, indent=1)
 
 
 if __name__ == "__main__":
