@@ -1,5 +1,5 @@
 """The seventh decision's verdict (issue #54): the rule in the comment of
-experiments/recipes/rdpd-light-family-span-seed.yaml, item by item, on what
+recipes/rdpd-light-cameras.yaml, item by item, on what
 experiments/scripts/decide_seventh.sh measured. Reference: rdpd-light.v12 as it ships (tied).
 
     python experiments/scripts/decide_seventh.py --candidate CAND --out runs/family6/decision

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The seventh decision (experiments/recipes/rdpd-light-family-span-seed.yaml, issue #54): every
+# The seventh decision (recipes/rdpd-light-cameras.yaml, issue #54): every
 # number its rule reads, for its candidate and for rdpd-light.v12 as it ships (tied), into
 # runs/family6/decision; then experiments/scripts/decide_seventh.py gives the verdict.
 # Needs the finished run (runs/family6/ship/rdpd-light.v15.safetensors) and its data. About 35

@@ -42,9 +42,10 @@ def _shrunk(source: Path, folder: Path, real: Path) -> Path:
     widened = False
     for phase in raw["phases"]:
         phase["set"].update(TINY_PHASE)
-        widened = widened or phase["set"].get("widen_init", raw["train"].get("widen_init"))
-        if widened:  # the recipe's width: a multiple of its start's, kept by the phases after
-            del phase["set"]["width"]
+        widened = (widened or phase["set"].get("widen_init", raw["train"].get("widen_init"))
+                   or phase.get("init", "previous") not in ("previous", "none"))
+        if widened:  # the width of its start (shipped weights) or a multiple of it, kept by
+            del phase["set"]["width"]  # the phases after
     for entry in raw.get("evaluate", []):
         if not any(entry["dataset"] == s["name"] for s in raw["data"]):
             entry["dataset"] = str(real)
