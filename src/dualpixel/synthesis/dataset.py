@@ -120,6 +120,9 @@ class SynthConfig:
     raw_gains: tuple[float, float] = (1.0, 1.0)
 
     def __post_init__(self) -> None:
+        for key in ("lens_sets", "noise_sigmas", "raw_gains"):  # lists from JSON or YAML
+            if isinstance(getattr(self, key), list):
+                object.__setattr__(self, key, tuple(getattr(self, key)))
         known = (*CAMERA_PRESETS, *DEFOCUS_PROFILES)
         unknown = [c for c in self.lens_sets if c not in known]
         if unknown or not self.lens_sets:
@@ -150,7 +153,7 @@ class SynthConfig:
             if light != "linear":
                 raise ParameterError("encoding 'linear' (raw values) needs light 'linear': a "
                                      "sensor's values are linear in light")
-        elif (self.black_level, tuple(self.raw_gains)) != (0.0, (1.0, 1.0)):
+        elif (self.black_level, self.raw_gains) != (0.0, (1.0, 1.0)):
             raise ParameterError("black_level and raw_gains are for encoding 'linear' (raw "
                                  "values); sRGB-encoded images have neither")
 
@@ -172,11 +175,7 @@ class SynthConfig:
                   ) -> SynthConfig:
         """The config of :meth:`as_dict` (or of a recipe's synth step), old key names taken
         (:func:`~dualpixel.names.renamed_keys`; silently for files written before a rename)."""
-        values = renamed_keys(values, where, warn=warn)
-        for key in ("lens_sets", "noise_sigmas", "raw_gains"):
-            if key in values and isinstance(values[key], list):
-                values[key] = tuple(values[key])
-        return cls(**values)
+        return cls(**renamed_keys(values, where, warn=warn))
 
     def as_dict(self) -> dict:
         data = asdict(self)

@@ -322,9 +322,6 @@ def synth_config(recipe: Recipe, step: DataStep, output: Path):
     source = _data_folder(recipe, output, args.pop("input"))
     fmt = args.pop("format", "rgbd")
     args = renamed_keys(args, f"{recipe.path}: data step {step.name}")
-    for key in ("lens_sets", "noise_sigmas"):
-        if key in args:
-            args[key] = tuple(args[key])
     if "camera" in args:
         camera = str(args["camera"])  # a shipped camera's name, or a file beside the recipe
         shipped = "/" not in camera and not camera.endswith(".json")
