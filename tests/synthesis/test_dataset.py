@@ -403,6 +403,9 @@ def test_raw_encoded_datasets_store_linear_values_above_the_black_level(scene_di
         SynthConfig(encoding="log", **FAST)
     with pytest.raises(ParameterError, match="raw_gains must be"):
         SynthConfig(light="linear", encoding="linear", raw_gains=(0.0, 1.0), **FAST)
+    for bad in ({"black_level": "dark"}, {"raw_gains": [0.5, "high"]}, {"raw_gains": "x"}):
+        with pytest.raises(ParameterError, match=r"black_level|raw_gains"):  # no TypeError
+            SynthConfig(light="linear", encoding="linear", **bad, **FAST)
 
 
 def test_the_phone_profile_blurs_crops_like_the_phone_frame():

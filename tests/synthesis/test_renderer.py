@@ -264,7 +264,7 @@ def test_raw_storage_keeps_the_light_in_the_stored_values():
     with pytest.raises(ParameterError, match="raw storage needs light 'linear'"):
         SequenceDraw(camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None,
                      raw=(black, gain))
-    with pytest.raises(ParameterError, match="black_level must be in"):
+    with pytest.raises(ParameterError, match=r"black_level \(of full scale\) must be in"):
         SequenceDraw(camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None,
                      light="linear", raw=(0.7, gain))
 

@@ -20,7 +20,7 @@ from typing import Literal
 import numpy as np
 import torch
 
-from dualpixel.errors import ParameterError
+from dualpixel.errors import ParameterError, check_range
 from dualpixel.names import LIGHT_SPACES
 
 __all__ = ["LIGHT_SPACES", "Light", "check_light", "check_raw_storage", "linear_to_raw",
@@ -61,11 +61,12 @@ def linear_to_srgb_array(image: np.ndarray) -> np.ndarray:
 def check_raw_storage(black_level: float, gains: tuple[float, float]) -> None:
     """Refuse a raw storage :func:`linear_to_raw` cannot make: ``black_level`` in [0, 0.5),
     ``gains`` a ``(low, high)`` range with 0 < low <= high <= 1."""
-    if not 0.0 <= black_level < 0.5:
-        raise ParameterError(f"black_level must be in [0, 0.5) of full scale, got {black_level}")
-    if len(gains) != 2 or not 0.0 < gains[0] <= gains[1] <= 1.0:
+    check_range("black_level (of full scale)", black_level, 0.0, 0.5, high_inclusive=False)
+    values = tuple(gains) if isinstance(gains, (list, tuple)) else ()
+    if (len(values) != 2 or not all(isinstance(g, (int, float)) for g in values)
+            or not 0.0 < values[0] <= values[1] <= 1.0):
         raise ParameterError(f"raw_gains must be (low, high) with 0 < low <= high <= 1, got "
-                             f"{tuple(gains)}")
+                             f"{str(gains)[:80]}")
 
 
 def linear_to_raw(values: torch.Tensor, black_level: float, gain: float) -> torch.Tensor:
