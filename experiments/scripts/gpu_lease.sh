@@ -13,6 +13,10 @@
 #                               (float16, the recipe's `ship` name); the evaluation is not run
 #   collect RUN NAME            put RUN/ship/NAME.safetensors into $OUT as 15 MiB parts, with its
 #                               sha256 and the log's tail (join here: cat NAME.part* > NAME.safetensors)
+#   kit RUN PHASE               put what `dualpixel release` needs of RUN into $OUT as 15 MiB parts
+#                               of one tar (records, histories, evaluations, the export and the
+#                               shipped PHASE's last.safetensors; no data, no resume states):
+#                               cat RUN-kit.tar.part* | tar xf - -C runs/ here
 #   figures                     the GPU figures of issue #36 into $OUT: bench_inference.py (and a
 #                               profile of its default and fp32 passes) and bench_synthesis.py
 #                               (render only) on cuda, nvidia-smi (~5 minutes);
@@ -20,7 +24,7 @@
 #
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, stop, collect or figures}; shift
+command=${1:?start, wait, stop, collect, kit or figures}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -91,6 +95,15 @@ collect)
   tail -n 40 "$run.log" > "$OUT/$name.log"
   ls -l "$OUT"
   ;;
+kit)
+  run=$1 phase=$2
+  : "${OUT:?set OUT to the device tool output folder}"
+  (cd "$(dirname "$run")" && find "$(basename "$run")" -type f ! -path "*/data/*" ! -name "*.pt" \
+      ! -name "best.safetensors" ! -path "*/tensorboard/*" \
+      \( ! -name last.safetensors -o -path "*/phases/$phase/*" \) | sort \
+      | tar cf - -T -) | split -b 15M -d - "$OUT/$(basename "$run")-kit.tar.part"
+  ls -l "$OUT"
+  ;;
 figures)
   : "${OUT:?set OUT to the device tool output folder}"
   nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1 || true
@@ -103,7 +116,7 @@ figures)
     | tee "$OUT/bench_synthesis_cuda.txt"
   ;;
 *)
-  echo "unknown command: $command (start, wait, stop, collect or figures)" >&2
+  echo "unknown command: $command (start, wait, stop, collect, kit or figures)" >&2
   exit 2
   ;;
 esac

@@ -154,3 +154,25 @@ def test_a_start_that_resolves_to_nothing_or_an_unfinished_run_is_refused(finish
     result = _release(run, weights, tmp_path / "results", "--tag", TAG, recipes=recipes)
     assert result.exit_code == 1 and "has not finished" in result.output, result.output
     assert "Traceback" not in result.output
+
+
+def test_a_run_brought_back_without_its_optimizer_state_releases(finished_run, tmp_path):
+    """A run trained on another machine (a lent GPU) comes back with its weights, history and
+    records but not its resume state (about 3x the weights): it is finished, and releases."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    for state in run.glob("phases/*/last_state.pt"):
+        state.unlink()
+    weights = _weights_folder(tmp_path, finished_run)
+    result = _release(run, weights, tmp_path / "results", "--tag", TAG,
+                      recipes=finished_run.parent / "recipes")
+    assert result.exit_code == 0, result.output
+    assert TAG in json.loads((weights / "registry.json").read_text())["weights"]
+    (run / "phases" / "second" / "last.safetensors").unlink()  # no weights: not finished
+    (tmp_path / "again").mkdir()
+    weights = _weights_folder(tmp_path / "again", finished_run)
+    result = _release(run, weights, tmp_path / "results2", "--tag", TAG,
+                      recipes=finished_run.parent / "recipes")
+    assert result.exit_code == 1 and "has not finished" in result.output, result.output

@@ -56,7 +56,7 @@ from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES, renamed_keys
 from dualpixel.training.config import MACHINE_KEYS
 
 __all__ = ["MACHINE_SETTINGS", "OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe",
-           "phase_done", "plan_text", "reproduce"]
+           "phase_done", "phase_finished", "plan_text", "reproduce"]
 
 _TOP_KEYS = {"name", "description", "extends", "data", "train", "phases", "ship", "evaluate"}
 #: How deep ``extends`` may chain.
@@ -485,18 +485,38 @@ def _step_state(folder: Path) -> str:
     return "to do"
 
 
+def _phase_epochs(recipe: Recipe, index: int, output: Path) -> int:
+    """How many epochs phase ``index`` trains."""
+    return phase_config(recipe, index, output,
+                        phase_start(recipe, index, output, must_exist=False)).epochs
+
+
 def phase_done(recipe: Recipe, index: int, output: Path) -> bool:
     """Whether phase ``index`` of a run in ``output`` has trained all its epochs."""
-    config = phase_config(recipe, index, output, phase_start(recipe, index, output,
-                                                             must_exist=False))
-    return _phase_state(recipe.phase_folder(output, index), config.epochs) == "done"
+    return (_phase_state(recipe.phase_folder(output, index), _phase_epochs(recipe, index, output))
+            == "done")
+
+
+def phase_finished(recipe: Recipe, index: int, output: Path) -> bool:
+    """Whether phase ``index`` of a run in ``output`` trained all its epochs and left its
+    weights (``last.safetensors``), with or without the state a resume needs: a run trained on
+    another machine comes back without its optimizer state (``last_state.pt``, several times the
+    weights' size) and is still finished."""
+    folder = recipe.phase_folder(output, index)
+    return ((folder / "last.safetensors").is_file()
+            and _epochs_recorded(folder) >= _phase_epochs(recipe, index, output))
+
+
+def _epochs_recorded(folder: Path) -> int:
+    """Epochs a phase folder's history records (0 without one)."""
+    history = folder / "history.jsonl"
+    return len(history.read_text().splitlines()) if history.is_file() else 0
 
 
 def _phase_state(folder: Path, epochs: int) -> str:
-    history = folder / "history.jsonl"
-    if not (folder / "last_state.pt").is_file() or not history.is_file():
+    if not (folder / "last_state.pt").is_file() or not (folder / "history.jsonl").is_file():
         return "to do"
-    done = len(history.read_text().splitlines())
+    done = _epochs_recorded(folder)
     return "done" if done >= epochs else f"{done}/{epochs} epochs"
 
 

@@ -165,7 +165,7 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
     go to ``results_dir/TAG.csv`` (None: not written)."""
     from dualpixel.io.atomic import atomic_path
     from dualpixel.models.checkpoint import load_model, read_metadata, save_model
-    from dualpixel.training.recipe import phase_done
+    from dualpixel.training.recipe import phase_finished
     from dualpixel.weights import file_sha256, weights_folder
 
     run = Path(run)
@@ -193,7 +193,7 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
     if default and alias is None:
         raise ParameterError("--default needs --alias (the default is an alias)")
     index = recipe.phase_index(recipe.shipped_phase)
-    if not phase_done(recipe, index, run):
+    if not phase_finished(recipe, index, run):
         raise InputFileError(recipe.phase_folder(run, index), f"phase {recipe.shipped_phase} "
                              "has not finished; run reproduce to the end first")
     exported = run / "ship" / f"{tag}.safetensors"
