@@ -82,3 +82,21 @@ print(dualpixel.psnr(sharp, frame["target"]) > 0, sorted(dualpixel.list_models()
                           cwd=tmp_path, env=env, capture_output=True, text=True)
     assert demo.returncode == 0, demo.stderr[-2000:]
     assert (tmp_path / "demo" / "index.html").is_file()
+
+
+def test_runtime_dependencies_are_held_to_the_tested_majors():
+    """Every runtime dependency has an upper bound below its next major version (a major that
+    changed under the project once broke it), and the versions installed here, the tested
+    ones, lie inside every range. tifffile's versions are dates: no major to hold."""
+    import importlib.metadata
+
+    from packaging.requirements import Requirement
+
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    for spec in project["dependencies"]:
+        requirement = Requirement(spec)
+        if requirement.name != "tifffile":
+            assert any(s.operator == "<" for s in requirement.specifier), spec
+        installed = importlib.metadata.version(requirement.name)
+        assert requirement.specifier.contains(installed, prereleases=True), (spec, installed)
