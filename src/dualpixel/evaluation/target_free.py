@@ -102,15 +102,24 @@ class TargetFreeReport:
         return asdict(self)
 
 
-def _check_images(left: np.ndarray, right: np.ndarray, output: np.ndarray) -> None:
-    for name, image in (("left", left), ("right", right), ("output", output)):
+def _check_images(images: dict[str, np.ndarray], *, finite: bool = True) -> None:
+    """Refuse images that are not ``(H, W, 1)`` or ``(H, W, 3)``, hold NaN or infinite values
+    (``finite``) or do not share one shape; the message names the image."""
+    for name, image in images.items():
         if image.ndim != 3 or image.shape[2] not in (1, 3):
             raise ParameterError(f"{name} must be (H, W, 1) or (H, W, 3), got {image.shape}")
-        if not np.isfinite(image).all():
+        if finite and not np.isfinite(image).all():
             raise ParameterError(f"{name} holds NaN or infinite values")
-    if not left.shape == right.shape == output.shape:
-        raise ParameterError(f"left {left.shape}, right {right.shape} and output "
-                             f"{output.shape} must share one shape")
+    if len({image.shape for image in images.values()}) > 1:
+        names = [f"{name} {image.shape}" for name, image in images.items()]
+        raise ParameterError(f"{', '.join(names[:-1])} and {names[-1]} must share one shape")
+
+
+def _to_linear(encoding: str):
+    """The function that takes images stored in ``encoding`` to linear light."""
+    if encoding not in ENCODINGS:
+        raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, got {encoding!r}")
+    return srgb_to_linear_array if encoding == "srgb" else np.asarray
 
 
 def block_size(width: int) -> int:
@@ -141,15 +150,8 @@ def local_brightness_error(output: np.ndarray, target: np.ndarray, *,
     >>> round(local_brightness_error(image * 0.98, image, encoding="linear"), 4)
     0.02
     """
-    if encoding not in ENCODINGS:
-        raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, got {encoding!r}")
-    for name, image in (("output", output), ("target", target)):
-        if image.ndim != 3 or image.shape[2] not in (1, 3):
-            raise ParameterError(f"{name} must be (H, W, 1) or (H, W, 3), got {image.shape}")
-    if output.shape != target.shape:
-        raise ParameterError(f"output {output.shape} and target {target.shape} must share one "
-                             "shape")
-    to_linear = srgb_to_linear_array if encoding == "srgb" else np.asarray
+    to_linear = _to_linear(encoding)
+    _check_images({"output": output, "target": target}, finite=False)
     grey_out, grey_target = (np.asarray(to_linear(x), np.float32).mean(axis=2)
                              for x in (output, target))
     mean = max(float(grey_target.mean()), 1e-6)
@@ -174,14 +176,12 @@ def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
     """
     if not (math.isfinite(noise_sigma) and 0 <= noise_sigma <= 8):
         raise ParameterError(f"noise_sigma must be in [0, 8] px, got {noise_sigma}")
-    if encoding not in ENCODINGS:
-        raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, got {encoding!r}")
-    _check_images(left, right, output)
+    to_linear = _to_linear(encoding)
+    _check_images({"left": left, "right": right, "output": output})
     patch = block_size(left.shape[1])
     if left.shape[0] < 2 * patch or left.shape[1] < 4 * patch:
         raise ParameterError(f"images must be at least {4 * patch}x{2 * patch} px for the "
                              f"target-free checks, got {left.shape[1]}x{left.shape[0]}")
-    to_linear = srgb_to_linear_array if encoding == "srgb" else np.asarray
     lin_in = 0.5 * (to_linear(left) + to_linear(right))  # the combined image
     pictures = [left, right, lin_in if encoding == "linear" else linear_to_srgb_array(lin_in),
                 output]

@@ -265,10 +265,8 @@ def synthesize_frame(
         left = _noisy_view(left, draw, noise_seed * 2)
         right = _noisy_view(right, draw, noise_seed * 2 + 1)
     left, right, target = (t.clamp(0.0, 1.0) for t in (left, right, target))
-    if draw.raw is not None:  # the two photodiodes' light summed, the black level once
-        combined = (left + right) / 2.0
-    elif linear:  # the two photodiodes' light summed, then the tone curve
+    if linear and draw.raw is None:  # the two photodiodes' light summed, then the tone curve
         combined = linear_to_srgb((srgb_to_linear(left) + srgb_to_linear(right)) / 2.0)
-    else:
+    else:  # stored values (raw ones are linear: the light summed, the black level once)
         combined = (left + right) / 2.0
     return DPFrame(left, right, combined, target, defocus)
