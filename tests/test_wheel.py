@@ -42,6 +42,11 @@ def test_wheel_contents(wheel):
                    "dualpixel/demo_data/canon_scene_01/LICENSE.md",
                    "dualpixel/cameras/pixel4.json", "dualpixel/cameras/canon-840-linear.json"):
         assert needed in names, needed
+    from dualpixel.synthesis.textures import PHOTOGRAPH_NAMES
+
+    for name in PHOTOGRAPH_NAMES:  # synthesis reads its textures from the package alone
+        assert f"dualpixel/synthesis/photographs/{name}.png" in names, name
+    assert "dualpixel/synthesis/photographs/SOURCES.md" in names
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     assert "Project-URL: Source" in text and "License-Expression: MIT" in text
     assert wheel.stat().st_size < 80e6

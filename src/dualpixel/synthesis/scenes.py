@@ -30,7 +30,7 @@ __all__ = ["SCENE_LAYOUTS", "SceneConfig", "render_scene_sequence", "write_scene
 #: it), a ground plane receding to a background, objects between them and, sometimes, a blurred
 #: foreground occluder; textures from :mod:`dualpixel.synthesis.textures`.
 
-_PHOTOS = ("astronaut", "coffee", "chelsea", "rocket", "brick", "grass", "gravel", "camera")
+_PHOTOS = ("astronaut", "coffee", "cat", "rocket", "brick", "grass", "gravel", "camera")
 
 
 @dataclass(frozen=True)

@@ -2,78 +2,61 @@
 
 Sources, drawn at random:
 
-- the photographs bundled with installed packages (scikit-image's 20 offline images and
-  matplotlib's sample photograph), as random crops at random scale, rotation, flip and colour
-  (grey images get a random two-colour mapping, colour ones a random tint and channel mix);
+- 15 public-domain and CC0 photographs shipped with the package (``photographs/``, their
+  sources and licences in ``photographs/SOURCES.md``), as random crops at random scale,
+  rotation, flip and colour (grey images get a random two-colour mapping, colour ones a random
+  tint and channel mix);
 - dead leaves (occluding disks with power-law radii: the scale-invariant statistics of natural
   images, the reason they train restoration networks);
 - coloured fractal noise with a 1/f^p amplitude spectrum (foliage, rock, bark when anisotropic);
 - printed text and thin lines (the sharp, high-contrast edges of man-made scenes);
 - smooth gradients with a little noise (sky, walls).
 
-Every texture is float32 ``(H, W, 3)`` in [0, 1], reproducible from the generator it is given.
+Every texture is float32 ``(H, W, 3)`` in [0, 1], reproducible from the generator it is given
+and the package's version alone (no installed package's data is read).
 """
 
 from __future__ import annotations
 
 import functools
-import os
+from importlib import resources
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-__all__ = ["PHOTOGRAPH_SOURCES", "load_photograph", "photographs", "random_texture"]
+__all__ = ["PHOTOGRAPH_NAMES", "load_photograph", "photograph_path", "photographs",
+           "random_texture"]
 
-#: (module, name) of every photograph used, all installed with scikit-image and matplotlib.
-PHOTOGRAPH_SOURCES: tuple[tuple[str, str], ...] = (
-    *(("skimage", name) for name in (
-        "astronaut", "brick", "camera", "cat", "cell", "clock", "coffee", "coins", "grass",
-        "gravel", "hubble_deep_field", "immunohistochemistry", "moon", "page", "retina",
-        "rocket", "text", "colorwheel", "chelsea",
-    )),
-    ("matplotlib", "grace_hopper.jpg"),
+#: The shipped photographs (``photographs/NAME.png``), in the order textures draw them.
+PHOTOGRAPH_NAMES: tuple[str, ...] = (
+    "astronaut", "brick", "camera", "cat", "cell", "clock", "coffee", "coins", "grass",
+    "gravel", "hubble_deep_field", "immunohistochemistry", "retina", "rocket", "text",
 )
 
 
-def _load(module: str, name: str) -> np.ndarray | None:
-    try:
-        if module == "skimage":
-            import skimage.data
-
-            image = getattr(skimage.data, name)()
-        else:
-            import matplotlib
-
-            path = os.path.join(matplotlib.get_data_path(), "sample_data", name)
-            image = cv2.imread(path, cv2.IMREAD_COLOR)
-            image = None if image is None else image[:, :, ::-1]
-    except Exception:  # a package build without that file: use the others
-        return None
-    if image is None:
-        return None
-    image = np.asarray(image)
-    if image.ndim == 2:
-        image = image[:, :, None]
-    return np.ascontiguousarray(image[:, :, :3], dtype=np.float32) / 255.0
+def photograph_path(name: str) -> Path:
+    """The file of one shipped photograph (``KeyError`` for a name not shipped)."""
+    if name not in PHOTOGRAPH_NAMES:
+        raise KeyError(f"unknown photograph {name!r}; shipped: {', '.join(PHOTOGRAPH_NAMES)}")
+    return Path(str(resources.files("dualpixel.synthesis").joinpath("photographs", f"{name}.png")))
 
 
-def load_photograph(name: str) -> np.ndarray | None:
-    """One photograph of :data:`PHOTOGRAPH_SOURCES` by name, float32 ``(H, W, 1 or 3)`` in
-    [0, 1]; None when this installation lacks it."""
-    for module, known in PHOTOGRAPH_SOURCES:
-        if known == name:
-            return _load(module, name)
-    raise KeyError(f"unknown photograph {name!r}")
+def load_photograph(name: str) -> np.ndarray:
+    """One shipped photograph by name, float32 ``(H, W, 1 or 3)`` RGB in [0, 1]."""
+    path = photograph_path(name)
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:  # a broken installation, not a user error
+        raise FileNotFoundError(f"{path}: shipped photograph missing or unreadable; "
+                                "reinstall dualpixel")
+    image = image[:, :, None] if image.ndim == 2 else image[:, :, 2::-1]
+    return np.ascontiguousarray(image, dtype=np.float32) / 255.0
 
 
 @functools.lru_cache(maxsize=1)
 def photographs() -> tuple[np.ndarray, ...]:
-    """The available bundled photographs, float32 ``(H, W, 1 or 3)`` in [0, 1]."""
-    loaded = [_load(module, name) for module, name in PHOTOGRAPH_SOURCES]
-    found = tuple(image for image in loaded if image is not None)
-    if not found:
-        raise RuntimeError("no bundled photographs found (scikit-image's data module is missing)")
-    return found
+    """All shipped photographs in :data:`PHOTOGRAPH_NAMES` order, float32 ``(H, W, 1 or 3)``."""
+    return tuple(load_photograph(name) for name in PHOTOGRAPH_NAMES)
 
 
 def _colourise(rng: np.random.Generator, image: np.ndarray) -> np.ndarray:
