@@ -114,6 +114,7 @@ def _tiny_recipe(tmp_path: Path, **changes) -> Path:
     }
     for key, value in changes.items():
         raw[key] = value
+    tmp_path.mkdir(parents=True, exist_ok=True)
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
     return path
@@ -247,5 +248,23 @@ def test_a_recipe_extends_another_by_name(tmp_path):
         load_recipe(loop)
     missing = tmp_path / "missing.yaml"
     missing.write_text("name: m\nextends: nowhere.yaml\nphases: [{name: a}]\n")
-    with pytest.raises(InputFileError, match=r"nowhere\.yaml is no recipe beside this one"):
+    with pytest.raises(InputFileError, match=r"extends: nowhere\.yaml is no recipe"):
         load_recipe(missing)
+    missing.write_text(f"name: m\nextends: {base}\nphases: [{{name: a}}]\n")
+    with pytest.raises(InputFileError, match="relative to this recipe's folder"):
+        load_recipe(missing)  # an absolute path would not travel with the repository
+
+
+def test_a_variant_extends_a_recipe_of_another_folder(tmp_path):
+    """An experiment under ``experiments/recipes`` names only what changes from a recipe of
+    ``recipes/`` (a relative path); the result is the base with those keys replaced."""
+    base = _tiny_recipe(tmp_path / "recipes")
+    variant = tmp_path / "experiments" / "recipes" / "seed.yaml"
+    variant.parent.mkdir(parents=True)
+    variant.write_text(yaml.safe_dump({
+        "name": "seed", "extends": f"../../recipes/{base.name}", "train": {"seed": 7},
+        "ship": {"tag": "seed.v1"}}, sort_keys=False))
+    parent, recipe = load_recipe(base), load_recipe(variant)
+    assert recipe.name == "seed" and recipe.shipped_tag == "seed.v1"
+    assert recipe.data == parent.data and recipe.phases == parent.phases
+    assert recipe.train == {**parent.train, "seed": 7}

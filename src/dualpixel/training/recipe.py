@@ -31,9 +31,10 @@ with phases inside it) holds:
 - ``evaluate``: ``[{name, dataset, split}]`` scored with the shipped weights (a step's name or a
   folder; a folder outside the run that is missing is skipped with a note).
 
-``extends: BASE.yaml`` (a recipe beside this one) starts from the base: this recipe's data steps
-and phases replace the base's of the same name or follow them, its ``train`` keys override the
-base's, and its other keys replace the base's; a variant names only what changes.
+``extends: BASE.yaml`` (a recipe beside this one, or a relative path such as
+``../../recipes/BASE.yaml``) starts from the base: this recipe's data steps and phases replace the
+base's of the same name or follow them, its ``train`` keys override the base's, and its other keys
+replace the base's; a variant names only what changes.
 
 Every step resumes: a rerun of ``reproduce`` continues where the last one stopped. Bad input
 (an unknown key, a phase whose start cannot be resolved, a missing data step) is refused before
@@ -202,10 +203,25 @@ def _by_name(path: Path, where: str, items: Any) -> dict[str, Any]:
     return named
 
 
+def _base_path(path: Path, value: Any) -> Path:
+    """The recipe that ``extends: VALUE`` of recipe ``path`` names: a ``.yaml`` file given
+    relative to the recipe's folder (``BASE.yaml``, ``../../recipes/BASE.yaml``)."""
+    text = str(value)
+    relative = Path(text)
+    if not text or relative.is_absolute() or relative.suffix not in (".yaml", ".yml"):
+        raise _fail(path, "extends", f"{text[:80]!r} must be a recipe file (.yaml) given "
+                                     "relative to this recipe's folder")
+    base = path.parent / relative
+    if not base.is_file():
+        raise _fail(path, "extends", f"{text} is no recipe (looked for {base})")
+    return base
+
+
 def _raw_recipe(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
-    """A recipe's mapping with its ``extends`` resolved: the base recipe (a file beside it)
-    with this one's ``data`` steps and ``phases`` replacing or following the base's by name,
-    its ``train`` settings over the base's, and its other keys replacing the base's."""
+    """A recipe's mapping with its ``extends`` resolved: the base recipe (a path relative to
+    this one's folder) with this one's ``data`` steps and ``phases`` replacing or following the
+    base's by name, its ``train`` settings over the base's, and its other keys replacing the
+    base's."""
     raw = dict(read_mapping(path, "recipe", syntax="yaml"))
     unknown = sorted(set(raw) - _TOP_KEYS)
     if unknown:
@@ -213,12 +229,10 @@ def _raw_recipe(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
                                     f"{', '.join(sorted(_TOP_KEYS))}")
     if "extends" not in raw:
         return raw
-    base_path = path.parent / _plain(path, "extends", Path(str(raw["extends"])).name)
+    base_path = _base_path(path, raw["extends"])
     if base_path.resolve() in {p.resolve() for p in (*chain, path)} or len(chain) >= _MAX_EXTENDS:
-        raise _fail(path, "extends", f"{base_path.name} makes a cycle or a chain deeper than "
+        raise _fail(path, "extends", f"{raw['extends']} makes a cycle or a chain deeper than "
                                      f"{_MAX_EXTENDS}")
-    if not base_path.is_file():
-        raise _fail(path, "extends", f"{base_path.name} is no recipe beside this one")
     base = _raw_recipe(base_path, (*chain, path))
     merged = {**base, **{k: v for k, v in raw.items() if k != "extends"}}
     for key in ("data", "phases"):
@@ -234,7 +248,7 @@ def _raw_recipe(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
 
 def load_recipe(path: str | Path) -> Recipe:
     """Read and check a recipe's structure (the settings are checked by :func:`check_recipe`);
-    ``extends: BASE.yaml`` starts from a recipe beside it (:func:`_raw_recipe`)."""
+    ``extends: BASE.yaml`` starts from another recipe (:func:`_raw_recipe`)."""
     path = Path(path)
     raw = _raw_recipe(path)
     for key in ("name", "phases"):
