@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from dualpixel.errors import ParameterError
+from dualpixel.errors import ParameterError, check_seed
 from dualpixel.io.arrays import as_image_batch, full_scale, image_channels, restore_layout
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
@@ -238,6 +238,7 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
         raise ParameterError(f"depth {depth_map.shape} must be (H, W) of rgb {images.shape[1:3]}")
     depth_map = check_depth_map(depth_map)
     lens_set, camera = _old_camera_arguments(lens_set, camera, camera_file)
+    check_seed("seed", seed)
     defaults = synthesis_settings(settings)
     lens_set = lens_set or _FRAME_LENS_SET[settings]
     psf_bank = psf_bank or defaults["psf_bank"]

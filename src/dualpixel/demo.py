@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from dualpixel.errors import ParameterError
+from dualpixel.errors import ParameterError, check_seed
 from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.inference import Deblurrer
 from dualpixel.io.atomic import atomic_path
@@ -122,6 +122,7 @@ def run_demo(
         warn_renamed("run_demo(camera=...)", "lens_set=...", stacklevel=2)
         lens_set = camera
     started = time.perf_counter()
+    check_seed("seed", seed)
     output = Path(output)
     output.mkdir(parents=True, exist_ok=True)
     if (left is None) != (right is None) or (rgb is None) != (depth is None):

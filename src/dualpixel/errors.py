@@ -1,4 +1,4 @@
-"""Typed errors and the one validation helper used at every public boundary.
+"""Typed errors and the validation helpers used at every public boundary (ranges, seeds).
 
 Messages always say what was expected and what came, and name the parameter or file.
 """
@@ -8,12 +8,16 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 __all__ = [
+    "SEED_MAX",
     "DualPixelError",
     "InputFileError",
     "OutputFileError",
     "ParameterError",
     "check_range",
+    "check_seed",
 ]
 
 
@@ -79,3 +83,22 @@ def check_range(
         interval = f"{opening}{low:g}, {high:g}{closing}"
         raise ParameterError(f"{name} must be in {interval}, got {value!r}")
     return number
+
+
+#: The largest seed any command or function takes (a non-negative 63-bit integer, what NumPy's
+#: and torch's generators both accept).
+SEED_MAX = 2**63 - 1
+
+
+def check_seed(name: str, value: object) -> int:
+    """Return ``value`` if it is an integer seed in [0, :data:`SEED_MAX`], else raise
+    :class:`ParameterError` naming ``name``.
+
+    >>> check_seed("seed", 7)
+    7
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ParameterError(f"{name} must be an integer, got {value!r}")
+    if not 0 <= int(value) <= SEED_MAX:
+        raise ParameterError(f"{name} must be in [0, 2**63 - 1], got {value}")
+    return int(value)

@@ -158,6 +158,10 @@ def test_clear_errors_and_the_listing():
         dualpixel.deblur(rgb * 255, rgb * 255)
     with pytest.raises(ValueError, match="lens_set must be one of"):
         dualpixel.synthesize(rgb, depth, lens_set="set9")
+    for seed, problem in ((-1, r"in \[0, 2\*\*63 - 1\]"), (2**63, r"in \[0, 2\*\*63 - 1\]"),
+                          (1.5, "an integer"), (True, "an integer")):
+        with pytest.raises(ValueError, match=f"seed must be {problem}"):
+            dualpixel.synthesize(rgb, depth, seed=seed)
     with pytest.raises(ValueError, match="checkpoint not found"):
         dualpixel.load_model("no-such-model")
     models = dualpixel.list_models()

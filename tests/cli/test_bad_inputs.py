@@ -168,6 +168,16 @@ def test_scenes_into_a_folder_of_other_settings(files, tmp_path):
                         "1", "--size", "32x24", "--seed", "5"), 1, "seed")
 
 
+@pytest.mark.parametrize("seed", ["-5", "1.5", str(2**63)])
+def test_seeds_out_of_range_are_refused_before_any_work(files, tmp_path, seed):
+    assert_clear(invoke("scenes", "--output", tmp_path / "sc", "--sequences", "1", "--seed", seed),
+                 2, "--seed")
+    assert_clear(invoke("synth", "--input", files / "scenes", "--output", tmp_path / "sy",
+                        "--seed", seed), 2, "--seed")
+    assert_clear(invoke("demo", "--output", tmp_path / "d", "--seed", seed), 2, "--seed")
+    assert not any((tmp_path / name).exists() for name in ("sc", "sy", "d"))
+
+
 def test_export(files, tmp_path):
     assert_clear(invoke("export", "--checkpoint", files / "tiny.safetensors", "--format",
                         "safetensors-fp16", "--output", tmp_path / "x.onnx"), 2, "--output",
@@ -196,6 +206,8 @@ def test_deblur_views(files, tmp_path):
     result = invoke("deblur", "--left", files / "l.png", "--right", files / "r.png", "--output",
                     tmp_path / "t.png", "--checkpoint", files / "tiny.safetensors", "--tile", "32")
     assert result.exit_code == 0, result.output
+    # ... with the library's warning as a warning of the command, not of generated code
+    assert "Warning: tile 32 px" in result.output and "<string>" not in result.output
 
 
 def test_train_refusals(files, tmp_path, tiny_synthetic_dataset):

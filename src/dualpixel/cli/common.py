@@ -21,13 +21,15 @@ from pathlib import Path
 
 import click
 
-from dualpixel.errors import DualPixelError, ParameterError
+from dualpixel.errors import SEED_MAX, DualPixelError, ParameterError
 from dualpixel.io.paths import check_outputs_apart
 
-__all__ = ["CONTEXT", "MAX_SIDE", "DPCommand", "DPGroup", "OutputPath", "float_list",
+__all__ = ["CONTEXT", "MAX_SIDE", "SEED", "DPCommand", "DPGroup", "OutputPath", "float_list",
            "parse_size"]
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "show_default": True}
+#: The type of every ``--seed`` option: what :func:`dualpixel.errors.check_seed` takes.
+SEED = click.IntRange(0, SEED_MAX)
 
 
 def _os_error_message(error: OSError) -> str:

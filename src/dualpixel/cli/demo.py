@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath
+from dualpixel.cli.common import CONTEXT, SEED, DPCommand, OutputPath
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (dualpixel models) or a .safetensors path."
@@ -33,7 +33,7 @@ _CHECKPOINT_HELP = "Checkpoint: a registry name (dualpixel models) or a .safeten
 @click.option("--camera", "old_lens_set", default=None, hidden=True,
               help="Old name of --lens-set (until release 0.3).")
 @click.option("--frames", type=click.IntRange(1, 30), default=3, help="Procedural frames.")
-@click.option("--seed", type=int, default=2026, help="Procedural scene seed.")
+@click.option("--seed", type=SEED, default=2026, help="Procedural scene seed.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--tile", type=int, default=None,
               help="Tile size (multiple of 16) for bounded memory; default: whole frames.")

@@ -6,7 +6,14 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath, float_list, parse_size
+from dualpixel.cli.common import (
+    CONTEXT,
+    SEED,
+    DPCommand,
+    OutputPath,
+    float_list,
+    parse_size,
+)
 from dualpixel.names import (
     ENCODINGS,
     LIGHT_SPACES,
@@ -57,7 +64,7 @@ def psf(output: Path, radii: list[float], order: float, alpha: float, beta: floa
 @click.option("--frames", type=click.IntRange(1), default=4, help="Frames per sequence.")
 @click.option("--size", default="320x240", callback=parse_size, help="Frame size WIDTHxHEIGHT.")
 @click.option("--leaves", type=click.IntRange(0), default=28, help="Shapes per scene.")
-@click.option("--seed", type=int, default=0, help="Scene seed.")
+@click.option("--seed", type=SEED, default=0, help="Scene seed.")
 @click.option("--layout", type=click.Choice(SCENE_LAYOUTS), default="leaves",
               help="leaves: shapes at random depths; photo: an in-focus subject, ground plane, "
                    "background and occluders, with richer textures (writes the focus distance).")
@@ -144,7 +151,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
 @click.option("--depth-scale", type=float, default=0.001,
               help="Metres per unit of 16-bit depth PNGs.")
-@click.option("--seed", type=int, default=0, help="Seed of PSF shapes, noise and its draws.")
+@click.option("--seed", type=SEED, default=0, help="Seed of PSF shapes, noise and its draws.")
 @click.option("--device", default="auto", help="auto, cpu, cuda, cuda:1, ...")
 @click.option("--workers", type=click.IntRange(1), default=1, help="Parallel processes.")
 @click.option("--png-compression", type=click.IntRange(0, 9), default=None,

@@ -167,7 +167,8 @@ class Deblurrer:
                     f"tile {self.tile} px with overlap {self.overlap} px gives the network too "
                     f"little context: the output can differ from whole-frame deblurring by tens "
                     f"of levels near tile edges; use a tile of at least {MIN_FAITHFUL_TILE} px "
-                    f"and an overlap of at least {MIN_FAITHFUL_OVERLAP} px", stacklevel=2)
+                    f"and an overlap of at least {MIN_FAITHFUL_OVERLAP} px",
+                    stacklevel=3)  # the caller of the generated __init__
         self.device = torch.device(self.device)
         precision = "fp16" if self.half else self.precision
         check_backend(self.backend)

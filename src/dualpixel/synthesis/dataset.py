@@ -37,7 +37,13 @@ import torch
 
 from dualpixel import __version__
 from dualpixel.device import resolve_device
-from dualpixel.errors import InputFileError, OutputFileError, ParameterError, check_range
+from dualpixel.errors import (
+    InputFileError,
+    OutputFileError,
+    ParameterError,
+    check_range,
+    check_seed,
+)
 from dualpixel.io.atomic import atomic_path, open_for_append, remove_partials
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.dpdd import frame_paths, read_manifest
@@ -142,6 +148,7 @@ class SynthConfig:
         check_range("max_depth", self.max_depth, 0.0, low_inclusive=False)
         check_range("depth_scale", self.depth_scale, 0.0, low_inclusive=False)
         check_plain_name(self.split, "split")
+        check_seed("seed", self.seed)
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
         light = self.draw_settings()[2]  # refuses a bad camera, light or psf_shapes now

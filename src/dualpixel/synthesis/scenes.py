@@ -18,12 +18,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dualpixel.errors import ParameterError, check_range
+from dualpixel.errors import ParameterError, check_range, check_seed
 from dualpixel.names import SCENE_LAYOUTS
 from dualpixel.parallel import completed
 from dualpixel.synthesis.textures import dead_leaves, load_photograph, random_texture
 
-__all__ = ["SCENE_LAYOUTS", "SceneConfig", "render_scene_sequence", "write_scene_folder"]
+__all__ = ["MAX_SEQUENCES", "SCENE_LAYOUTS", "SceneConfig", "check_sequence_count",
+           "render_scene_sequence", "write_scene_folder"]
 
 #: "leaves": textured shapes at log-uniform depths before a slanted plane (the original default).
 #: "photo": laid out like a photograph: an in-focus subject near the centre (the camera focuses on
@@ -211,7 +212,7 @@ def render_scene(
 ) -> tuple[list[tuple[np.ndarray, np.ndarray]], float | None]:
     """Like :func:`render_scene_sequence`, with the focus distance (m) of the "photo" layout
     (the subject's depth, or occasionally a missed focus), None for "leaves"."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_seed("seed", seed))
     height, width = config.height, config.width
     pan = config.camera_speed * rng.uniform(-1, 1, 2) * np.array([1.0, 0.3])
     margin = int(abs(pan).max() * config.frames / config.plane_near) + 8
@@ -323,6 +324,20 @@ def check_scenes_complete(root: str | Path) -> None:
                                        "scenes` command to finish it")
 
 
+#: The most sequences one scene folder holds.
+MAX_SEQUENCES = 100_000
+
+
+def check_sequence_count(sequences: object) -> int:
+    """``sequences`` if it is an integer in [1, :data:`MAX_SEQUENCES`], else a
+    :class:`ParameterError`."""
+    if isinstance(sequences, bool) or not isinstance(sequences, (int, np.integer)) \
+            or not 1 <= int(sequences) <= MAX_SEQUENCES:
+        raise ParameterError(f"sequences must be an integer in [1, {MAX_SEQUENCES}], "
+                             f"got {sequences!r}")
+    return int(sequences)
+
+
 def write_scene_folder(
     output: str | Path, sequences: int, config: SceneConfig, *, seed: int = 0,
     progress: bool = True, workers: int = 1,
@@ -337,6 +352,8 @@ def write_scene_folder(
     from dualpixel.progress import progress_bar
 
     check_range("workers", workers, low=1)
+    check_seed("seed", seed)
+    sequences = check_sequence_count(sequences)
     root = Path(output)
     folders = [root / f"seq_{k:03d}" for k in range(sequences)]
     names = [f"frame_{t:04d}" for t in range(config.frames)]

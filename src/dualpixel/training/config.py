@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from dualpixel.errors import ParameterError, check_range
+from dualpixel.errors import ParameterError, check_range, check_seed
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.paths import check_plain_name
 from dualpixel.models.registry import model_spec
@@ -126,7 +126,8 @@ class TrainConfig:
         if self.width <= 0 or self.lstm_dropout >= 1:
             raise ParameterError(f"width must be > 0 and lstm_dropout < 1, got {self.width} and "
                                  f"{self.lstm_dropout}")
-        for name, most in (("workers", 256), ("log_images", 64), ("seed", 2**63 - 1)):
+        check_seed("seed", self.seed)
+        for name, most in (("workers", 256), ("log_images", 64)):
             if not 0 <= getattr(self, name) <= most:
                 raise ParameterError(f"{name} must be between 0 and {most}, got "
                                      f"{getattr(self, name)}")

@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.errors import InputFileError, ParameterError, check_seed
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.paths import check_plain_name
 from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES, renamed_keys
@@ -318,10 +318,11 @@ def _data_folder(recipe: Recipe, output: Path, value: Any) -> Any:
 
 def scene_config(step: DataStep):
     """``(SceneConfig, sequences, seed)`` of a scenes step."""
-    from dualpixel.synthesis.scenes import SceneConfig
+    from dualpixel.synthesis.scenes import SceneConfig, check_sequence_count
 
     args = dict(step.args)
-    sequences, seed = int(args.pop("sequences", 1)), int(args.pop("seed", 0))
+    sequences = check_sequence_count(args.pop("sequences", 1))
+    seed = check_seed("seed", args.pop("seed", 0))
     return SceneConfig(**args), sequences, seed
 
 
