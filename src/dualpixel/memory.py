@@ -8,9 +8,21 @@ import os
 
 from dualpixel.errors import ParameterError
 
-__all__ = ["available_memory", "require_memory", "reuse_freed_memory"]
+__all__ = ["available_memory", "format_bytes", "require_memory", "reuse_freed_memory"]
 
 GIB = 1024**3
+
+
+def format_bytes(nbytes: float) -> str:
+    """``nbytes`` in the largest binary unit that keeps it at least 1 (``"10.4 KiB"``).
+
+    >>> format_bytes(10_650), format_bytes(6.4e9)
+    ('10.4 KiB', '5.96 GiB')
+    """
+    for unit, size in (("GiB", GIB), ("MiB", 1024**2), ("KiB", 1024)):
+        if nbytes >= size:
+            return f"{nbytes / size:.3g} {unit}"
+    return f"{nbytes:.0f} bytes"
 
 _M_TRIM_THRESHOLD = -1  # mallopt parameters, <malloc.h>
 _M_MMAP_MAX = -4

@@ -383,13 +383,16 @@ def declared_array_bytes(path: str | Path) -> int:
 def check_array_file(path: str | Path, most: int | None = None) -> None:
     """Refuse, before loading, a ``.npy``/``.npz`` file whose arrays declare more than ``most``
     bytes, or more than the memory available."""
-    from dualpixel.memory import GIB, available_memory
+    from dualpixel.memory import available_memory, format_bytes
 
     needed = declared_array_bytes(path)
-    limit = available_memory() if most is None else min(most, available_memory())
-    if needed > limit:
-        raise InputFileError(path, f"declares arrays of {needed / GIB:.2f} GiB, more than "
-                                   f"{limit / GIB:.2f} GiB it may hold here")
+    available = available_memory()
+    if most is not None and needed > most:
+        raise InputFileError(path, f"declares arrays of {format_bytes(needed)}; a file of this "
+                                   f"kind holds at most {format_bytes(most)}")
+    if needed > available:
+        raise InputFileError(path, f"declares arrays of {format_bytes(needed)}, more than the "
+                                   f"{format_bytes(available)} of memory available")
 
 
 def load_npy(path: str | Path) -> np.ndarray:
