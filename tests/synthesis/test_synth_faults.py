@@ -4,6 +4,7 @@ each): a different thread count may round a pixel differently."""
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -151,6 +152,23 @@ def test_paths_from_manifests_and_options_stay_inside_their_folders(scenes, tmp_
         assert "manifest.jsonl" in result.output and "leads outside" in result.output
         assert victim.read_text() == "the user's file"
         assert not out.exists() or not any(out.rglob("*.png"))
+    manifest.write_text(original)
+    # a shard description that no `synth --shard` wrote: named, never a traceback
+    good = [json.loads((part / "dataset.json").read_text()) for part in parts]
+    for change, message in (({"shard": "x"}, "shard must be"), ({"shard": [2, 2]}, "shard must be"),
+                            ({"version": None}, "version must be a string"),
+                            ({"config": [1]}, "config must be a mapping"),
+                            ({"config": {**good[0]["config"], "bogus": 1}},
+                             "unknown synthesis setting.*bogus"),
+                            ({"config": {**good[0]["config"], "seed": "x"}}, "seed must be")):
+        for part, original_description in zip(parts, good):  # both, so they still agree
+            (part / "dataset.json").write_text(json.dumps({**original_description, **change}))
+        out = tmp_path / "merged-bad"
+        result = runner.invoke(cli, ["merge-shards", *map(str, parts), "--output", str(out)])
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert "dataset.json" in result.output and re.search(message, result.output), \
+            result.output
+        assert not out.exists()
     for split in ("../../x", "a/b", ".."):
         result = runner.invoke(cli, [*args, "--output", str(tmp_path / "s"), "--split", split])
         assert result.exit_code == 2 and "split must be a plain name" in result.output

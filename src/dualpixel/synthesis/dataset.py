@@ -181,8 +181,15 @@ class SynthConfig:
     def from_dict(cls, values: dict, where: str = "dataset.json", *, warn: bool = False
                   ) -> SynthConfig:
         """The config of :meth:`as_dict` (or of a recipe's synth step), old key names taken
-        (:func:`~dualpixel.names.renamed_keys`; silently for files written before a rename)."""
-        return cls(**renamed_keys(values, where, warn=warn))
+        (:func:`~dualpixel.names.renamed_keys`; silently for files written before a rename);
+        unknown keys are a :class:`ParameterError` naming ``where``."""
+        values = renamed_keys(values, where, warn=warn)
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ParameterError(f"unknown synthesis setting(s) {', '.join(unknown)} in {where}; "
+                                 f"known: {', '.join(sorted(known))}")
+        return cls(**values)
 
     def as_dict(self) -> dict:
         data = asdict(self)
@@ -408,6 +415,27 @@ def _description(config: SynthConfig, input_dir: str | Path, fmt: InputFormat,
     }
 
 
+def _shard_description(path: Path) -> dict:
+    """The ``dataset.json`` of a finished ``synth --shard K/N`` folder, its keys checked:
+    ``shard`` two integers 0 <= K < N, ``config`` a mapping, ``input``, ``format`` and
+    ``version`` strings (anything else is an :class:`InputFileError` naming the file)."""
+    description = read_mapping(path, "dataset description of `synth --shard`")
+    if "shard" not in description:
+        raise InputFileError(path, "is not a shard (made without --shard)")
+    shard = description["shard"]
+    if not (isinstance(shard, list) and len(shard) == 2
+            and all(isinstance(v, int) and not isinstance(v, bool) for v in shard)
+            and 0 <= shard[0] < shard[1]):
+        raise InputFileError(path, f"shard must be [K, N] with 0 <= K < N, got {shard!r}")
+    for key, kind in (("config", dict), ("input", str), ("format", str), ("version", str)):
+        if not isinstance(description.get(key), kind):
+            raise InputFileError(path, f"{key} must be a {'mapping' if kind is dict else 'string'}"
+                                       f", got {description.get(key)!r}; not made by `synth`")
+    if description.get("status") != "complete":
+        raise InputFileError(path, "shard is unfinished; rerun its `synth --shard` first")
+    return description
+
+
 def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
                  progress: bool = True) -> dict:
     """Join the folders of ``synth --shard K/N`` (all N, each complete) into ``output_dir``:
@@ -417,15 +445,7 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
     roots = [Path(s) for s in shards]
     if not roots:
         raise ParameterError("no shard folders given")
-    descriptions = []
-    for root in roots:
-        path = root / "dataset.json"
-        description = read_mapping(path, "dataset description of `synth --shard`")
-        if "shard" not in description:
-            raise InputFileError(path, "is not a shard (made without --shard)")
-        if description.get("status") != "complete":
-            raise InputFileError(path, "shard is unfinished; rerun its `synth --shard` first")
-        descriptions.append(description)
+    descriptions = [_shard_description(root / "dataset.json") for root in roots]
     first = descriptions[0]
     for root, description in zip(roots, descriptions):
         for key in ("config", "input", "format", "version"):
@@ -436,7 +456,10 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
     if indices != list(range(count)) or any(d["shard"][1] != count for d in descriptions):
         raise ParameterError(f"need each of the shards 0..{count - 1} of {count} exactly once, "
                              f"got {', '.join(f'{i}/{count}' for i in indices)}")
-    config = SynthConfig.from_dict(dict(first["config"]))
+    try:
+        config = SynthConfig.from_dict(dict(first["config"]), "its config")
+    except ParameterError as error:
+        raise InputFileError(roots[0] / "dataset.json", str(error)) from None
     sequences = discover_sequences(first["input"], first["format"], split=config.split)
     jobs = plan_jobs(sequences, config, first["format"])
     by_index = {d["shard"][0]: root for root, d in zip(roots, descriptions)}
