@@ -12,6 +12,9 @@ __all__ = ["available_memory", "format_bytes", "require_memory", "reuse_freed_me
 
 GIB = 1024**3
 
+_M_TRIM_THRESHOLD = -1  # mallopt parameters, <malloc.h>
+_M_MMAP_MAX = -4
+
 
 def format_bytes(nbytes: float) -> str:
     """``nbytes`` in the largest binary unit that keeps it at least 1 (``"10.4 KiB"``).
@@ -23,9 +26,6 @@ def format_bytes(nbytes: float) -> str:
         if nbytes >= size:
             return f"{nbytes / size:.3g} {unit}"
     return f"{nbytes:.0f} bytes"
-
-_M_TRIM_THRESHOLD = -1  # mallopt parameters, <malloc.h>
-_M_MMAP_MAX = -4
 
 
 def available_memory() -> int:

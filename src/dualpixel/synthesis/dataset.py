@@ -453,7 +453,8 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
                 raise InputFileError(root / "dataset.json", f"{key} differs from {roots[0]}'s")
     count = first["shard"][1]
     indices = sorted(d["shard"][0] for d in descriptions)
-    if indices != list(range(count)) or any(d["shard"][1] != count for d in descriptions):
+    if len(indices) != count or indices != list(range(count)) \
+            or any(d["shard"][1] != count for d in descriptions):
         raise ParameterError(f"need each of the shards 0..{count - 1} of {count} exactly once, "
                              f"got {', '.join(f'{i}/{count}' for i in indices)}")
     try:
