@@ -4,10 +4,10 @@ command line can list them without importing torch (``dualpixel --help`` stays f
 from __future__ import annotations
 
 __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS",
-           "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "OVERSHOOT_MODES", "PRECISIONS",
-           "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RENAMED", "RENAMED_UNTIL",
-           "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES", "output_modes_suffix", "renamed_keys",
-           "warn_renamed"]
+           "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "MAX_SEQUENCES", "OVERSHOOT_MODES",
+           "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RENAMED",
+           "RENAMED_UNTIL", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES", "output_modes_suffix",
+           "renamed_keys", "warn_renamed"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -27,6 +27,8 @@ LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")
 SYNTH_SETTINGS_NAMES: tuple[str, ...] = ("shipped", "paper")
 #: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`).
 SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo")
+#: The most sequences one procedural scene folder holds.
+MAX_SEQUENCES = 100_000
 #: Inference precisions (:mod:`dualpixel.inference.precision`).
 PRECISIONS: tuple[str, ...] = ("auto", "fp32", "bf16", "fp16")
 #: Inference backends (:mod:`dualpixel.inference.onnx_runtime`): PyTorch (any device and

@@ -17,6 +17,7 @@ from dualpixel.cli.common import (
 from dualpixel.names import (
     ENCODINGS,
     LIGHT_SPACES,
+    MAX_SEQUENCES,
     PSF_BANK_NAMES,
     PSF_MODELS,
     PSF_SHAPE_SOURCES,
@@ -60,7 +61,8 @@ def psf(output: Path, radii: list[float], order: float, alpha: float, beta: floa
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="RGB-D folder to write (one subfolder per sequence).")
-@click.option("--sequences", type=click.IntRange(1), default=2, help="Number of sequences.")
+@click.option("--sequences", type=click.IntRange(1, MAX_SEQUENCES), default=2,
+              help="Number of sequences.")
 @click.option("--frames", type=click.IntRange(1), default=4, help="Frames per sequence.")
 @click.option("--size", default="320x240", callback=parse_size, help="Frame size WIDTHxHEIGHT.")
 @click.option("--leaves", type=click.IntRange(0), default=28, help="Shapes per scene.")

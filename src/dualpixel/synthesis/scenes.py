@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import ParameterError, check_range, check_seed
-from dualpixel.names import SCENE_LAYOUTS
+from dualpixel.names import MAX_SEQUENCES, SCENE_LAYOUTS
 from dualpixel.parallel import completed
 from dualpixel.synthesis.textures import dead_leaves, load_photograph, random_texture
 
@@ -322,10 +322,6 @@ def check_scenes_complete(root: str | Path) -> None:
             raise InputFileError(root, "is an unfinished `dualpixel scenes` folder (its "
                                        "writing was interrupted); rerun the same `dualpixel "
                                        "scenes` command to finish it")
-
-
-#: The most sequences one scene folder holds.
-MAX_SEQUENCES = 100_000
 
 
 def check_sequence_count(sequences: object) -> int:
