@@ -150,6 +150,19 @@ def test_synthesise_with_a_calibrated_camera(tmp_path):
     np.testing.assert_array_equal(old["left"], from_file["left"])
 
 
+def test_a_numpy_batch_comes_back_a_batch_of_the_same_results():
+    """NumPy ``(N, H, W, C)``, as the README lists it: each image as if given alone."""
+    rgb, _ = scene(32, 48)
+    left, right = rgb[None].repeat(2, 0).astype(np.float32), rgb[None].repeat(2, 0)
+    right = np.clip(right[:, :, ::-1] * np.array([1.0, 0.9])[:, None, None, None], 0, 1)
+    right = right.astype(np.float32)
+    out = dualpixel.deblur(left, right, device="cpu")
+    assert out.shape == left.shape and out.dtype == np.float32
+    for k in range(2):
+        np.testing.assert_allclose(out[k], dualpixel.deblur(left[k], right[k], device="cpu"),
+                                   atol=1e-5)
+
+
 def test_clear_errors_and_the_listing():
     rgb, depth = scene()
     with pytest.raises(ValueError, match=r"left .* and right .* differ"):
@@ -158,6 +171,12 @@ def test_clear_errors_and_the_listing():
         dualpixel.deblur(rgb * 255, rgb * 255)
     with pytest.raises(ValueError, match="lens_set must be one of"):
         dualpixel.synthesize(rgb, depth, lens_set="set9")
+    # depth as the README gives it: (H, W) or (H, W, 1); channels that differ are an encoding
+    one = dualpixel.synthesize(rgb, depth, seed=4)["left"]
+    np.testing.assert_array_equal(dualpixel.synthesize(rgb, depth[..., None], seed=4)["left"], one)
+    encoded = np.dstack([depth, depth * 2, depth])
+    with pytest.raises(ValueError, match="depth has 3 channels that differ"):
+        dualpixel.synthesize(rgb, encoded)
     for seed, problem in ((-1, r"in \[0, 2\*\*63 - 1\]"), (2**63, r"in \[0, 2\*\*63 - 1\]"),
                           (1.5, "an integer"), (True, "an integer")):
         with pytest.raises(ValueError, match=f"seed must be {problem}"):

@@ -247,13 +247,18 @@ def read_depth(path: str | Path, *, png_scale: float = 0.001) -> np.ndarray:
 
 
 def check_depth_map(depth: np.ndarray) -> np.ndarray:
-    """A depth map in metres as float32 ``(H, W)`` (the first channel of ``(H, W, C)``), or a
-    :class:`ParameterError` saying what is wrong: not real numbers, not one channel, NaN/inf,
-    or values <= 0."""
+    """A depth map in metres as float32 ``(H, W)`` (also from ``(H, W, 1)``, or ``(H, W, C)``
+    whose channels are equal: a grey map stored as colour), or a :class:`ParameterError` saying
+    what is wrong: not real numbers, channels that differ (an RGB-encoded depth, to decode
+    first), NaN/inf, or values <= 0."""
     depth = np.asarray(depth)
     if not (np.issubdtype(depth.dtype, np.floating) or np.issubdtype(depth.dtype, np.integer)):
         raise ParameterError(f"depth must hold real numbers (metres), not {depth.dtype}")
     if depth.ndim == 3 and depth.shape[2] >= 1:
+        if any(not np.array_equal(depth[:, :, 0], depth[:, :, c])
+               for c in range(1, depth.shape[2])):
+            raise ParameterError(f"depth has {depth.shape[2]} channels that differ; expected one "
+                                 "channel of metres (decode an RGB-encoded depth first)")
         depth = depth[:, :, 0]
     if depth.ndim != 2:
         raise ParameterError(f"depth must be a single-channel map, got shape {depth.shape}")
