@@ -259,6 +259,43 @@ def test_a_recipe_extends_another_by_name(tmp_path):
         load_recipe(missing)  # an absolute path would not travel with the repository
 
 
+def test_a_variant_drops_a_phase_and_a_step_of_its_base(tmp_path):
+    """``{name: NAME, drop: true}`` leaves the base's phase or data step out; the plan marks a
+    step that no phase or evaluation reads, which ``reproduce`` does not make."""
+    base = _tiny_recipe(tmp_path, data=[
+        {"name": "scenes", "scenes": {**TINY_SCENES, "seed": 1}},
+        {"name": "synth", "synth": {"input": "scenes", "lens_sets": ["set1"], "max_layers": 40,
+                                    "noise_sigmas": [0.01]}},
+        {"name": "spare", "synth": {"input": "scenes", "lens_sets": ["set2"], "max_layers": 40,
+                                    "noise_sigmas": [0.01]}}])
+    child = tmp_path / "child.yaml"
+    child.write_text(yaml.safe_dump({
+        "name": "child", "extends": base.name, "phases": [{"name": "second", "drop": True}],
+        "ship": {"tag": "child.v1"}}, sort_keys=False))
+    recipe = load_recipe(child)
+    assert [p.name for p in recipe.phases] == ["first"] and recipe.shipped_phase == "first"
+    assert [s.name for s in recipe.data] == ["scenes", "synth", "spare"]
+    plan = CliRunner().invoke(cli, ["reproduce", str(child), "-o", str(tmp_path / "run"),
+                                    "--dry-run"])
+    assert plan.exit_code == 0, plan.output
+    assert re.search(r"spare .*\[not read: not made\]", plan.output)
+    assert not re.search(r"synth .*\[not read", plan.output)
+    child.write_text(yaml.safe_dump({
+        "name": "child", "extends": base.name, "data": [{"name": "spare", "drop": True}]}))
+    assert [s.name for s in load_recipe(child).data] == ["scenes", "synth"]
+    for entry, problem in [({"name": "third", "drop": True}, "base recipe has no phases entry"),
+                           ({"name": "first", "drop": True, "set": {}}, "and nothing else"),
+                           ({"name": "first", "drop": False}, "and nothing else")]:
+        child.write_text(yaml.safe_dump({"name": "child", "extends": base.name,
+                                         "phases": [entry]}))
+        with pytest.raises(InputFileError, match=f"phases entry {entry['name']}: .*{problem}"):
+            load_recipe(child)
+    alone = tmp_path / "alone.yaml"
+    alone.write_text(yaml.safe_dump({"name": "alone", "phases": [{"name": "a", "drop": True}]}))
+    with pytest.raises(InputFileError, match=r"unknown key.*drop"):
+        load_recipe(alone)  # nothing to drop from without a base
+
+
 def test_a_variant_extends_a_recipe_of_another_folder(tmp_path):
     """An experiment under ``experiments/recipes`` names only what changes from a recipe of
     ``recipes/`` (a relative path); the result is the base with those keys replaced."""

@@ -75,4 +75,5 @@ ARCHITECTURES: dict[str, dict[str, object]] = {
     "rdpd-light": {"model": "rdpd", "width": 0.5, "residual": True, "refiner": (32, 64, 128)},
     "rdpd-light-base": {"model": "rdpd", "width": 0.5, "residual": True},
     "rdpd-wide": {"model": "rdpd", "width": 1.0, "residual": True, "refiner": (32, 64, 128)},
+    "rdpd-wide-base": {"model": "rdpd", "width": 1.0, "residual": True},
 }

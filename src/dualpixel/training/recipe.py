@@ -203,6 +203,25 @@ def _by_name(path: Path, where: str, items: Any) -> dict[str, Any]:
     return named
 
 
+def _merge_by_name(path: Path, key: str, base: dict[str, Any], own: dict[str, Any]
+                   ) -> list[Any]:
+    """The base's ``data`` steps or ``phases`` with this recipe's replacing or following them by
+    name; ``{name: NAME, drop: true}`` leaves the base's entry out."""
+    merged = dict(base)
+    for name, item in own.items():
+        if "drop" not in item:
+            merged[name] = item
+        elif item != {"name": item["name"], "drop": True}:
+            raise _fail(path, f"{key} entry {name}", "a dropped entry is {name, drop: true} "
+                                                     "and nothing else")
+        elif name not in merged:
+            raise _fail(path, f"{key} entry {name}", "drop: true, but the base recipe has "
+                                                     f"no {key} entry of that name")
+        else:
+            del merged[name]
+    return list(merged.values())
+
+
 def _base_path(path: Path, value: Any) -> Path:
     """The recipe that ``extends: VALUE`` of recipe ``path`` names: a ``.yaml`` file given
     relative to the recipe's folder (``BASE.yaml``, ``../../recipes/BASE.yaml``)."""
@@ -219,9 +238,9 @@ def _base_path(path: Path, value: Any) -> Path:
 
 def _raw_recipe(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     """A recipe's mapping with its ``extends`` resolved: the base recipe (a path relative to
-    this one's folder) with this one's ``data`` steps and ``phases`` replacing or following the
-    base's by name, its ``train`` settings over the base's, and its other keys replacing the
-    base's."""
+    this one's folder) with this one's ``data`` steps and ``phases`` replacing, following or
+    dropping the base's by name (:func:`_merge_by_name`), its ``train`` settings over the
+    base's, and its other keys replacing the base's."""
     raw = dict(read_mapping(path, "recipe", syntax="yaml"))
     unknown = sorted(set(raw) - _TOP_KEYS)
     if unknown:
@@ -237,9 +256,8 @@ def _raw_recipe(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     merged = {**base, **{k: v for k, v in raw.items() if k != "extends"}}
     for key in ("data", "phases"):
         if key in raw and key in base:
-            items = _by_name(base_path, key, base[key])
-            items.update(_by_name(path, key, raw[key]))
-            merged[key] = list(items.values())
+            merged[key] = _merge_by_name(path, key, _by_name(base_path, key, base[key]),
+                                         _by_name(path, key, raw[key]))
     if "train" in raw:
         merged["train"] = {**_mapping(base_path, "train", base.get("train") or {}),
                            **_mapping(path, "train", raw["train"] or {})}
@@ -465,12 +483,14 @@ def _as_list(value: Any) -> list[str]:
 def plan_text(recipe: Recipe, output: Path, until: str | None = None) -> str:
     """The plan ``--dry-run`` prints: every step and phase with what it changes and its state."""
     lines = [f"recipe {recipe.name} ({recipe.path}) -> {output}", recipe.description, "", "data:"]
+    last = recipe.phase_index(until) if until else len(recipe.phases) - 1
+    used = {step.name for step in needed_steps(recipe, output, 0, last)}
     for step in recipe.data:
-        state = _step_state(output / "data" / step.name)
+        state = (_step_state(output / "data" / step.name) if step.name in used
+                 else "not read: not made")
         args = ", ".join(f"{k}={v}" for k, v in step.args.items())
         lines.append(f"  {step.name:<20} {step.kind}: {args}  [{state}]")
     lines.append("phases:")
-    last = recipe.phase_index(until) if until else len(recipe.phases) - 1
     for index, phase in enumerate(recipe.phases[: last + 1]):
         folder = recipe.phase_folder(output, index)
         config = phase_config(recipe, index, output,
