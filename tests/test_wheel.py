@@ -36,7 +36,8 @@ def test_wheel_contents(wheel):
 
     shipped = {n for n in names if n.endswith(".safetensors")}
     assert shipped == {f"dualpixel/weights/{w.file}" for w in WEIGHTS.values()}
-    assert len(shipped) <= 2  # the default and one alternative (issue #32)
+    # the default, the tag it was fine-tuned from (its recipe's start) and one alternative
+    assert len(shipped) <= 3
     for needed in ("dualpixel/py.typed", "dualpixel/weights/registry.json",
                    "dualpixel/weights/MODEL_CARD.md", "dualpixel/evaluation/niqe_builtin.npz",
                    "dualpixel/demo_data/canon_scene_01/LICENSE.md",
@@ -49,7 +50,7 @@ def test_wheel_contents(wheel):
     assert "dualpixel/synthesis/photographs/SOURCES.md" in names
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     assert "Project-URL: Source" in text and "License-Expression: MIT" in text
-    assert wheel.stat().st_size < 80e6
+    assert wheel.stat().st_size < 95e6  # under PyPI's 100 MB per file
 
 
 def test_the_installed_wheel_works_outside_the_clone(wheel, tmp_path):

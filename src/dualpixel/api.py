@@ -201,11 +201,12 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
                camera_file: str | Path | DPCamera | None = None) -> dict[str, Any]:
     """Synthesise a DP frame from an all-in-focus image and its depth (metres, ``(H, W)``).
 
-    ``settings``: where ``lens_set``, ``psf_bank``, ``noise_model`` and ``noise_sigmas`` start
-    when not given (:data:`~dualpixel.synthesis.dataset.SYNTH_SETTINGS`): ``"shipped"``, what
-    the shipped default model was trained on (lens set ``dslr-840``, Pixel 4 PSF shapes, a real
-    camera's Poisson-Gaussian noise), or ``"paper"`` (``set1``, the paper's PSF bank and
-    multiplicative noise, about six times a real photograph's).
+    ``settings``: where ``lens_set``, ``psf_bank``, ``noise_model``, ``noise_sigmas`` and
+    ``light`` start when not given (:data:`~dualpixel.synthesis.dataset.SYNTH_SETTINGS`):
+    ``"shipped"``, the generic DSLR the shipped default model was trained on (lens set
+    ``dslr-840``, the broad PSF bank, blur in linear light, a real camera's Poisson-Gaussian
+    noise), or ``"paper"`` (``set1``, the paper's PSF bank, blur in the stored values,
+    multiplicative noise about six times a real photograph's).
     ``lens_set``: what blurs the frame: one of the paper's camera parameter sets ``set0``..
     ``set4`` or a blur profile such as ``dslr-840`` (focused at the depth map's 30th
     percentile, :func:`~dualpixel.optics.thin_lens.focus_from_depth`).
@@ -244,6 +245,8 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
     psf_bank = psf_bank or defaults["psf_bank"]
     noise_model = noise_model or defaults["noise_model"]
     noise_sigmas = defaults["noise_sigmas"] if noise_sigmas is None else tuple(noise_sigmas)
+    if light is None and camera is None:
+        light = defaults.get("light")
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
     if camera is not None:

@@ -8,6 +8,7 @@ import pytest
 from dualpixel.errors import InputFileError
 from dualpixel.evaluation.tables import (
     dev_scene_table,
+    held_out_table,
     target_free_table,
     update_documents,
     weights_table,
@@ -23,6 +24,17 @@ def test_dev_scene_gains_and_means_come_from_the_results():
     table = dev_scene_table({"a.v1": rows}, {"a.v1": "`a.v1`"}).splitlines()
     assert table[0] == "| scene | 840x512: `a.v1` |"
     assert table[2:] == ["| 00 | +1.00 |", "| 01 | +2.00 |", "| mean | **+1.50** |"]
+
+
+def test_held_out_table_means_every_evaluation_but_the_dev_scenes():
+    rows = [{"evaluation": "phone", "image": f"seq_{k}", "psnr": str(30.0 + k),
+             "input_psnr": str(27.0 + 2 * k)} for k in range(2)]
+    rows.append({"evaluation": "canon-dp-real", "image": "scene_00", "psnr": "26",
+                 "input_psnr": "25"})
+    table = held_out_table({"a.v1": rows, "b.v2": []},
+                           {"a.v1": "`a.v1`", "b.v2": "`b.v2`"}).splitlines()
+    assert table[0] == "| held-out frames | images | `a.v1`: PSNR (gain) |"  # b has none
+    assert table[2:] == ["| phone | 2 | 30.50 (+2.50) |"]
 
 
 def test_target_free_means_per_camera_group():
@@ -46,6 +58,10 @@ def test_weights_table_reads_the_registry_rows():
     table = weights_table({"a.v2": row}, {"a": "a.v2"}, "a").splitlines()
     assert table[3] == "| `a.v2` (a, the default) | 26.50 / 0.781 | – | flips, tied |"
     assert table[2].startswith("| blurred input") and table[4].startswith("| published DPDNet")
+    results = {"a.v2": [{"evaluation": "canon-dp-real", "image": f"scene_0{k}",
+                         "psnr": str(26.0 + k), "ssim": "0.8"} for k in range(2)]}
+    table = weights_table({"a.v2": row}, {"a": "a.v2"}, "a", results).splitlines()
+    assert table[3] == "| `a.v2` (a, the default) | 26.50 / 0.800 | – | flips, tied |"  # as run
 
 
 def test_a_document_without_its_markers_is_refused(tmp_path):

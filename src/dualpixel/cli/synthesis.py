@@ -135,7 +135,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--light", type=click.Choice(LIGHT_SPACES), default=None,
               help="Blur the stored (sRGB-encoded) values, as the paper's generator, or linear "
                    "light with the sRGB curve after, as a lens does  [default: the --camera "
-                   "file's, else encoded].")
+                   "file's, else from --settings].")
 @click.option("--grey", is_flag=True,
               help="Store every image as its green channel alone, as a phone's DP data are "
                    "(the Google Pixel's DP views are one green channel of the raw frame).")
@@ -186,8 +186,11 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         lens_sets = old_lens_sets
     if lens_sets is not None:
         settings["lens_sets"] = tuple(c.strip() for c in lens_sets.split(",") if c.strip())
+    if camera_file is not None:
+        settings["light"] = None  # the camera file's light space, unless --light is given
     for key, value in (("psf_bank", psf_bank), ("noise_model", noise_model),
-                       ("noise_sigmas", tuple(noise_sigmas) if noise_sigmas else None)):
+                       ("noise_sigmas", tuple(noise_sigmas) if noise_sigmas else None),
+                       ("light", light)):
         if value is not None:
             settings[key] = value
     config = SynthConfig(
@@ -197,7 +200,7 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         noise=noise, distortion=distortion, seed=seed,
         max_depth=max_depth, depth_scale=depth_scale, split=split,
         camera=None if camera_file is None else load_camera(camera_file).to_dict(),
-        psf_shapes=psf_shapes, light=light, grey=grey, encoding=encoding,
+        psf_shapes=psf_shapes, grey=grey, encoding=encoding,
         black_level=0.0 if black_level is None else black_level,
         raw_gains=(1.0, 1.0) if raw_gains is None else tuple(raw_gains),
     )

@@ -15,15 +15,16 @@ import argparse
 import csv
 import math
 import re
+import sys
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from dualpixel.errors import InputFileError
+from dualpixel.errors import DualPixelError, InputFileError
 
-__all__ = ["DOCUMENTS", "dev_scene_table", "method_label", "render_tables", "target_free_table",
-           "update_documents", "weights_table"]
+__all__ = ["DOCUMENTS", "dev_scene_table", "held_out_table", "method_label", "render_tables",
+           "target_free_table", "update_documents", "weights_table"]
 
 #: The dev scenes' evaluations and their column titles.
 DEV_SETS = {"canon-dp-real": "Canon 840x512", "canon-dp-real-hd": "Canon 1620x980"}
@@ -35,7 +36,7 @@ DEV_REFERENCES = {
 }
 #: Which tables each document holds (paths relative to the repository root).
 DOCUMENTS = {"README.md": ("weights",),
-             "src/dualpixel/weights/MODEL_CARD.md": ("dev-scenes", "target-free")}
+             "src/dualpixel/weights/MODEL_CARD.md": ("held-out", "dev-scenes", "target-free")}
 #: Camera groups of the target-free pairs: (label, test on the pair's name), first match wins.
 PAIR_GROUPS: tuple[tuple[str, Callable[[str], bool]], ...] = (
     ("Pixel 4 (MP4)", lambda n: n.startswith("dp-real-nogt/pixel-mp4-")),
@@ -54,12 +55,17 @@ def _read_csv(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(handle))
 
 
+def _mode_words(settings: Mapping[str, Any]) -> list[str]:
+    """A model's output settings as words, which are also a results method's suffixes
+    (``CHECKPOINT+flips+limited+tied``)."""
+    return [w for w, on in (("flips", settings.get("flips")),
+                            ("limited", settings.get("overshoot") == "limited"),
+                            ("tied", settings.get("brightness") == "tied")) if on]
+
+
 def settings_label(settings: Mapping[str, Any]) -> str:
     """How a model runs, in words: ``flips, limited, tied`` or ``as given``."""
-    words = [w for w, on in (("flips", settings.get("flips")),
-                             ("limited", settings.get("overshoot") == "limited"),
-                             ("tied", settings.get("brightness") == "tied")) if on]
-    return ", ".join(words) or "as given"
+    return ", ".join(_mode_words(settings)) or "as given"
 
 
 def _tag_label(tag: str, aliases: Mapping[str, str], default: str) -> str:
@@ -67,9 +73,11 @@ def _tag_label(tag: str, aliases: Mapping[str, str], default: str) -> str:
     return f"`{tag}`" + (f" ({'; '.join(names)})" if names else "")
 
 
-def weights_table(weights: Mapping[str, Any], aliases: Mapping[str, str], default: str) -> str:
-    """PSNR / SSIM of every shipped tag on the dev scenes (its registry metrics), beside the
-    blurred input and the published DPDNet, with the settings each runs with."""
+def weights_table(weights: Mapping[str, Any], aliases: Mapping[str, str], default: str,
+                  results: Mapping[str, list[dict[str, str]]] | None = None) -> str:
+    """PSNR / SSIM of every shipped tag on the dev scenes as it runs (the means of its results
+    CSV where it has them, else its registry metrics), beside the blurred input and the
+    published DPDNet, with the settings each runs with."""
     head = "| tag | " + " | ".join(DEV_SETS.values()) + " | runs with |"
     lines = [head, "|---" * (len(DEV_SETS) + 2) + "|"]
     references = [f"| {name} | " + " | ".join(f"{p:.2f} / {s:.3f}" for p, s in
@@ -79,7 +87,9 @@ def weights_table(weights: Mapping[str, Any], aliases: Mapping[str, str], defaul
     for tag, row in weights.items():
         cells = []
         for key in DEV_SETS:
-            score = row.metrics.get(key)
+            rows = [r for r in (results or {}).get(tag, []) if r["evaluation"] == key]
+            score = ({"psnr": _mean(rows, "psnr"), "ssim": _mean(rows, "ssim")} if rows
+                     else row.metrics.get(key))
             cells.append(f"{score['psnr']:.2f} / {score['ssim']:.3f}" if score else "–")
         lines.append(f"| {_tag_label(tag, aliases, default)} | " + " | ".join(cells)
                      + f" | {settings_label(row.output)} |")
@@ -106,6 +116,33 @@ def dev_scene_table(results: Mapping[str, list[dict[str, str]]],
             f"{gains[c][scene]:+.2f}" if scene in gains[c] else "–" for c in columns) + " |")
     lines.append("| mean | " + " | ".join(
         f"**{sum(gains[c].values()) / len(gains[c]):+.2f}**" for c in columns) + " |")
+    return "\n".join(lines)
+
+
+def held_out_table(results: Mapping[str, list[dict[str, str]]],
+                   labels: Mapping[str, str]) -> str:
+    """Per held-out synthetic evaluation (every one of a tag's results CSV but the dev scenes),
+    each tag's mean PSNR and its gain over the blurred input (dB)."""
+    scores: dict[str, dict[str, list[tuple[float, float]]]] = defaultdict(
+        lambda: defaultdict(list))
+    for tag in labels:
+        for row in results.get(tag, []):
+            if row["evaluation"] not in DEV_SETS:
+                scores[row["evaluation"]][tag].append((float(row["psnr"]),
+                                                       float(row["input_psnr"])))
+    tags = [t for t in labels if any(t in by_tag for by_tag in scores.values())]
+    lines = ["| held-out frames | images | " + " | ".join(f"{labels[t]}: PSNR (gain)"
+                                                          for t in tags) + " |",
+             "|---" * (len(tags) + 2) + "|"]
+    for evaluation, by_tag in scores.items():
+        cells = []
+        for tag in tags:
+            pairs = by_tag.get(tag)
+            model = sum(p for p, _ in pairs) / len(pairs) if pairs else math.nan
+            given = sum(i for _, i in pairs) / len(pairs) if pairs else math.nan
+            cells.append(f"{model:.2f} ({model - given:+.2f})" if pairs else "–")
+        count = max(len(v) for v in by_tag.values())
+        lines.append(f"| {evaluation} | {count} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -165,16 +202,23 @@ def render_tables(root: str | Path) -> dict[str, str]:
     results = {tag: _read_csv(results_dir / f"{tag}.csv") for tag in tags
                if (results_dir / f"{tag}.csv").is_file()}
     target_free = _read_csv(results_dir / "target-free.csv")
-    names_of_default = (*(a for a, t in ALIASES.items() if t == default), default)
     methods = {}
-    for row in sorted(target_free, key=lambda r: not r["method"].startswith(names_of_default)):
+
+    def tag_of(method: str) -> str:
+        base = method.split("+")[0]
+        return ALIASES.get(base, base)
+
+    for row in sorted(target_free, key=lambda r: tag_of(r["method"]) != default):
         label = method_label(row["method"])
-        if label is not None:
+        modes = row["method"].split("+")[1:]
+        tag = tag_of(row["method"])
+        if label is not None and set(modes) == set(_mode_words(WEIGHTS[tag].output)):
             methods.setdefault(row["method"], label)
     return {
         "weights": weights_table({tag: WEIGHTS[tag] for tag in tags}, ALIASES,
-                                 DEFAULT_CHECKPOINT),
+                                 DEFAULT_CHECKPOINT, results),
         "dev-scenes": dev_scene_table(results, {tag: f"`{tag}`" for tag in tags}),
+        "held-out": held_out_table(results, {tag: f"`{tag}`" for tag in tags}),
         "target-free": target_free_table(target_free, methods),
     }
 
@@ -212,7 +256,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true",
                         help="exit 1 when a document's tables differ from the generated ones")
     args = parser.parse_args(argv)
-    changed = update_documents(args.root, check=args.check)
+    try:
+        changed = update_documents(args.root, check=args.check)
+    except DualPixelError as error:
+        print(f"Error: {error}", file=sys.stderr)
+        return 2
     for path in changed:
         print(f"{'differs' if args.check else 'updated'}: {path}")
     return 1 if args.check and changed else 0

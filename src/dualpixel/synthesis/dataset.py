@@ -210,15 +210,17 @@ class SynthConfig:
 
 #: Named synthesis settings, each a set of :class:`SynthConfig` values. ``"paper"``: Sec. 3's
 #: (the five camera parameter sets, the 48 PSF shapes, its multiplicative noise of strength
-#: 0.05-0.5: about six times a real Canon photograph's). ``"shipped"``: what the shipped
-#: default model was trained on (``recipes/rdpd-light.yaml``: blur profiles dslr-840 and
-#: dslr-840-mild, PSF shapes around the Pixel 4 fits, Poisson-Gaussian noise of a real camera;
-#: a test holds them equal). ``synth`` and :func:`dualpixel.synthesize` start from "shipped";
-#: :class:`SynthConfig`'s own defaults, which recipes start from, are the paper's.
+#: 0.05-0.5: about six times a real Canon photograph's, blur in the stored values).
+#: ``"shipped"``: the generic DSLR among the cameras the shipped default model was trained on
+#: (``recipes/rdpd-light-cameras.yaml``, step ``dslr-train``: blur profiles dslr-840 and
+#: dslr-840-mild, the broad PSF bank, blur in linear light, Poisson-Gaussian noise of a real
+#: camera; a test holds them equal). ``synth`` and :func:`dualpixel.synthesize` start from
+#: "shipped" (a camera file given brings its own light space); :class:`SynthConfig`'s own
+#: defaults, which recipes start from, are the paper's.
 SYNTH_SETTINGS: dict[str, dict] = {
-    "shipped": {"lens_sets": ("dslr-840", "dslr-840-mild"), "psf_bank": "pixel4",
+    "shipped": {"lens_sets": ("dslr-840", "dslr-840-mild"), "psf_bank": "broad",
                 "noise_model": "poisson-gaussian",
-                "noise_sigmas": (0.006, 0.009, 0.013, 0.018, 0.025)},
+                "noise_sigmas": (0.006, 0.009, 0.013, 0.018, 0.025), "light": "linear"},
 }
 #: "paper": SynthConfig's own defaults of the same settings (the paper's, as recipes start).
 SYNTH_SETTINGS["paper"] = {setting.name: setting.default for setting in fields(SynthConfig)
