@@ -80,7 +80,7 @@ def behind_focus_frame() -> dict:
     noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 2.0)
     rgb = np.clip(0.45 + 1.2 * noise, 0.02, 0.9)
     depth = np.where(np.arange(320)[None, :] < 128, 1.0, 3.0).repeat(192, 0).astype(np.float32)
-    return dualpixel.synthesize(rgb, depth, camera="dslr-840", noise=False, distortion=False)
+    return dualpixel.synthesize(rgb, depth, lens_set="dslr-840", noise=False, distortion=False)
 
 
 def write_dpdd_pairs(root: Path, split: str, names: list[str], size=(40, 48), seed=0) -> None:

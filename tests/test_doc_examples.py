@@ -18,8 +18,6 @@ import itertools
 import re
 import shlex
 import shutil
-import sys
-import types
 from pathlib import Path
 
 import cv2
@@ -168,19 +166,13 @@ def _bring(folder: Path, dataset: str) -> None:
         cv2.imwrite(str(folder / "SYNTHIA-SF" / sequence / "DepthLeft" / "0000.png"), bgr)
 
 
-def _canon_raw(path: Path, monkeypatch) -> None:
-    """``path`` as a Canon Dual Pixel RAW of a 512x384 frame: no library writes one LibRaw reads
-    as two frames, so LibRaw's reader is replaced by one giving this file's A+B and A frames
-    (as ``tests/data/test_dpraw.py`` does)."""
-    from tests.data.test_dpraw import _FakeRaw, _raw_of
+def _canon_raw(path: Path) -> None:
+    """``path`` as a two-frame raw file of a 512x384 frame that LibRaw reads as a Dual Pixel
+    RAW (A+B, then A; a DNG written by tifffile, as ``tests/data/test_dpraw.py`` makes them)."""
+    from tests.data.test_dpraw import SRGB_FROM_XYZ, _raw_of, _two_frame_dng
 
     frame = _views(5, 512, 384)
-    stored = _raw_of(frame["left"], frame["right"])
-    frames = {0: stored.combined, 1: stored.a_only}
-    path.write_bytes(b"a Canon Dual Pixel RAW file")
-    reader = types.SimpleNamespace(LibRawError=type("LibRawError", (Exception,), {}),
-                                   imread=lambda _, shot_select=0: _FakeRaw(frames[shot_select]))
-    monkeypatch.setitem(sys.modules, "rawpy", reader)
+    _two_frame_dng(path, _raw_of(frame["left"], frame["right"]), SRGB_FROM_XYZ)
 
 
 def _capture_disks(folder: Path) -> None:
@@ -240,7 +232,7 @@ def test_every_documented_command_runs(document, dataset, tmp_path, monkeypatch)
     for name in ("recipes", "docs"):
         (work / name).symlink_to(ROOT / name)
     _bring(work, dataset)
-    _canon_raw(work / "IMG_0001.CR2", monkeypatch)
+    _canon_raw(work / "IMG_0001.CR2")
     monkeypatch.chdir(work)
     lines = _command_lines((ROOT / document).read_text())
     assert len(lines) >= 20

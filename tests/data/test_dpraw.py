@@ -72,7 +72,9 @@ def test_develop_tells_the_left_view_by_measurement(scene, a_is):
 
 
 def _dng(path, frames: int, orientation: int = 6) -> None:
-    """A minimal DNG LibRaw reads (one raw frame; LibRaw offers no second frame of a DNG)."""
+    """A minimal DNG of ``frames`` raw images, one per IFD: LibRaw counts them but gives the
+    first for every ``shot_select`` (a second frame it reads only as a second sample per pixel,
+    :func:`_two_frame_dng`)."""
     cfa = np.random.default_rng(0).integers(600, 14000, (64, 96)).astype(np.uint16)
     colour = (10000, 10000, 0, 10000, 0, 10000, 0, 10000, 10000, 10000, 0, 10000, 0, 10000, 0,
               10000, 10000, 10000)
@@ -107,57 +109,89 @@ def test_one_frame_raw_and_junk_are_refused(tmp_path):
     assert not (tmp_path / "out").exists()  # a failed import leaves no empty folders
 
 
-class _FakeRaw:
-    """What rawpy.imread gives for one frame of a Canon DPRAW (the attributes we read)."""
-
-    def __init__(self, frame: np.ndarray) -> None:
-        self.raw_image_visible = frame
-        self.color_desc = b"RGBG"
-        self.raw_pattern = np.array([[0, 1], [3, 2]])
-        self.black_level_per_channel = [int(BLACK)] * 4
-        self.white_level = int(WHITE)
-        self.camera_whitebalance = [4.0, 2.0, 3.0, 2.0]
-        self.sizes = type("Sizes", (), {"flip": 6})()
-        self.color_matrix = np.eye(3, 4)  # camera RGB is sRGB here: the views stay as known
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *_):
-        return False
+#: Linear sRGB from CIE XYZ (D65): as a DNG's ColorMatrix1 it makes camera RGB linear sRGB.
+SRGB_FROM_XYZ = np.linalg.inv([[0.412453, 0.357580, 0.180423], [0.212671, 0.715160, 0.072169],
+                               [0.019334, 0.119193, 0.950227]])
 
 
-def test_two_frame_raw_through_the_import_path(scene, tmp_path, monkeypatch):
-    """A raw-like two-frame file (A+B first, A second, as LibRaw's shot_select gives them) is
-    read, split and developed back into the known views."""
-    import types
+def _two_frame_dng(path, raw: DualPixelRaw, colour_matrix, orientation: int = 1) -> None:
+    """A DNG holding a Dual Pixel RAW's two frames as LibRaw reads two frames of a DNG: one CFA
+    image of two samples per pixel (A+B, then A; the layout of Fuji's two-frame DNGs), whose
+    ``shot_select=1`` is the second. ``colour_matrix`` (XYZ -> camera, 3x3) and the white
+    balance of ``raw`` go into the file's tags. tifffile writes no multi-sample CFA image, so
+    it is written grey and its photometric tag rewritten to CFA in place."""
+    neutral = [v for w in raw.white_balance for v in (10000, round(10000 * w))]
+    matrix = [v for m in np.ravel(colour_matrix) for v in (round(10000 * m), 10000)]
+    with tifffile.TiffWriter(path) as tiff:
+        tiff.write(np.zeros((8, 12, 3), np.uint8), photometric="rgb", subfiletype=1, subifds=1,
+                   metadata=None, extratags=[
+                       (50706, "B", 4, (1, 4, 0, 0), True), (50708, "s", 0, "Test DP", True),
+                       (50721, "2i", 9, matrix, True), (50728, "2I", 3, neutral, True),
+                       (274, "H", 1, orientation, True)])
+        tiff.write(np.stack((raw.combined, raw.a_only), axis=-1), photometric="minisblack",
+                   planarconfig="contig", extrasamples=[0], subfiletype=0, metadata=None,
+                   extratags=[(33421, "H", 2, (2, 2), True), (33422, "B", 4, (0, 1, 1, 2), True),
+                              (50714, "H", 1, int(BLACK), True),
+                              (50717, "H", 1, int(WHITE), True)])
+    with tifffile.TiffFile(path, mode="r+b") as tiff:
+        tiff.filehandle.seek(tiff.pages[0].tags["SubIFDs"].value[0])
+        tifffile.TiffPage(tiff, index=1).tags["PhotometricInterpretation"].overwrite(32803)
 
+
+def test_two_frame_dng_through_the_import_path(scene, tmp_path):
+    """A two-frame raw file written by a library (no stand-in module) is read by LibRaw, split
+    and developed back into the known views, its orientation and white balance read."""
+    pytest.importorskip("rawpy")
     from dualpixel.data import dpraw
 
     stored = _raw_of(scene["left"], scene["right"])
-    frames = {0: stored.combined, 1: stored.a_only}
-
-    class LibRawError(Exception):
-        pass
-
-    fake = types.SimpleNamespace(
-        LibRawError=LibRawError,
-        imread=lambda path, shot_select=0: _FakeRaw(frames[shot_select]))
-    monkeypatch.setitem(sys.modules, "rawpy", fake)
-    (tmp_path / "IMG_0001.CR2").write_bytes(b"raw")
-    raw = dpraw.read_dual_pixel_raw(tmp_path / "IMG_0001.CR2")
-    assert raw.pattern == "RGGB" and raw.white_balance == (2.0, 1.0, 1.5)
-    assert raw.orientation == 6
-    np.testing.assert_array_equal(raw.colour_matrix, np.eye(3))  # read with the frames
-    a_view, b_view, _ = split_dual_pixel(raw)
-    known_a, known_b, _ = split_dual_pixel(stored)
-    assert np.array_equal(a_view, known_a) and np.array_equal(b_view, known_b)
-    [(_, views)] = dpraw.import_dual_pixel_raws([tmp_path / "IMG_0001.CR2"], tmp_path / "dp")
+    _two_frame_dng(tmp_path / "IMG_0001.dng", stored, SRGB_FROM_XYZ, orientation=6)
+    raw = dpraw.read_dual_pixel_raw(tmp_path / "IMG_0001.dng")
+    assert raw.pattern == "RGGB" and raw.orientation == 6
+    assert raw.white_balance == pytest.approx((2.0, 1.0, 1.5), rel=1e-3)
+    np.testing.assert_allclose(raw.colour_matrix, np.eye(3), atol=2e-3)  # camera RGB is sRGB
+    np.testing.assert_array_equal(raw.combined, stored.combined)
+    np.testing.assert_array_equal(raw.a_only, stored.a_only)
+    [(_, views)] = dpraw.import_dual_pixel_raws([tmp_path / "IMG_0001.dng"], tmp_path / "dp")
     assert views.a_view == "left"
     assert _psnr(views.left, scene["left"]) > 30 and _psnr(views.right, scene["right"]) > 30
-    frames[1] = stored.combined  # a camera file whose second frame is the first again
-    with pytest.raises(InputFileError, match="one raw frame"):
-        dpraw.read_dual_pixel_raw(tmp_path / "IMG_0001.CR2")
+
+
+def test_import_dpraw_develops_a_real_file_as_libraw_flags_clipping_and_scales(tmp_path):
+    """`import-dpraw` on a two-frame DNG of flat patches under the 5D Mark IV's colour matrix:
+    the combined view holds the colours LibRaw's own development gives the A+B frame, the rows
+    where the sum clipped and A did not are flagged, and --scale halves the views."""
+    rawpy = pytest.importorskip("rawpy")
+    import cv2
+
+    from dualpixel.io.images import read_rgb
+
+    rng = np.random.default_rng(1)
+    full = np.kron(rng.uniform(0.05, 0.45, (6, 8, 3)), np.ones((16, 16, 1)))
+    counts = lambda x: np.rint(BLACK + _mosaic(x) * (WHITE - BLACK)).astype(np.uint16)  # noqa: E731
+    combined = counts(full)
+    combined[:8] = WHITE  # the sum clipped in the top rows, A (half the light) not
+    capture = DualPixelRaw(combined, counts(full / 2), "RGGB", np.full((2, 2), BLACK), WHITE,
+                           (2.0, 1.0, 2.0))
+    xyz_to_camera = np.reshape(EOS_5D4, (3, 3)) / 1e4
+    path = tmp_path / "patches.dng"
+    _two_frame_dng(path, capture, xyz_to_camera)
+    result = CliRunner().invoke(cli, ["import-dpraw", str(path), "-o", str(tmp_path / "dp"),
+                                      "--a-view", "left", "--scale", "0.5"])
+    assert result.exit_code == 0, result.output
+    assert "patches.dng" in result.output and "clipped" in result.output
+    views = {role: _linear(read_rgb(tmp_path / "dp" / f"test_{role}" / "source" /
+                                      "patches.png")) for role in "lrc"}
+    assert all(v.shape == (48, 64, 3) for v in views.values())  # --scale 0.5 of 96x128
+    with rawpy.imread(str(path)) as raw:
+        reference = raw.postprocess(
+            use_camera_wb=True, no_auto_bright=True, gamma=(1, 1), output_bps=16, user_flip=0,
+            output_color=rawpy.ColorSpace.sRGB, highlight_mode=rawpy.HighlightMode.Clip,
+            demosaic_algorithm=rawpy.DemosaicAlgorithm.LINEAR) / 65535.0
+    reference = cv2.resize(reference, (64, 48), interpolation=cv2.INTER_AREA)
+    patches = lambda image: image.reshape(6, 8, 8, 8, 3)[1:, 2:-2, :, 2:-2].mean(axis=(1, 3))  # noqa: E731
+    assert np.abs(patches(views["c"]) - patches(reference)).max() < 2e-3  # below the clip
+    assert np.abs(patches(views["l"]) - patches(views["r"])).max() < 2e-3  # A and B alike
 
 
 def test_missing_rawpy_names_the_extra(tmp_path, monkeypatch):

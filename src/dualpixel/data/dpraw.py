@@ -2,7 +2,9 @@
 
 A DPRAW file holds two raw frames: the first is the whole pixel (A+B, the photograph), the second
 the A sub-pixels alone; LibRaw reaches the second with ``shot_select=1`` (rawpy >= 0.28, the
-``raw`` extra: ``pip install 'dualpixel[raw]'``). After the black level, B = (A+B) - A.
+``raw`` extra: ``pip install 'dualpixel[raw]'``). A DNG holding both is read the same way when its
+CFA image has two samples per pixel (A+B, A): LibRaw reads a DNG's second frame only so, not from
+a second raw image. After the black level, B = (A+B) - A.
 
 The development is deliberately simple and documented, the same for all three images:
 
