@@ -1,12 +1,12 @@
 """Deblurring speed on one 1680x1120 DP frame, every case in one run, printed as ratios.
 
-Default mode (issue #36): the shipped default model (``--checkpoint``: another shipped name) on
+Default mode: the shipped default model (``--checkpoint``: another shipped name) on
 the default path (``--precision auto``:
 bf16 autocast and channels-last where the CPU computes bf16 natively) against ``--precision fp32``
 (channels-last), against the same without :func:`~dualpixel.memory.reuse_freed_memory` (which
 the ``dualpixel`` command calls at start-up; every other case has it), against the same without
 :mod:`~dualpixel.inference.fusion` (convolutions and their activations run apart), against
-the path before issue #36 (fp32, contiguous memory, fresh pages) and against
+the earlier path (fp32, contiguous memory, fresh pages) and against
 ``--backend onnxruntime`` (fp32; its one-off export, cached per checkpoint, timed apart and done
 in a temporary cache folder; skipped without the ``onnx`` extra; on CUDA also ``--precision
 fp16``, with frames per second and peak GPU memory); tiled at 512
@@ -68,7 +68,7 @@ def prepare(case: dict, device: str):
     setup = time.perf_counter() - setup
     if case.get("unfused") or case.get("legacy"):  # convolutions and activations apart
         deblurrer._net = deblurrer.model
-    if case.get("legacy"):  # before issue #36: float32 in contiguous memory
+    if case.get("legacy"):  # the earlier path: float32 in contiguous memory
         deblurrer.numerics = Precision("fp32", None, channels_last=False)
         deblurrer.model.to(memory_format=torch.contiguous_format)
     rng = np.random.default_rng(0)

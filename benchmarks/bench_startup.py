@@ -1,5 +1,5 @@
 """Start-up costs, each in a fresh process (best of ``--repeats``): ``import dualpixel``,
-``dualpixel.list_models()`` (issue #33: under 0.5 s; headers only, no torch) and
+``dualpixel.list_models()`` (under 0.5 s; headers only, no torch) and
 ``dualpixel --help``.
 
     .venv/bin/python benchmarks/bench_startup.py [--repeats 3]

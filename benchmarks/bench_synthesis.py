@@ -1,7 +1,7 @@
 """Time one 1920x1080 frame per camera set: our renderer (exact and fast layering) against a
 baseline that follows the authors' algorithm, in one run, and print the ratios and PSNRs.
 
-Baseline (issue #14, written by us after the paper and the authors' code): integer CoC layers from
+Baseline (written by us after the paper and the authors' code): integer CoC layers from
 2,000 depth bins up to 250 m, listed per camera as their generator does (17 layers for set0, 45
 for set4, whether the frame holds them or not); each layer filters the *whole frame* with its
 left, right and combined kernels through OpenCV's ``filter2D`` and is pasted with a hard mask (no
@@ -11,7 +11,7 @@ Ours composites back to front with blurred masks and works only inside each laye
 where the blur is large and renders large blur at reduced resolution.
 PSNR is fast against exact on the 8-bit scale, for left, right and combined.
 
-``--end-to-end`` (issue #36): the whole ``dualpixel synth`` command on a 3-frame sequence
+``--end-to-end``: the whole ``dualpixel synth`` command on a 3-frame sequence
 (``--no-noise --no-distortion``; start-up, reading, rendering and writing four PNGs and a defocus
 map per frame) against as many frames of the baseline, per camera set, in one run (``--frames``
 to amortise start-up over a longer sequence). With
@@ -217,7 +217,7 @@ def main() -> None:
     parser.add_argument("--end-to-end", action="store_true",
                         help="the synth command on a sequence against the baseline")
     parser.add_argument("--frames", type=int, default=3,
-                        help="with --end-to-end: frames in the sequence (issue #36: 3)")
+                        help="with --end-to-end: frames in the sequence (default 3)")
     parser.add_argument("--authors-code", type=Path, default=None,
                         help="with --end-to-end: the authors' synthetic_dp_defocus_blur_code "
                              "folder, to time their generator on the same frames")
@@ -236,7 +236,7 @@ def main() -> None:
     print("| set | layers baseline / exact / default | baseline s | exact s | default s | "
           "default / baseline, wall (CPU) | PSNR default vs exact L / R / C (dB) |")
     print("|---|---|---|---|---|---|---|")
-    gpu_figures = []  # issue #36, printed after the table
+    gpu_figures = []  # printed after the table
     for name in args.sets.split(","):
         camera = CAMERA_PRESETS[name]
         coc = coc_radius(torch.from_numpy(depth).to(args.device), camera)

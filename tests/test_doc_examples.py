@@ -1,4 +1,4 @@
-"""Every command line and Python example of the README and the guide runs (issue #57).
+"""Every command line and Python example of the README and the guide runs.
 
 Each document's commands run in its order in a folder of their own, as a reader would type
 them, on small inputs made here: sizes shrink, worker counts and devices become one CPU

@@ -1,4 +1,4 @@
-"""`make docs`: the API reference builds from the docstrings without a warning (issue #32)."""
+"""`make docs`: the API reference builds from the docstrings without a warning."""
 
 import subprocess
 import sys

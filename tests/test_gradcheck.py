@@ -1,4 +1,4 @@
-"""Analytic gradients of the differentiable operators match finite differences (issue #13, as
+"""Analytic gradients of the differentiable operators match finite differences (as
 kornia checks its operators): the DP PSF in r, the distortion warp in the image, the edge loss."""
 
 import torch

@@ -1,5 +1,5 @@
-"""The package's imports form no cycle, and the CLI only parses options and calls the library
-(issue #13). Walks every module's imports, module level and function level alike."""
+"""The package's imports form no cycle, and the CLI only parses options and calls the library.
+Walks every module's imports, module level and function level alike."""
 
 import ast
 from pathlib import Path

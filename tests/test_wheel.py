@@ -1,4 +1,4 @@
-"""The built wheel holds what an installed package needs (issue #13): weights with their model
+"""The built wheel holds what an installed package needs: weights with their model
 card, py.typed, the licence, the NIQE model, the demo scene, the shipped cameras, and the
 project URLs."""
 

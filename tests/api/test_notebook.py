@@ -1,4 +1,4 @@
-"""The top-level API as a notebook uses it (issue #13): arrays in, the same kind of arrays out."""
+"""The top-level API as a notebook uses it: arrays in, the same kind of arrays out."""
 
 import subprocess
 import sys

@@ -1,4 +1,4 @@
-"""Bad input, command by command (issue #12): a clear message naming the file or option, the
+"""Bad input, command by command: a clear message naming the file or option, the
 right exit status (2: a bad option, 1: a failure), and never a Python traceback."""
 
 import errno

@@ -245,7 +245,7 @@ def test_the_modes_of_a_checkpoint_share_its_network_pass(frame, tiny_checkpoint
 
 
 def test_eval_runs_the_view_checks(shared_dir, tmp_path):
-    """Swapped views score lower; eval now says why, as deblur does (issue #55)."""
+    """Swapped views score lower; eval now says why, as deblur does."""
     import json
     import shutil
 

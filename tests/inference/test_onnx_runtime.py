@@ -1,4 +1,4 @@
-"""The ONNX Runtime backend (issue #36): same outputs as PyTorch in fp32, graphs cached per
+"""The ONNX Runtime backend: same outputs as PyTorch in fp32, graphs cached per
 checkpoint, clear refusals."""
 
 import importlib.util

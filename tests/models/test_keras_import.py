@@ -1,5 +1,5 @@
 """The importer of the authors' Keras DPDNet weights, on a file in Keras's HDF5 layout that the
-test writes with h5py (issue #13)."""
+test writes with h5py."""
 
 import numpy as np
 import pytest

@@ -1,5 +1,5 @@
 """`synth` killed (SIGKILL, workers included) mid-run, then rerun, gives a dataset byte-identical
-to an uninterrupted run, manifest included (issue #12). Both use 2 workers (one torch thread
+to an uninterrupted run, manifest included. Both use 2 workers (one torch thread
 each): a different thread count may round a pixel differently."""
 
 import json

@@ -1,5 +1,5 @@
 """A training run killed (SIGKILL) while it writes a checkpoint resumes to the same weights as an
-uninterrupted run (issue #12)."""
+uninterrupted run."""
 
 import os
 import signal

@@ -1,4 +1,4 @@
-"""Recipes and ``dualpixel reproduce`` (issue #32)."""
+"""Recipes and ``dualpixel reproduce``."""
 
 import json
 import re

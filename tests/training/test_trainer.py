@@ -359,7 +359,7 @@ def test_models_command_lists_counts():
     result = CliRunner().invoke(cli, ["models"])
     assert result.exit_code == 0
     assert "24,278,703" in result.output and "31,035,151" in result.output
-    # the shipped checkpoints with their metadata (issue #13)
+    # the shipped checkpoints with their metadata
     from dualpixel.weights import model_info
 
     for name, info in model_info().items():

@@ -1,4 +1,4 @@
-"""The shipped weights as data (issue #32; after torchvision's test_schema_meta_validation)."""
+"""The shipped weights as data (after torchvision's test_schema_meta_validation)."""
 
 import re
 from pathlib import Path
