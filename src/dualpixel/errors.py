@@ -18,6 +18,7 @@ __all__ = [
     "ParameterError",
     "check_range",
     "check_seed",
+    "is_integer",
 ]
 
 
@@ -85,6 +86,15 @@ def check_range(
     return number
 
 
+def is_integer(value: object) -> bool:
+    """Whether ``value`` is a Python or NumPy integer (a ``bool`` is not one here).
+
+    >>> is_integer(3), is_integer(True), is_integer(3.0)
+    (True, False, False)
+    """
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
 #: The largest seed any command or function takes (a non-negative 63-bit integer, what NumPy's
 #: and torch's generators both accept).
 SEED_MAX = 2**63 - 1
@@ -97,7 +107,7 @@ def check_seed(name: str, value: object) -> int:
     >>> check_seed("seed", 7)
     7
     """
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+    if not is_integer(value):
         raise ParameterError(f"{name} must be an integer, got {value!r}")
     if not 0 <= int(value) <= SEED_MAX:
         raise ParameterError(f"{name} must be in [0, 2**63 - 1], got {value}")

@@ -43,6 +43,7 @@ from dualpixel.errors import (
     ParameterError,
     check_range,
     check_seed,
+    is_integer,
 )
 from dualpixel.io.atomic import atomic_path, open_for_append, remove_partials
 from dualpixel.io.documents import read_mapping
@@ -426,7 +427,7 @@ def _shard_description(path: Path) -> dict:
         raise InputFileError(path, "is not a shard (made without --shard)")
     shard = description["shard"]
     if not (isinstance(shard, list) and len(shard) == 2
-            and all(isinstance(v, int) and not isinstance(v, bool) for v in shard)
+            and all(is_integer(v) for v in shard)
             and 0 <= shard[0] < shard[1]):
         raise InputFileError(path, f"shard must be [K, N] with 0 <= K < N, got {shard!r}")
     for key, kind in (("config", dict), ("input", str), ("format", str), ("version", str)):

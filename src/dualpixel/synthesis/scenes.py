@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dualpixel.errors import ParameterError, check_range, check_seed
+from dualpixel.errors import ParameterError, check_range, check_seed, is_integer
 from dualpixel.names import MAX_SEQUENCES, SCENE_LAYOUTS
 from dualpixel.parallel import completed
 from dualpixel.synthesis.textures import dead_leaves, load_photograph, random_texture
@@ -327,8 +327,7 @@ def check_scenes_complete(root: str | Path) -> None:
 def check_sequence_count(sequences: object) -> int:
     """``sequences`` if it is an integer in [1, :data:`MAX_SEQUENCES`], else a
     :class:`ParameterError`."""
-    if isinstance(sequences, bool) or not isinstance(sequences, (int, np.integer)) \
-            or not 1 <= int(sequences) <= MAX_SEQUENCES:
+    if not is_integer(sequences) or not 1 <= int(sequences) <= MAX_SEQUENCES:
         raise ParameterError(f"sequences must be an integer in [1, {MAX_SEQUENCES}], "
                              f"got {sequences!r}")
     return int(sequences)
