@@ -240,13 +240,12 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
     depth_map = check_depth_map(depth_map)
     lens_set, camera = _old_camera_arguments(lens_set, camera, camera_file)
     check_seed("seed", seed)
-    defaults = synthesis_settings(settings)
+    defaults = synthesis_settings(settings, camera=camera is not None)
     lens_set = lens_set or _FRAME_LENS_SET[settings]
     psf_bank = psf_bank or defaults["psf_bank"]
     noise_model = noise_model or defaults["noise_model"]
     noise_sigmas = defaults["noise_sigmas"] if noise_sigmas is None else tuple(noise_sigmas)
-    if light is None and camera is None:
-        light = defaults.get("light")
+    light = defaults["light"] if light is None else light
     if psf_bank not in PSF_BANKS:
         raise ParameterError(f"psf_bank must be one of {', '.join(PSF_BANKS)}, got {psf_bank!r}")
     if camera is not None:

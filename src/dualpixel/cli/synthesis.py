@@ -177,7 +177,7 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
     from dualpixel.optics.camera import load_camera
     from dualpixel.synthesis.dataset import SynthConfig, synthesis_settings, synthesize_dataset
 
-    settings = synthesis_settings(settings_name)
+    settings = synthesis_settings(settings_name, camera=camera_file is not None)
     if old_lens_sets is not None:
         if lens_sets is not None:
             raise click.BadParameter("give --lens-sets only (--cameras is its old name)",
@@ -186,8 +186,6 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         lens_sets = old_lens_sets
     if lens_sets is not None:
         settings["lens_sets"] = tuple(c.strip() for c in lens_sets.split(",") if c.strip())
-    if camera_file is not None:
-        settings["light"] = None  # the camera file's light space, unless --light is given
     for key, value in (("psf_bank", psf_bank), ("noise_model", noise_model),
                        ("noise_sigmas", tuple(noise_sigmas) if noise_sigmas else None),
                        ("light", light)):

@@ -228,11 +228,12 @@ SYNTH_SETTINGS["paper"] = {setting.name: setting.default for setting in fields(S
                            if setting.name in SYNTH_SETTINGS["shipped"]}
 
 
-def synthesis_settings(name: str) -> dict:
-    """The :data:`SYNTH_SETTINGS` of ``name``, or a :class:`ParameterError` naming the choices."""
+def synthesis_settings(name: str, *, camera: bool = False) -> dict:
+    """The :data:`SYNTH_SETTINGS` of ``name``, or a :class:`ParameterError` naming the choices;
+    with ``camera`` (a camera file given) the light space is left to the camera (``None``)."""
     if name not in SYNTH_SETTINGS:
         raise ParameterError(f"settings must be one of {', '.join(SYNTH_SETTINGS)}, got {name!r}")
-    return dict(SYNTH_SETTINGS[name])
+    return {**SYNTH_SETTINGS[name], **({"light": None} if camera else {})}
 
 
 @dataclass(frozen=True)
