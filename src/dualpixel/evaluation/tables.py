@@ -138,9 +138,12 @@ def held_out_table(results: Mapping[str, list[dict[str, str]]],
         cells = []
         for tag in tags:
             pairs = by_tag.get(tag)
-            model = sum(p for p, _ in pairs) / len(pairs) if pairs else math.nan
-            given = sum(i for _, i in pairs) / len(pairs) if pairs else math.nan
-            cells.append(f"{model:.2f} ({model - given:+.2f})" if pairs else "–")
+            if not pairs:
+                cells.append("–")
+                continue
+            model = sum(p for p, _ in pairs) / len(pairs)
+            given = sum(i for _, i in pairs) / len(pairs)
+            cells.append(f"{model:.2f} ({model - given:+.2f})")
         count = max(len(v) for v in by_tag.values())
         lines.append(f"| {evaluation} | {count} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -178,13 +181,21 @@ def target_free_table(rows: Iterable[dict[str, str]], labels: Mapping[str, str])
     return "\n".join(lines)
 
 
+def _method_parts(method: str) -> tuple[str, list[str]]:
+    """A results method (``CHECKPOINT+flips+limited+tied``) as its checkpoint's tag (an alias
+    resolved) and its mode words."""
+    from dualpixel.weights import ALIASES
+
+    base, *modes = method.split("+")
+    return ALIASES.get(base, base), modes
+
+
 def method_label(method: str) -> str | None:
     """A results method (``CHECKPOINT+flips+limited+tied``) as a table label, when its
     checkpoint is a shipped alias or tag (None otherwise)."""
-    from dualpixel.weights import ALIASES, WEIGHTS
+    from dualpixel.weights import WEIGHTS
 
-    base, *modes = method.split("+")
-    tag = ALIASES.get(base, base)
+    tag, modes = _method_parts(method)
     if tag not in WEIGHTS:
         return None
     settings = {"flips": "flips" in modes, "overshoot": "limited" if "limited" in modes else "",
@@ -203,15 +214,9 @@ def render_tables(root: str | Path) -> dict[str, str]:
                if (results_dir / f"{tag}.csv").is_file()}
     target_free = _read_csv(results_dir / "target-free.csv")
     methods = {}
-
-    def tag_of(method: str) -> str:
-        base = method.split("+")[0]
-        return ALIASES.get(base, base)
-
-    for row in sorted(target_free, key=lambda r: tag_of(r["method"]) != default):
+    for row in sorted(target_free, key=lambda r: _method_parts(r["method"])[0] != default):
         label = method_label(row["method"])
-        modes = row["method"].split("+")[1:]
-        tag = tag_of(row["method"])
+        tag, modes = _method_parts(row["method"])
         if label is not None and set(modes) == set(_mode_words(WEIGHTS[tag].output)):
             methods.setdefault(row["method"], label)
     return {
