@@ -15,11 +15,6 @@ from typing import TextIO
 
 from dualpixel.errors import OutputFileError
 
-try:
-    import fcntl
-except ImportError:  # no advisory locks (Windows): a leftover is any temporary file of the name
-    fcntl = None  # type: ignore[assignment]
-
 __all__ = ["PARTIAL_GLOB", "PARTIAL_MARKER", "atomic_path", "check_writable", "open_for_append",
            "remove_partials"]
 
@@ -32,29 +27,19 @@ PARTIAL_GLOB = f".*{PARTIAL_MARKER}*"
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
-#: A temporary file younger than this (seconds) is never taken for a killed write's leftover:
-#: its writer may not have locked it yet (it locks it right after creating it).
-LEFTOVER_AGE = 2.0
+#: A temporary file of :func:`atomic_path` untouched for this long (seconds) is a killed write's
+#: leftover. Writers that share a file (loader workers filling the frame store, two exports of
+#: one model) finish theirs in seconds to minutes, so a live writer's file is never taken.
+LEFTOVER_AGE = 3600.0
 
 
 def _is_leftover(path: Path) -> bool:
     """Whether ``path``, a temporary file of :func:`atomic_path`, was left by a killed write:
-    no live writer holds its lock (the kernel drops a killed writer's), and it is not new."""
+    not modified for :data:`LEFTOVER_AGE` seconds."""
     try:
-        if not path.is_file() or time.time() - path.stat().st_mtime < LEFTOVER_AGE:
-            return False
-        if fcntl is None:
-            return True
-        descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+        return path.is_file() and time.time() - path.stat().st_mtime > LEFTOVER_AGE
     except OSError:
-        return False  # gone already, or not ours to judge
-    try:
-        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        return False  # a live writer holds it
-    finally:
-        os.close(descriptor)  # (releases the lock just taken)
-    return True
+        return False  # gone already
 
 
 @contextlib.contextmanager
@@ -62,10 +47,9 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it over ``path``, else delete it.
 
     The temporary name keeps the suffix, so writers that infer the format from it still work.
-    A temporary file of the same ``path`` that an earlier, killed write left is removed first;
-    one that a live writer holds (an exclusive ``flock`` for the length of the write) is not, so
-    that processes writing the same file at once (loader workers filling the frame store) do
-    not delete each other's temporary files.
+    A temporary file of the same ``path`` that an earlier, killed write left (untouched for
+    :data:`LEFTOVER_AGE`) is removed first; a newer one is left alone, so that processes writing
+    the same file at once (loader workers filling the frame store) do not delete each other's.
     """
     target = Path(path)
     check_writable(target)
@@ -77,10 +61,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
                 and _is_leftover(leftover)):
             leftover.unlink(missing_ok=True)  # this file's earlier write, killed mid-way
     fd, tmp_name = tempfile.mkstemp(prefix=prefix, suffix=target.suffix, dir=target.parent)
-    if fcntl is not None:  # held until the file is in place: not a leftover to the others
-        fcntl.flock(fd, fcntl.LOCK_EX)
-    else:
-        os.close(fd)
+    os.close(fd)
     tmp = Path(tmp_name)
     try:
         yield tmp
@@ -94,9 +75,6 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    finally:
-        if fcntl is not None:
-            os.close(fd)
 
 
 def _output_error(target: Path, error: OSError) -> OutputFileError:
