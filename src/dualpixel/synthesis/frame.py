@@ -257,16 +257,22 @@ def synthesize_frame(
         warped = distort_image(torch.cat((left, right, target, coc[None])), draw.distortion)
         left, right, target, defocus = warped.split((3, 3, 3, 1))
         defocus = defocus[0]
+    light = (left, right)  # the views' light, before any tone curve or noise
     if draw.raw is not None:  # stored as raw values, still linear; noise is added to them
         left, right, target = (linear_to_raw(t, *draw.raw) for t in (left, right, target))
     elif linear:  # the tone curve after the optics; noise is added to the stored values
-        left, right, target = (linear_to_srgb(t) for t in (left, right, target))
-    if draw.noise_sigma is not None and draw.noise_sigma > 0:
+        left, right = linear_to_srgb(left), linear_to_srgb(right)
+        # the sharp target is the input itself unless the distortion moved it
+        target = linear_to_srgb(target) if draw.distortion is not None else image
+    noisy = draw.noise_sigma is not None and draw.noise_sigma > 0
+    if noisy:
         left = _noisy_view(left, draw, noise_seed * 2)
         right = _noisy_view(right, draw, noise_seed * 2 + 1)
     left, right, target = (t.clamp(0.0, 1.0) for t in (left, right, target))
     if linear and draw.raw is None:  # the two photodiodes' light summed, then the tone curve
-        combined = linear_to_srgb((srgb_to_linear(left) + srgb_to_linear(right)) / 2.0)
+        if noisy:  # the light of the stored (noisy) views
+            light = (srgb_to_linear(left), srgb_to_linear(right))
+        combined = linear_to_srgb((light[0].clamp(0.0, 1.0) + light[1].clamp(0.0, 1.0)) / 2.0)
     else:  # stored values (raw ones are linear: the light summed, the black level once)
         combined = (left + right) / 2.0
     return DPFrame(left, right, combined, target, defocus)
