@@ -34,6 +34,15 @@ def test_curves_follow_the_standard_on_both_segments():
     assert float(linear_to_srgb(torch.tensor(1.0))) == pytest.approx(1.0, abs=1e-6)
 
 
+def test_curves_take_images_in_any_memory_layout():
+    """(H, W, C) images seen as (C, H, W), slices and scalars give the standard's values."""
+    image = torch.rand(40, 60, 3, generator=torch.Generator().manual_seed(1))
+    for values in (image.permute(2, 0, 1), image[:, ::2], image[5, 7, 1]):
+        exact = values.double().numpy()
+        assert np.abs(linear_to_srgb(values).numpy() - _iec_encode(exact)).max() < 4e-7
+        assert np.abs(srgb_to_linear(values).numpy() - _iec_decode(exact)).max() < 4e-7
+
+
 def test_curves_leave_their_input_alone_and_round_trip():
     values = torch.rand(3, 64, 64, generator=torch.Generator().manual_seed(0))
     before = values.clone()

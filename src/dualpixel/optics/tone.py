@@ -37,12 +37,16 @@ def check_light(light: str) -> str:
 
 
 def _pow_(values: torch.Tensor, exponent: float) -> torch.Tensor:
-    """``values ** exponent`` in place (values >= 0): OpenCV's for a float32 CPU tensor (about
-    2.4x faster than torch's on a 1920x1080 RGB frame), torch's elsewhere."""
-    if values.device.type == "cpu" and values.dtype == torch.float32 and values.is_contiguous():
-        array = values.numpy().reshape(-1, values.shape[-1] if values.ndim else 1)
-        cv2.pow(array, exponent, dst=array)
-        return values
+    """``values ** exponent`` in place (values >= 0): OpenCV's for a float32 CPU tensor whose
+    elements fill their memory in some order (contiguous or permuted, as a ``(H, W, C)`` image
+    seen as ``(C, H, W)``; about 2.4x faster than torch's on a 1920x1080 RGB frame), torch's
+    elsewhere."""
+    if values.device.type == "cpu" and values.dtype == torch.float32 and values.ndim:
+        dense = values.permute(sorted(range(values.ndim), key=lambda i: -values.stride(i)))
+        if dense.is_contiguous():
+            array = dense.numpy().reshape(-1, dense.shape[-1])
+            cv2.pow(array, exponent, dst=array)
+            return values
     return values.pow_(exponent)
 
 
