@@ -216,6 +216,31 @@ def test_check_model_command(frame, tmp_path, tiny_checkpoint):
     assert nothing.exit_code != 0 and "no scene folders" in nothing.output
 
 
+def test_check_model_takes_linear_raw_views_in_the_files_units(frame, tmp_path,
+                                                               tiny_checkpoint):
+    """14-bit raw grey views above a black level of 1024, as a phone stores them: read as light
+    (black level off), checked in linear light, the model fed as deblur feeds it."""
+    from dualpixel.inference.encoding import ViewEncoding
+
+    root = tmp_path / "raw"
+    (root / "one").mkdir(parents=True)
+    for view in ("left", "right"):
+        light = linear(frame[view][..., 1])
+        raw = np.rint(1024 + light * 0.6 * (16383 - 1024)).astype(np.uint16)
+        cv2.imwrite(str(root / "one" / f"{view}.png"), raw)
+    encoding = ViewEncoding("linear", 1024, 16383)
+    (_, left, _), = read_pairs(root, encoding=encoding)
+    np.testing.assert_allclose(left[..., 0], 0.6 * linear(frame["left"][..., 1]), atol=1e-4)
+    out = tmp_path / "report"
+    result = CliRunner().invoke(cli, ["check-model", "--input", str(root), "--checkpoint",
+                                      str(tiny_checkpoint), "-o", str(out), "--device", "cpu",
+                                      "--brightness", "tied", "--encoding", "linear",
+                                      "--black-level", "1024", "--white-level", "16383"])
+    assert result.exit_code == 0, result.output
+    row = (out / "target_free.csv").read_text().splitlines()[1].split(",")
+    assert abs(float(row[2])) < 0.005  # brightness change over the frame: the light kept
+
+
 def test_the_modes_of_a_checkpoint_share_its_network_pass(frame, tiny_checkpoint, tmp_path):
     import torch
 

@@ -438,7 +438,7 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
         reference_method,
         write_target_free_report,
     )
-    from dualpixel.inference.encoding import ViewEncoding
+    from dualpixel.inference.encoding import LINEAR_LIGHT, ViewEncoding
 
     passes = tuple(dict.fromkeys(f == "on" for f in flips)) or None
     named = method_settings(checkpoints, brightness=brightness or None,
@@ -449,13 +449,15 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
         except ParameterError as error:
             raise click.BadParameter(str(error), param_hint="--reference") from None
     view_encoding = ViewEncoding(encoding, black_level, white_level)
-    methods = model_methods(checkpoints, device=device, encoding=view_encoding, tile=tile,
+    # linear pairs are read as light (black level off), and the models take them so
+    methods = model_methods(checkpoints, device=device,
+                            encoding=LINEAR_LIGHT if view_encoding.linear else None, tile=tile,
                             precision=precision, brightness=brightness or None,
                             overshoot=overshoot or None, flips=passes)
     rows = []
     for root in inputs:  # pairs named by their folder too when several are checked
         prefix = f"{root.resolve().name}/" if len(inputs) > 1 else ""
-        rows += check_folder(root, methods, split=split, encoding=encoding, progress=True,
+        rows += check_folder(root, methods, split=split, encoding=view_encoding, progress=True,
                              prefix=prefix)
     findings = write_target_free_report(rows, output, reference=reference)
     click.echo((output / "target_free.md").read_text())

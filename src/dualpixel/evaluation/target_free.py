@@ -284,18 +284,26 @@ def summarise_reports(reports: Iterable[TargetFreeReport]) -> dict[str, float]:
     return summary
 
 
-def read_pairs(root: str | Path, split: str | None = None) -> list[Pair]:
+def read_pairs(root: str | Path, split: str | None = None,
+               encoding: ViewEncoding | None = None) -> list[Pair]:
     """``(name, left, right)`` of every pair in a folder of scene folders (``NAME/left.png``,
     ``NAME/right.png`` or ``view0``/``view1``; no target needed) or a DPDD-layout folder; the
     first frame of a sequence. Views come as float32 ``(H, W, C)`` in [0, 1] with the file's
-    channels: 1 for a grey view, 3 for colour."""
+    channels: 1 for a grey view, 3 for colour; linear views (``encoding``, levels in the files'
+    units) as light, the black level taken off (:func:`~dualpixel.inference.encoding.
+    linear_light`), as :func:`check_deblurred` and methods made with
+    :data:`~dualpixel.inference.encoding.LINEAR_LIGHT` take them."""
     from dualpixel.data.layout import discover_any
+    from dualpixel.inference.encoding import linear_light
     from dualpixel.io.images import read_views
 
     pairs = []
     for sequence in discover_any(root, split, require_target=False):
         frame = sequence.frames[0]
-        left, right, _ = read_views(frame.left, frame.right)
+        left, right, (bits, _) = read_views(frame.left, frame.right)
+        if encoding is not None and encoding.linear:
+            left, right = linear_light(left, right, encoding,
+                                       scale=65535.0 if bits == 16 else 255.0)
         pairs.append((sequence.name, left, right))
     return pairs
 
@@ -398,21 +406,23 @@ def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
 
 
 def check_folder(root: str | Path, methods: dict[str, Method],
-                 *, split: str | None = None, encoding: str = "srgb",
+                 *, split: str | None = None, encoding: ViewEncoding | None = None,
                  progress: bool = False, prefix: str = "") -> list[dict[str, Any]]:
     """One row per pair and method: ``{"pair", "method", **TargetFreeReport}``, pairs from
-    :func:`read_pairs` (named ``prefix`` + their name), each method called as
+    :func:`read_pairs` (named ``prefix`` + their name; linear ones as light, so the methods
+    take them with :data:`~dualpixel.inference.encoding.LINEAR_LIGHT`), each method called as
     ``method(left, right)``."""
     from dualpixel.progress import progress_bar
 
-    pairs = read_pairs(root, split)
+    pairs = read_pairs(root, split, encoding)
+    light = "linear" if encoding is not None and encoding.linear else "srgb"
     rows = []
     steps = progress_bar(total=len(pairs) * len(methods), desc="target-free checks", unit="output",
                          enabled=progress)
     with steps:
         for name, left, right in pairs:
             for method, deblur in methods.items():
-                report = check_deblurred(left, right, deblur(left, right), encoding=encoding)
+                report = check_deblurred(left, right, deblur(left, right), encoding=light)
                 rows.append({"pair": prefix + name, "method": method, **report.as_dict()})
                 steps.update()
     return rows

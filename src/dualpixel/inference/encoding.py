@@ -27,8 +27,8 @@ from dualpixel.names import ENCODINGS
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
-    "ENCODINGS", "ViewEncoding", "deblur_encoded", "encoding_findings", "flat_field_gain",
-    "from_model", "to_model", "view_encoding_from_files",
+    "ENCODINGS", "LINEAR_LIGHT", "ViewEncoding", "deblur_encoded", "encoding_findings",
+    "flat_field_gain", "from_model", "linear_light", "to_model", "view_encoding_from_files",
 ]
 
 #: Views whose median lies below this fraction of full scale, with 99 % of values below
@@ -87,6 +87,26 @@ def _check_gain_shape(gain: np.ndarray, shape: tuple[int, int]) -> None:
         raise ParameterError(f"right_gain map {gain.shape[:2]} and views {shape} differ in size")
 
 
+#: Linear views already in light units: black level 0, saturation 1 (what :func:`linear_light`
+#: gives; the target-free checks take linear views so).
+LINEAR_LIGHT = ViewEncoding("linear", 0.0, 1.0)
+
+
+def linear_light(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
+                 scale: float = 1.0, views_sum: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Linear raw views ``(..., H, W, C)`` (fractions of ``scale``, the full scale of the
+    views' own units) as light in [0, 1]: the black level taken off, divided by the span to the
+    white level, the right view's gain applied, each doubled with ``views_sum``."""
+    black = float(encoding.black_level) / scale
+    white = float(encoding.white_level) / scale
+    gain = np.asarray(encoding.right_gain, np.float32)
+    _check_gain_shape(gain, left.shape[-3:-1])
+    gain = gain[..., None] if gain.ndim == 2 else gain
+    span, factor = white - black, 2.0 if views_sum else 1.0
+    return (np.clip((left - black) / span * factor, 0.0, 1.0),
+            np.clip((right - black) / span * gain * factor, 0.0, 1.0))
+
+
 def to_model(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
              scale: float = 1.0, views_sum: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Views ``(..., H, W, C)`` float in [0, 1] (``C`` 1 or 3) as the models take them:
@@ -95,15 +115,7 @@ def to_model(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
     ``views_sum``: the views sum to the combined image (a raw A/B split): each is doubled (in
     linear light for linear views; :func:`~dualpixel.inference.view_checks.views_from_sum`)."""
     if encoding.linear:
-        black = float(encoding.black_level) / scale
-        white = float(encoding.white_level) / scale
-        gain = np.asarray(encoding.right_gain, np.float32)
-        _check_gain_shape(gain, left.shape[-3:-1])
-        gain = gain[..., None] if gain.ndim == 2 else gain
-        span = white - black
-        factor = 2.0 if views_sum else 1.0
-        left = np.clip((left - black) / span * factor, 0.0, 1.0)
-        right = np.clip((right - black) / span * gain * factor, 0.0, 1.0)
+        left, right = linear_light(left, right, encoding, scale=scale, views_sum=views_sum)
         left, right = linear_to_srgb_array(left), linear_to_srgb_array(right)
     elif views_sum:
         left, right = views_from_sum(left, right)
