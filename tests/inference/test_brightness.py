@@ -41,6 +41,33 @@ def test_a_gain_in_linear_light_is_undone_and_detail_kept(views):
                                before[unclipped][:, 0] / before[unclipped][:, 1], rtol=1e-3)
 
 
+def test_grey_raw_views_are_tied_in_linear_light_like_colour_ones(views):
+    """A phone's green-only raw views made display values for the model (grey, copied to R, G
+    and B; finer than 8 bits) hold few distinct 8-bit colours, as a GIF frame does, but carry
+    no palette dither: the tie measures them as they are, so a sharp output keeps the input's
+    light."""
+    left, right = (np.repeat(np.rint(v.mean(axis=2, keepdims=True) * 65535) / 65535, 3, axis=2)
+                   for v in views)
+    mean = 0.5 * (linear(left) + linear(right))
+    sharp = encoded(np.clip(mean + 1.5 * (mean - cv2.GaussianBlur(mean, (0, 0), 2.0)), 0, 1))
+    tied = tie_brightness(sharp, left, right, sigma=32)
+    assert linear(tied).mean() == pytest.approx(mean.mean(), rel=0.002)
+
+
+def test_only_images_on_the_8_bit_grid_with_few_colours_are_palette_images(views):
+    from dualpixel.inference.brightness import is_palette_image
+
+    rng = np.random.default_rng(3)
+    palette = rng.integers(0, 256, (200, 3)) / 255.0
+    gif = palette[rng.integers(0, 200, (60, 80))].astype(np.float32)  # 200 colours, dithered
+    assert is_palette_image(gif)
+    assert not is_palette_image(gif + 0.5 / 65535)  # 16-bit values: no GIF frame
+    assert not is_palette_image(views[0])  # a photograph's many colours
+    grey = np.repeat(gif[..., 1:2], 3, axis=2)  # an 8-bit grey GIF frame: dithered greys
+    assert is_palette_image(grey) and is_palette_image(gif[..., 1:2])
+    assert not is_palette_image(grey + 0.5 / 65535)  # raw greys, finer than 8 bits
+
+
 def test_an_output_that_keeps_brightness_is_left_alone(views):
     left, right = views
     mean = encoded(0.5 * (linear(left) + linear(right)))

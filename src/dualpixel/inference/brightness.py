@@ -49,9 +49,16 @@ def check_brightness(mode: str) -> str:
 
 
 def is_palette_image(image: np.ndarray) -> bool:
-    """Whether ``image`` (``(H, W, C)`` in [0, 1]) holds at most 256 distinct colours, as a GIF
-    frame does (its palette's dither was added to the stored values)."""
-    levels = np.rint(np.asarray(image) * 255).astype(np.int64).reshape(-1, image.shape[-1])
+    """Whether ``image`` (``(H, W, C)`` in [0, 1]) holds at most 256 distinct colours of the
+    8-bit grid, as a GIF frame does (its palette's dither was added to the stored values).
+    Values off that grid (16-bit files, raw views made display values by
+    :func:`~dualpixel.inference.encoding.to_model`) are no GIF frame, however few their
+    colours (a grey view has one per level)."""
+    image = np.asarray(image)
+    scaled = image[:: max(1, image.shape[0] // 64)] * 255  # rows enough to see a finer grid
+    if float(np.abs(scaled - np.rint(scaled)).max()) > 1e-3:  # 16-bit or float values
+        return False
+    levels = np.rint(image * 255).astype(np.int64).reshape(-1, image.shape[-1])
     codes = levels @ (256 ** np.arange(levels.shape[1]))
     if np.unique(codes[:: max(1, codes.size // 20000)]).size > 256:  # most photographs: quick
         return False
