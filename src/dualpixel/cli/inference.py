@@ -237,17 +237,25 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @_MULTISCALE_OPTION
 @_BRIGHTNESS_OPTION
 @_OVERSHOOT_OPTION
+@click.option("--encoding", type=click.Choice(ENCODINGS), default="srgb", show_default=True,
+              help="How the views and targets store light (see deblur --encoding): linear raw "
+                   "views go to the model as deblur feeds them; every score is taken in the "
+                   "files' own values.")
+@click.option("--black-level", type=float, default=None, help="Linear views: see deblur.")
+@click.option("--white-level", type=float, default=None, help="Linear views: see deblur.")
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, align, tile, overlap,
                      device, precision, backend, flips, multiscale, brightness,
-                     overshoot) -> None:
+                     overshoot, encoding, black_level, white_level) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
+    from dualpixel.inference.encoding import ViewEncoding
 
     request = EvaluationRequest(
         output=output, dataset=dataset, split=split, pred=pred, target=target, compare=compare,
         categories=categories, niqe_model=niqe_model, niqe=not no_niqe, figures=figures,
-        save_outputs=save_outputs, align=None if align == "none" else align)
+        save_outputs=save_outputs, align=None if align == "none" else align,
+        encoding=ViewEncoding(encoding, black_level, white_level))
     deblurrer, method, meta = None, "model", {}
     if not no_model and pred is None and target is None:
         from dualpixel.inference import Deblurrer

@@ -17,6 +17,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,8 +28,11 @@ from dualpixel.evaluation.blur_breakdown import BlurBreakdown, read_defocus
 from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.evaluation.niqe import NIQEModel, niqe
 from dualpixel.io.atomic import atomic_path
-from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb
+from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb, read_rgb_with_depth
 from dualpixel.progress import progress_bar
+
+if TYPE_CHECKING:
+    from dualpixel.inference.encoding import ViewEncoding
 
 __all__ = [
     "EvalExample",
@@ -134,6 +138,21 @@ def _score(method: str, name: str, category: str, output: np.ndarray, target: np
     return result
 
 
+def _deblur_views(deblur: Callable[[np.ndarray, np.ndarray], np.ndarray], left: np.ndarray,
+                  right: np.ndarray, bits: int, encoding: ViewEncoding | None) -> np.ndarray:
+    """``deblur`` of views read as RGB from ``bits``-bit files; linear raw views through the
+    encoding the models take (grey ones as one channel, copied back to three for scoring)."""
+    if encoding is None or not encoding.linear:
+        return deblur(left, right)
+    from dualpixel.inference.encoding import deblur_encoded
+
+    grey = all(np.array_equal(v[..., 0], v[..., c]) for v in (left, right) for c in (1, 2))
+    views = (left[..., :1], right[..., :1]) if grey else (left, right)
+    scale = 65535.0 if bits == 16 else 255.0
+    output = deblur_encoded(deblur, *views, encoding, scale=scale)
+    return np.repeat(output, 3, axis=2) if grey else output
+
+
 def evaluate(
     examples: list[EvalExample],
     *,
@@ -146,11 +165,14 @@ def evaluate(
     progress: bool = True,
     breakdown: BlurBreakdown | None = None,
     align: str | None = None,
+    encoding: ViewEncoding | None = None,
 ) -> list[ImageResult]:
     """Score the input, the model (``deblur(left, right)``; ``reset()`` between sequences) and
     every other method of each example; pool errors by blur size into ``breakdown`` where the
     examples have defocus maps; ``align`` ("translation" or "affine") adds scores after
-    registering each output to its target."""
+    registering each output to its target. ``encoding``: how the views and targets store light
+    (linear raw ones, levels in the files' units, go to the model as ``deblur`` takes them and
+    come back raw; every score is taken in the files' own values)."""
     results, current = [], None
     for example in progress_bar(examples, desc="evaluating", unit="image", enabled=progress):
         known = categories or {}
@@ -158,7 +180,7 @@ def evaluate(
         if categories and not category:
             raise InputFileError(example.left, f"{example.name} is not in the category list")
         target = read_rgb(example.target)
-        left, right = read_rgb(example.left), read_rgb(example.right)
+        (left, bits), right = read_rgb_with_depth(example.left), read_rgb(example.right)
         combined = read_rgb(example.combined) if example.combined else (left + right) / 2
         results.append(_score("input", example.name, category, combined, target, niqe_model,
                               None, example.combined or example.left, align))
@@ -168,7 +190,7 @@ def evaluate(
                 reset()
             current = example.sequence
             started = time.perf_counter()
-            output = deblur(left, right)
+            output = _deblur_views(deblur, left, right, bits, encoding)
             seconds = time.perf_counter() - started
             results.append(_score(method, example.name, category, output, target, niqe_model,
                                   seconds, example.left, align))

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dualpixel.data.layout import discover_dp_dataset, discover_scene_folders
 from dualpixel.errors import ParameterError
@@ -22,6 +23,9 @@ from dualpixel.io.atomic import check_writable
 from dualpixel.io.dpdd import role_folder
 from dualpixel.io.images import read_rgb, write_png
 from dualpixel.io.paths import check_plain_name
+
+if TYPE_CHECKING:
+    from dualpixel.inference.encoding import ViewEncoding
 
 __all__ = ["EvaluationRequest", "draw_comparisons", "run_evaluation"]
 
@@ -43,6 +47,8 @@ class EvaluationRequest:
     figures: int = 3
     save_outputs: bool = False
     align: str | None = None  # "translation" or "affine": also score registered outputs
+    # how the views and targets store light (linear raw views: dualpixel.inference.encoding)
+    encoding: ViewEncoding | None = None
 
 
 def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "model",
@@ -63,6 +69,9 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
         f"{request.niqe_model or 'builtin'} ({niqe.source})"
     if request.align is not None:
         meta["align"] = check_align_mode(request.align)
+    if request.encoding is not None and request.encoding.linear:
+        meta["encoding"] = {"encoding": "linear", "black_level": request.encoding.black_level,
+                            "white_level": request.encoding.white_level}
     for name in request.compare or {}:  # rows of the reports, named like no other
         check_plain_name(name, "--compare name")
         if name in ("input", method):
@@ -83,7 +92,7 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
             sequences, others = discover_dp_dataset(dataset, request.split), {}
         else:
             sequences, others = discover_scene_folders(dataset)
-        meta["view_findings"] = _view_findings(sequences)
+        meta["view_findings"] = _view_findings(sequences, request.encoding)
         examples = examples_from_sequences(sequences, others, request.compare or {})
         if any(example.defocus is not None for example in examples):
             breakdown = BlurBreakdown()
@@ -99,7 +108,7 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
                            reset=deblurrer.reset if deblurrer else None, method=method,
                            niqe_model=niqe, categories=cats,
                            save_outputs=keep if deblurrer else None, breakdown=breakdown,
-                           align=request.align)
+                           align=request.align, encoding=request.encoding)
         draw_comparisons(examples[: request.figures], drawn, results, method, output)
     write_reports(results, output, meta=meta, breakdown=breakdown)
     if breakdown is not None and breakdown.images:
@@ -109,22 +118,27 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
     return output / "summary.md"
 
 
-def _view_findings(sequences) -> list[dict[str, str]]:
-    """The checks ``deblur`` runs (:func:`~dualpixel.inference.view_checks.check_views`) on the
-    first pair of every sequence, each finding also given as a warning: swapped or half-bright
-    views would otherwise just score lower."""
+def _view_findings(sequences, encoding: ViewEncoding | None = None) -> list[dict[str, str]]:
+    """The checks ``deblur`` runs (:func:`~dualpixel.inference.view_checks.check_views`,
+    :func:`~dualpixel.inference.encoding.encoding_findings`) on the first pair of every
+    sequence, each finding also given as a warning: swapped, half-bright or raw views taken
+    for display values would otherwise just score lower."""
     import warnings
 
-    from dualpixel.data.layout import read_frame
+    from dualpixel.inference.encoding import encoding_findings, to_model
     from dualpixel.inference.view_checks import check_views
-    from dualpixel.io.images import read_rgb
+    from dualpixel.io.images import read_rgb, read_rgb_with_depth
 
     found = []
     for sequence in sequences:
         first = sequence.frames[0]
-        frame = read_frame(first)
+        (left, bits), right = read_rgb_with_depth(first.left), read_rgb(first.right)
         combined = read_rgb(first.combined) if first.combined is not None else None
-        for finding in check_views(frame["left"], frame["right"], combined=combined):
+        findings = encoding_findings(left, right, encoding.encoding if encoding else "srgb")
+        if encoding is not None and encoding.linear:  # checked as the model takes them
+            left, right = to_model(left, right, encoding, scale=65535.0 if bits == 16 else 255.0)
+            combined = None
+        for finding in findings + check_views(left, right, combined=combined):
             found.append({"example": sequence.name, "code": finding.code,
                           "message": finding.message})
             warnings.warn(f"{first.left}: {finding.message}", stacklevel=2)
