@@ -28,7 +28,7 @@ from dualpixel.evaluation.blur_breakdown import BlurBreakdown, read_defocus
 from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.evaluation.niqe import NIQEModel, niqe
 from dualpixel.io.atomic import atomic_path
-from dualpixel.io.images import IMAGE_SUFFIXES, read_rgb, read_rgb_with_depth
+from dualpixel.io.images import IMAGE_SUFFIXES, max_level, read_rgb, read_rgb_with_depth
 from dualpixel.progress import progress_bar
 
 if TYPE_CHECKING:
@@ -148,8 +148,7 @@ def _deblur_views(deblur: Callable[[np.ndarray, np.ndarray], np.ndarray], left: 
 
     grey = all(np.array_equal(v[..., 0], v[..., c]) for v in (left, right) for c in (1, 2))
     views = (left[..., :1], right[..., :1]) if grey else (left, right)
-    scale = 65535.0 if bits == 16 else 255.0
-    output = deblur_encoded(deblur, *views, encoding, scale=scale)
+    output = deblur_encoded(deblur, *views, encoding, scale=max_level(bits))
     return np.repeat(output, 3, axis=2) if grey else output
 
 

@@ -127,7 +127,7 @@ def _view_findings(sequences, encoding: ViewEncoding | None = None) -> list[dict
 
     from dualpixel.inference.encoding import encoding_findings, to_model
     from dualpixel.inference.view_checks import check_views
-    from dualpixel.io.images import read_rgb, read_rgb_with_depth
+    from dualpixel.io.images import max_level, read_rgb, read_rgb_with_depth
 
     found = []
     for sequence in sequences:
@@ -136,7 +136,7 @@ def _view_findings(sequences, encoding: ViewEncoding | None = None) -> list[dict
         combined = read_rgb(first.combined) if first.combined is not None else None
         findings = encoding_findings(left, right, encoding.encoding if encoding else "srgb")
         if encoding is not None and encoding.linear:  # checked as the model takes them
-            left, right = to_model(left, right, encoding, scale=65535.0 if bits == 16 else 255.0)
+            left, right = to_model(left, right, encoding, scale=max_level(bits))
             combined = None
         for finding in findings + check_views(left, right, combined=combined):
             found.append({"example": sequence.name, "code": finding.code,

@@ -295,7 +295,7 @@ def read_pairs(root: str | Path, split: str | None = None,
     :data:`~dualpixel.inference.encoding.LINEAR_LIGHT` take them."""
     from dualpixel.data.layout import discover_any
     from dualpixel.inference.encoding import linear_light
-    from dualpixel.io.images import read_views
+    from dualpixel.io.images import max_level, read_views
 
     pairs = []
     for sequence in discover_any(root, split, require_target=False):
@@ -303,7 +303,7 @@ def read_pairs(root: str | Path, split: str | None = None,
         left, right, (bits, _) = read_views(frame.left, frame.right)
         if encoding is not None and encoding.linear:
             left, right = linear_light(left, right, encoding,
-                                       scale=65535.0 if bits == 16 else 255.0)
+                                       scale=max_level(bits))
         pairs.append((sequence.name, left, right))
     return pairs
 

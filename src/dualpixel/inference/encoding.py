@@ -179,7 +179,7 @@ def view_encoding_from_files(encoding: str, black_level: float | None, white_lev
     """A :class:`ViewEncoding` as ``dualpixel deblur`` takes it: the right view's gain a number
     or, with ``flat_field`` (left and right image files of a flat-field DP capture), the map
     :func:`flat_field_gain` makes from them (levels in the files' own units)."""
-    from dualpixel.io.images import read_views
+    from dualpixel.io.images import max_level, read_views
 
     if flat_field is None:
         return ViewEncoding(encoding, black_level, white_level, right_gain)
@@ -189,8 +189,7 @@ def view_encoding_from_files(encoding: str, black_level: float | None, white_lev
     if right_gain != 1.0:
         raise ParameterError("give --flat-field or --right-gain, not both")
     left, right, (bits, _) = read_views(*flat_field)
-    scale = 65535.0 if bits == 16 else 255.0
-    gain = flat_field_gain(left, right, black_level=black_level / scale)
+    gain = flat_field_gain(left, right, black_level=black_level / max_level(bits))
     return ViewEncoding(encoding, black_level, white_level, gain)
 
 

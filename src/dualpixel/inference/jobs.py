@@ -22,6 +22,7 @@ from dualpixel.inference.view_checks import ViewFinding, check_views
 from dualpixel.io.atomic import check_writable
 from dualpixel.io.images import (
     check_image_path,
+    max_level,
     read_rgb_with_depth,
     read_view,
     read_views,
@@ -187,7 +188,7 @@ def run_deblur_jobs(
         deblurrer.reset()
         for index, job in enumerate(sequence):
             left, right, bits, right_bits = _read_pair(job)
-            channels, scale = left.shape[2], 65535.0 if bits == 16 else 255.0
+            channels, scale = left.shape[2], max_level(bits)
             raw = (left, right if right is not None else left, encoding.encoding)
             if right is None:
                 left = to_model(left, left, encoding, scale=scale)[0]

@@ -25,6 +25,7 @@ __all__ = [
     "decode_synthia_depth",
     "image_size",
     "load_npy",
+    "max_level",
     "quantise",
     "read_depth",
     "read_rgb",
@@ -160,6 +161,12 @@ def read_rgb(path: str | Path) -> np.ndarray:
     """Read an 8- or 16-bit RGB (or grey) image as float32 ``(H, W, 3)`` in [0, 1] (alpha
     dropped; grey copied to the three channels)."""
     return read_rgb_with_depth(path)[0]
+
+
+def max_level(bits: int) -> float:
+    """The largest level of a ``bits``-bit file (8 or 16), by which :func:`read_rgb` divided:
+    a level given in the file's own units (a raw black level) over it is a fraction of 1."""
+    return 65535.0 if bits == 16 else 255.0
 
 
 def read_rgb_with_depth(path: str | Path) -> tuple[np.ndarray, int]:
