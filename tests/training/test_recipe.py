@@ -187,6 +187,10 @@ def test_reproduce_resumes_refuses_other_recipes_and_runs_until_a_phase(tmp_path
      "phase first: workers: machine settings are not part of a model's recipe.*--loader-workers"),
     ({"train": {"model": "rdpd", "synthetic_data": "synth", "frame_store": "runs/x"}},
      "train: frame_store: machine settings .*--frame-store"),
+    ({"evaluate": [{"name": "raw", "dataset": "synth", "encoding": "linear",
+                    "white_level": 255}]}, "evaluate raw: linear views need black_level"),
+    ({"evaluate": [{"name": "raw", "dataset": "synth", "gain": 2}]},
+     "evaluate entry 1: expected .name, dataset, split. and, for raw views"),
 ])
 def test_bad_recipes_are_refused_before_any_work(tmp_path, changes, message):
     path = _tiny_recipe(tmp_path, **changes)
@@ -309,3 +313,34 @@ def test_a_variant_extends_a_recipe_of_another_folder(tmp_path):
     assert recipe.name == "seed" and recipe.shipped_tag == "seed.v1"
     assert recipe.data == parent.data and recipe.phases == parent.phases
     assert recipe.train == {**parent.train, "seed": 7}
+
+
+def test_an_evaluation_of_raw_views_reaches_eval_with_their_encoding(tmp_path, monkeypatch):
+    """``encoding: linear`` with the levels: the shipped weights see the views as
+    ``dualpixel eval --encoding linear`` feeds them."""
+    from dualpixel.evaluation import run
+    from dualpixel.training import recipe as recipes
+
+    path = _tiny_recipe(tmp_path, evaluate=[
+        {"name": "raw", "dataset": "synth", "encoding": "linear", "black_level": 16,
+         "white_level": 255},
+        {"name": "display", "dataset": "synth"}])
+    recipe = load_recipe(path)
+    (tmp_path / "run" / "data" / "synth").mkdir(parents=True)
+    seen = {}
+
+    def fake_evaluation(request, deblurrer, method):  # what the evaluation was asked
+        seen[request.output.name] = request.encoding
+        request.output.mkdir(parents=True)
+        (request.output / "summary.json").write_text(
+            '{"summary": {"model": {"combined": {"psnr": 30.0, "ssim": 0.9}}}}')
+
+    monkeypatch.setattr(run, "run_evaluation", fake_evaluation)
+    monkeypatch.setattr(recipes, "_data_folder",
+                        lambda recipe, output, name: output / "data" / name)
+    monkeypatch.setattr("dualpixel.models.checkpoint.load_model", lambda path: None)
+    monkeypatch.setattr("dualpixel.inference.deblur.Deblurrer", lambda model, **settings: None)
+    recipes.evaluate_shipped(recipe, tmp_path / "w.safetensors", tmp_path / "run",
+                             log=lambda line: None)
+    assert seen["raw"].linear and (seen["raw"].black_level, seen["raw"].white_level) == (16, 255)
+    assert not seen["display"].linear

@@ -29,7 +29,9 @@ with phases inside it) holds:
   exports them in float16 to ``OUTPUT/ship/TAG.safetensors`` with their provenance and metrics
   (scored with those settings); ``dualpixel release`` puts them into the package;
 - ``evaluate``: ``[{name, dataset, split}]`` scored with the shipped weights (a step's name or a
-  folder; a folder outside the run that is missing is skipped with a note).
+  folder; a folder outside the run that is missing is skipped with a note); raw views add
+  ``encoding: linear`` with ``black_level`` and ``white_level`` in the files' units, and go to
+  the model as ``dualpixel eval --encoding linear`` feeds them.
 
 ``extends: BASE.yaml`` (a recipe beside this one, or a relative path such as
 ``../../recipes/BASE.yaml``) starts from the base: this recipe's data steps and phases replace the
@@ -309,12 +311,17 @@ def load_recipe(path: str | Path) -> Recipe:
     evaluate = []
     for k, item in enumerate(raw.get("evaluate") or []):
         item = dict(_mapping(path, f"evaluate entry {k + 1}", item))
-        unknown = sorted(set(item) - {"name", "dataset", "split"})
+        unknown = sorted(set(item) - {"name", "dataset", "split", *_ENCODING_KEYS})
         if unknown or "name" not in item or "dataset" not in item:
-            raise _fail(path, f"evaluate entry {k + 1}", "expected {name, dataset, split}")
+            raise _fail(path, f"evaluate entry {k + 1}", "expected {name, dataset, split} "
+                        "and, for raw views, encoding, black_level, white_level")
         _plain(path, f"evaluate entry {k + 1}", item["name"])
         if "split" in item:
             _plain(path, f"evaluate entry {k + 1} split", item["split"])
+        try:
+            _view_encoding(item)
+        except ParameterError as error:
+            raise _fail(path, f"evaluate {item['name']}", str(error)) from None
         evaluate.append(item)
     train = dict(_mapping(path, "train", raw.get("train") or {}))
     train = _no_machine_settings(path, "train", train)
@@ -645,6 +652,20 @@ def ship_phase(recipe: Recipe, folder: Path, output: Path, phase: str,
     return target
 
 
+#: Keys of an ``evaluate`` entry that say how its views store light (``eval --encoding``).
+_ENCODING_KEYS = ("encoding", "black_level", "white_level")
+
+
+def _view_encoding(entry: dict[str, Any]):
+    """The :class:`~dualpixel.inference.encoding.ViewEncoding` of an ``evaluate`` entry
+    (display values unless it names ``encoding: linear`` with its levels, in the files'
+    units)."""
+    from dualpixel.inference.encoding import ViewEncoding
+
+    return ViewEncoding(entry.get("encoding", "srgb"), entry.get("black_level"),
+                        entry.get("white_level"))
+
+
 def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) -> dict:
     """Score the shipped weights, run with the recipe's output settings, on each ``evaluate``
     entry; returns ``{name: metrics}``."""
@@ -662,7 +683,8 @@ def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) 
         deblurrer = Deblurrer(load_model(weights), **recipe.output_settings)
         run_evaluation(EvaluationRequest(output=folder, dataset=dataset,
                                          split=entry.get("split", "test"), niqe=False,
-                                         figures=1), deblurrer, "model")
+                                         figures=1, encoding=_view_encoding(entry)),
+                       deblurrer, "model")
         summary = json.loads((folder / "summary.json").read_text())
         results[entry["name"]] = _mean_scores(summary)
         log(f"evaluate {entry['name']}: {results[entry['name']]}")
