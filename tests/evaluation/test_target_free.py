@@ -177,6 +177,9 @@ def test_folders_reference_and_table(frame, tmp_path):
     rows = check_folder(root, {"mean": mean, "darker": darker})
     assert [(r["pair"], r["method"]) for r in rows] == [
         ("a", "mean"), ("a", "darker"), ("b", "mean"), ("b", "darker")]
+    assert check_folder(root, {"mean": mean, "darker": darker}, encoding="srgb") == rows
+    with pytest.raises(ParameterError, match="encoding must be one of"):
+        check_folder(root, {"mean": mean}, encoding="raw")
     findings = compare_to_reference(rows, "mean")
     assert any("darker changes the brightness by -3" in f for f in findings)
     assert any("darker local_brightness" in f for f in findings)

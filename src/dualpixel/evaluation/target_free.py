@@ -302,8 +302,7 @@ def read_pairs(root: str | Path, split: str | None = None,
         frame = sequence.frames[0]
         left, right, (bits, _) = read_views(frame.left, frame.right)
         if encoding is not None and encoding.linear:
-            left, right = linear_light(left, right, encoding,
-                                       scale=max_level(bits))
+            left, right = linear_light(left, right, encoding, scale=max_level(bits))
         pairs.append((sequence.name, left, right))
     return pairs
 
@@ -406,14 +405,19 @@ def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
 
 
 def check_folder(root: str | Path, methods: dict[str, Method],
-                 *, split: str | None = None, encoding: ViewEncoding | None = None,
+                 *, split: str | None = None, encoding: ViewEncoding | str | None = None,
                  progress: bool = False, prefix: str = "") -> list[dict[str, Any]]:
     """One row per pair and method: ``{"pair", "method", **TargetFreeReport}``, pairs from
     :func:`read_pairs` (named ``prefix`` + their name; linear ones as light, so the methods
     take them with :data:`~dualpixel.inference.encoding.LINEAR_LIGHT`), each method called as
-    ``method(left, right)``."""
+    ``method(left, right)``. ``encoding`` "linear" (a name, no levels): files whose values
+    already are light."""
+    from dualpixel.inference.encoding import LINEAR_LIGHT
     from dualpixel.progress import progress_bar
 
+    if isinstance(encoding, str):  # a name: checked, and linear values taken as they are
+        _to_linear(encoding)
+        encoding = LINEAR_LIGHT if encoding == "linear" else None
     pairs = read_pairs(root, split, encoding)
     light = "linear" if encoding is not None and encoding.linear else "srgb"
     rows = []
