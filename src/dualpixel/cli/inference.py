@@ -52,6 +52,11 @@ _OVERSHOOT_OPTION = click.option(
     "--overshoot", type=click.Choice(OVERSHOOT_MODES), default=None,
     help="limited: keep the output within the input's range near each pixel (no halos beside "
          "edges); model: as the network gives it." + _OWN)
+# The levels of linear views, for the commands that point to deblur's own help.
+_BLACK_LEVEL_OPTION = click.option("--black-level", type=float, default=None,
+                                   help="Linear views: see deblur.")
+_WHITE_LEVEL_OPTION = click.option("--white-level", type=float, default=None,
+                                   help="Linear views: see deblur.")
 _MULTISCALE_OPTION = click.option(
     "--multiscale", is_flag=True,
     help="Also deblur at half resolution and take the coarse structure from there (at most "
@@ -241,8 +246,8 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
               help="How the views and targets store light (see deblur --encoding): linear raw "
                    "views go to the model as deblur feeds them; every score is taken in the "
                    "files' own values.")
-@click.option("--black-level", type=float, default=None, help="Linear views: see deblur.")
-@click.option("--white-level", type=float, default=None, help="Linear views: see deblur.")
+@_BLACK_LEVEL_OPTION
+@_WHITE_LEVEL_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, align, tile, overlap,
                      device, precision, backend, flips, multiscale, brightness,
@@ -412,8 +417,8 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
               help="Report folder: target_free.csv and target_free.md.")
 @click.option("--encoding", type=click.Choice(ENCODINGS), default="srgb",
               show_default=True, help="How the views store light (see deblur --encoding).")
-@click.option("--black-level", type=float, default=None, help="Linear views: see deblur.")
-@click.option("--white-level", type=float, default=None, help="Linear views: see deblur.")
+@_BLACK_LEVEL_OPTION
+@_WHITE_LEVEL_OPTION
 @click.option("--strict", is_flag=True,
               help="Exit with status 1 when a model does worse than --reference, or changes a "
                    "photograph's brightness by more than 1 %.")
