@@ -170,6 +170,45 @@ def test_fast_bands_give_the_same_image_as_whole_layers(monkeypatch):
         torch.testing.assert_close(a, b, atol=1e-5, rtol=0)
 
 
+def test_unblurred_layers_pasted_at_once_equal_compositing_each():
+    """Near-focus layers with [[1]] kernels are copied in one go: the same bytes as compositing
+    them one by one over whatever lies below."""
+    from dualpixel.synthesis import fast_renderer
+    from dualpixel.synthesis.layers import row_extents
+
+    torch.manual_seed(0)
+    opaque = torch.cat((torch.rand(40, 50, 3), torch.ones(40, 50, 1)), dim=-1)
+    labels = torch.randint(0, 6, (40, 50))
+    below = torch.rand(2, 40, 50, 4)
+    first, last = fast_renderer._strip_extents(row_extents(labels, 6), 50)
+    one_by_one, pasted = below.clone(), below.clone()
+    for j in (4, 3, 2):  # far to near
+        fast_renderer._composite_strips(one_by_one, opaque, labels, j, first[j], last[j],
+                                        torch.ones(2, 1, 1))
+    fast_renderer._paste_unblurred(pasted, opaque, labels, [4, 3, 2])
+    assert torch.equal(one_by_one, pasted)
+    assert torch.equal(pasted[:, labels == 1], below[:, labels == 1])
+    assert torch.equal(pasted[:, labels == 3], opaque[labels == 3].expand(2, -1, -1))
+
+
+def test_row_extents_and_bounding_boxes_match_a_direct_search():
+    from dualpixel.synthesis.layers import bounding_boxes, row_extents
+
+    labels = torch.randint(0, 4, (23, 31), generator=torch.Generator().manual_seed(3))
+    labels[:, :5] = labels[:, :5].clamp(max=2)  # label 3 never in the first columns
+    first, last = row_extents(labels, 5)  # label 4 never occurs
+    boxes = bounding_boxes(labels, 5).tolist()
+    for j in range(5):
+        rows, cols = np.nonzero(labels.numpy() == j)
+        for row in range(23):
+            in_row = cols[rows == row]
+            expected = (int(in_row.min()), int(in_row.max())) if in_row.size else (31, -1)
+            assert (int(first[j, row]), int(last[j, row])) == expected
+        expected = ([int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())]
+                    if rows.size else [23, -1, 31, -1])
+        assert boxes[j] == expected
+
+
 def test_fast_layers_are_unions_of_exact_layers():
     coc = torch.linspace(-40.0, 40.0, 20000).reshape(100, 200)
     exact, _ = quantise_layers(coc, 500, mode="exact")

@@ -18,6 +18,7 @@ __all__ = [
     "check_render_mode",
     "grown_box",
     "quantise_layers",
+    "row_extents",
 ]
 
 
@@ -61,38 +62,55 @@ def quantise_layers(coc: torch.Tensor, max_layers: int, *,
     if max_layers < 1:
         raise ParameterError(f"max_layers must be >= 1, got {max_layers}")
     check_render_mode(mode)
-    lo, hi = float(coc.min()), float(coc.max())
+    low, high = torch.aminmax(coc)
+    lo, hi = float(low), float(high)
     if hi - lo <= 0.0:
         bins = torch.zeros_like(coc, dtype=torch.long)
+        table = torch.zeros(1, dtype=torch.long, device=coc.device)
     else:
         scaled = (coc - lo) * (max_layers / (hi - lo))
         bins = scaled.long().clamp_(0, max_layers - 1)
+        table = torch.arange(max_layers, device=coc.device)  # exact bin -> layer
         if mode == "fast":
             centres = lo + (torch.arange(max_layers, dtype=torch.float64) + 0.5) * (
                 (hi - lo) / max_layers)
             merged = torch.floor(_visible_coordinate(centres) / VISIBLE_STEP).long()
-            bins = (merged - merged[0]).to(coc.device)[bins]
-    counts = torch.bincount(bins.flatten())
+            table = (merged - merged[0]).to(coc.device)
+    # the bins counted and relabelled as small tables, so the map is indexed once
+    counts = torch.zeros(int(table[-1]) + 1, dtype=torch.long, device=coc.device).index_add_(
+        0, table, torch.bincount(bins.flatten(), minlength=table.numel()))
     used = counts > 0
-    remap = torch.cumsum(used, 0) - 1
-    labels = remap[bins]
-    totals = torch.zeros(counts.numel(), dtype=torch.float64, device=coc.device)
-    totals.scatter_add_(0, bins.flatten(), coc.flatten().double())
-    return labels, (totals[used] / counts[used].double()).to(coc.dtype)
+    labels = (torch.cumsum(used, 0) - 1)[table][bins]
+    totals = torch.bincount(labels.flatten(), weights=coc.flatten().double(),
+                            minlength=int(used.sum()))
+    return labels, (totals / counts[used].double()).to(coc.dtype)
 
 
-def bounding_boxes(labels: torch.Tensor, count: int) -> torch.Tensor:
-    """Inclusive (row0, row1, col0, col1) of every label, ``(L, 4)``, in one pass."""
+def row_extents(labels: torch.Tensor, count: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """First and last column of every label in every row: two ``(count, H)`` long tensors, in
+    one pass each; W and -1 where a row holds none of the label."""
     height, width = labels.shape
-    rows = torch.arange(height, device=labels.device)[:, None].expand(height, width).flatten()
-    cols = torch.arange(width, device=labels.device)[None, :].expand(height, width).flatten()
-    flat = labels.flatten()
-    boxes = []
-    for coord, reduce, start in ((rows, "amin", height), (rows, "amax", -1),
-                                 (cols, "amin", width), (cols, "amax", -1)):
-        init = torch.full((count,), start, dtype=torch.long, device=labels.device)
-        boxes.append(init.scatter_reduce(0, flat, coord, reduce=reduce))
-    return torch.stack(boxes, dim=1)
+    rows = torch.arange(height, device=labels.device)[:, None]
+    key = (labels * height + rows).flatten()
+    cols = torch.arange(width, device=labels.device).expand(height, width).flatten()
+    extents = []
+    for reduce, start in (("amin", width), ("amax", -1)):
+        init = torch.full((count * height,), start, dtype=torch.long, device=labels.device)
+        extents.append(init.scatter_reduce(0, key, cols, reduce=reduce).view(count, height))
+    return extents[0], extents[1]
+
+
+def bounding_boxes(labels: torch.Tensor, count: int,
+                   extents: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
+    """Inclusive (row0, row1, col0, col1) of every label, ``(L, 4)``; (H, -1, W, -1) for a label
+    that does not occur. ``extents``: :func:`row_extents` of the same labels, if already made."""
+    height = labels.shape[0]
+    first, last = row_extents(labels, count) if extents is None else extents
+    rows = torch.arange(height, device=labels.device).expand(count, height)
+    present = last >= 0
+    return torch.stack((torch.where(present, rows, height).amin(dim=1),
+                        torch.where(present, rows, -1).amax(dim=1),
+                        first.amin(dim=1), last.amax(dim=1)), dim=1)
 
 
 def grown_box(box, half: int, height: int, width: int) -> tuple[int, int, int, int]:
