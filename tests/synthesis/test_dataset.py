@@ -332,6 +332,11 @@ def test_quantise_rounds_to_the_nearest_level():
         assert levels.dtype == dtype
         assert np.abs(levels - exact).max() <= (0 if bits == 8 else 1)
         assert levels.min() == 0 and levels.max() == peak  # clipped, not wrapped
+    # float32 scaling, halves to even (as np.rint), far-out values and infinities clipped
+    edge = np.array([0.5, 1.5, 2.5, 65534.5, -3.0, 7e4, 1e30], np.float32) / np.float32(65535)
+    edge = np.append(edge, np.float32([np.inf, -np.inf]))
+    assert quantise(edge, 16).tolist() == [0, 2, 2, 65534, 0, 65535, 65535, 65535, 0]
+    assert quantise(values[:, ::3, 1], 8).shape == (64, 22)  # strided views too
 
 
 def test_linear_light_is_recorded_and_sums_the_views_light(scene_dir, tmp_path):

@@ -286,11 +286,14 @@ def quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
     if bit_depth not in (8, 16):
         raise ParameterError(f"bit_depth must be 8 or 16, got {bit_depth}")
     peak = 255 if bit_depth == 8 else 65535
-    scaled = np.multiply(image, np.float32(peak), dtype=np.float32)
-    np.minimum(scaled, peak, out=scaled)  # in place: np.clip is several times slower here
-    np.maximum(scaled, 0, out=scaled)
-    np.rint(scaled, out=scaled)
-    return scaled.astype(np.uint8 if bit_depth == 8 else np.uint16)
+    image = np.asarray(image)
+    scaled = np.multiply(image, np.float32(peak), dtype=np.float32, order="C")
+    # OpenCV's saturating conversion rounds half to even, as np.rint does, and clips below 0 in
+    # the same pass; values far above the peak would overflow its rounding, so they go first
+    np.minimum(scaled, peak, out=scaled)
+    rows = scaled.reshape(scaled.shape[0] if scaled.ndim else 1, -1)  # one channel for OpenCV
+    levels = cv2.multiply(rows, 1.0, dtype=cv2.CV_8U if bit_depth == 8 else cv2.CV_16U)
+    return levels.reshape(image.shape)
 
 
 #: Output formats by suffix, with the bit depths they store.

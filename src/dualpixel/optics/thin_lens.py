@@ -13,6 +13,7 @@ Sign convention: positive behind the focal plane (d > s), negative in front (d <
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -90,6 +91,10 @@ class ThinLensCamera:
 def validate_depth(depth: np.ndarray | torch.Tensor, name: str = "depth") -> None:
     """Raise :class:`ParameterError` unless every depth value is finite and > 0."""
     values = depth if isinstance(depth, torch.Tensor) else torch.from_numpy(np.asarray(depth))
+    if values.numel() and values.is_floating_point():
+        low, high = torch.aminmax(values)  # one pass; NaN makes both NaN, failing both tests
+        if bool(low > 0) and bool(high < math.inf):
+            return
     finite = torch.isfinite(values)
     if not bool(finite.all()):
         bad = int((~finite).sum())
