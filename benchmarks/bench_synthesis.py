@@ -18,10 +18,10 @@ to amortise start-up over a longer sequence). With
 ``--authors-code DIR`` (a checkout of the authors' ``synthetic_dp_defocus_blur_code`` folder: their
 generator script, ``generate_bw_kernel.py`` and ``set_N.npy``; not shipped here) their generator
 itself also runs on the same frames, stored as SYNTHIA-SF RGB and encoded depth: it renders
-all five camera sets one after another, and each set's time is read from the line it prints when
-it starts the set (their start-up is not counted). Their script imports ``wand`` (ImageMagick) for
-radial distortion, which is off; without it installed a stand-in module that refuses to be used
-is put on their path.
+the five camera sets one after another, each set's time is read from the line it prints when
+it starts the set (their start-up is not counted), and it is stopped once the sets asked for
+are timed. Their script imports ``wand`` (ImageMagick) for radial distortion, which is off;
+without it installed a stand-in module that refuses to be used is put on their path.
 
     .venv/bin/python benchmarks/bench_synthesis.py [--device cuda] [--sets set0,set4]
     .venv/bin/python benchmarks/bench_synthesis.py --end-to-end --sets set0,set4 \
@@ -123,8 +123,14 @@ def _write_synthia_sequence(scenes: Path, folder: Path) -> None:
         cv2.imwrite(str(folder / "DepthLeft" / rgb_path.name), bgr)
 
 
-def authors_generator(code: Path, scenes: Path, work: Path) -> dict[str, float]:
-    """Run the authors' generator on the scene folder's sequence; seconds per camera set."""
+def authors_generator(code: Path, scenes: Path, work: Path,
+                      sets: list[str] | None = None) -> dict[str, float]:
+    """Run the authors' generator on the scene folder's sequence; seconds per camera set.
+
+    It renders the five sets in :data:`AUTHORS_SETS` order; it is stopped once the last of
+    ``sets`` (all five if None) is timed, that is when the next set starts."""
+    last = max((AUTHORS_SETS.index(name) for name in sets or AUTHORS_SETS
+                if name in AUTHORS_SETS), default=len(AUTHORS_SETS) - 1)
     if not (code / AUTHORS_SCRIPT).is_file():
         sys.exit(f"--authors-code {code}: no {AUTHORS_SCRIPT} there (give their "
                  "synthetic_dp_defocus_blur_code folder)")
@@ -149,11 +155,16 @@ def authors_generator(code: Path, scenes: Path, work: Path) -> dict[str, float]:
     marks = []
     for _ in process.stdout:  # one line as each camera set's sequence starts
         marks.append(time.perf_counter())
+        if len(marks) == last + 2:  # the set after the last one wanted has started
+            process.kill()
+            break
     _, errors = process.communicate()
-    marks.append(time.perf_counter())
-    if process.returncode or len(marks) != len(AUTHORS_SETS) + 1:
-        sys.exit(f"the authors' generator failed (exit {process.returncode}):\n{errors[-2000:]}")
-    return {name: marks[k + 1] - marks[k] for k, name in enumerate(AUTHORS_SETS)}
+    if len(marks) < last + 2:
+        marks.append(time.perf_counter())
+        if process.returncode or len(marks) != len(AUTHORS_SETS) + 1:
+            sys.exit(f"the authors' generator failed (exit {process.returncode}):\n"
+                     f"{errors[-2000:]}")
+    return {name: marks[k + 1] - marks[k] for k, name in enumerate(AUTHORS_SETS[:last + 1])}
 
 
 def end_to_end(sets: list[str], width: int, height: int, repeat: int,
@@ -178,7 +189,7 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int,
         if authors_code is not None:
             print(f"running the authors' generator on the {frames} frames (all five sets) ...",
                   flush=True)
-            authors = authors_generator(authors_code, scenes, Path(folder))
+            authors = authors_generator(authors_code, scenes, Path(folder), sets)
         print(f"{frames} frames {width}x{height}: `dualpixel synth` (the command, I/O and "
               f"start-up) against {frames} frames of the baseline's computation"
               + (" and the authors' generator (reading, rendering, writing)" if authors else ""))
