@@ -21,8 +21,8 @@ compositing (Eq. 7), and saves work three ways:
 3. **Batched, trimmed PSFs.** One :func:`dualpixel.optics.dp_psf` call per kernel size; outer
    rings holding less than :data:`TRIM_MASS` are dropped.
 
-Measured on a 1920x1080 dead-leaves frame (``benchmarks/bench_synthesis.py``, README table):
->= 48.5 dB against exact for set0..set4 on left, right and combined, in 0.08-0.09 of the time of
+Measured on a 1920x1080 dead-leaves frame (``benchmarks/bench_synthesis.py``, docs/benchmarks.md):
+>= 48.5 dB against exact for set0..set4 on left, right and combined, in 0.04-0.07 of the time of
 a baseline after the authors' algorithm.
 """
 
