@@ -282,7 +282,7 @@ def _figures(sequence: list[DemoFrame], output: Path, draw) -> list:
                      ""))
     if first.rgb is not None:
         write_png(output / "all_in_focus.png", first.rgb, bit_depth=8)
-        render_colour_map(first.depth, output / "depth.png", "depth", cmap="viridis")
+        render_colour_map(first.depth, output / "depth.png", "depth (m)", cmap="viridis")
         render_colour_map(first.defocus, output / "defocus.png", "signed CoC radius (px)",
                           cmap="coolwarm", symmetric=True)
         sections.append(("Scene", [
