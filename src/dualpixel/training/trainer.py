@@ -608,10 +608,12 @@ def _ema_update(decay: float):
                num_averaged: torch.Tensor) -> None:
         n = float(num_averaged)
         weight = 1.0 - min(decay, (1.0 + n) / (10.0 + n))
-        for avg, value in zip(averaged, current, strict=True):
-            if avg.is_floating_point():
-                avg.lerp_(value, weight)
-            else:  # integer buffers follow the weights
+        pairs = list(zip(averaged, current, strict=True))
+        floating = [pair for pair in pairs if pair[0].is_floating_point()]
+        if floating:  # one foreach kernel (AveragedModel passes a device and dtype per call)
+            torch._foreach_lerp_([a for a, _ in floating], [c for _, c in floating], weight)
+        for avg, value in pairs:
+            if not avg.is_floating_point():  # integer buffers follow the weights
                 avg.copy_(value)
 
     return update
