@@ -281,8 +281,8 @@ def _composite_strips(result, opaque, labels, j, first, last, kernels) -> None:
     rows gets exactly the layer's blurred planes (from the input rows around it, as wide as the
     layer's pixels there); runs do not overlap, so compositing is the same as for the whole
     layer. ``opaque``: the image with a plane of ones, ``(H, W, C + 1)``."""
-    height, width, planes_ = opaque.shape
-    channels = planes_ - 1
+    height, width = opaque.shape[:2]
+    channels = opaque.shape[-1] - 1
     half = kernels.shape[-1] // 2
     runs = _strip_runs(first, last, half)
     whole = (runs[0][0], runs[-1][1], min(r[2] for r in runs), max(r[3] for r in runs))
