@@ -28,7 +28,7 @@ from dualpixel.evaluation.blur_breakdown import BlurBreakdown, read_defocus
 from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.evaluation.niqe import NIQEModel, niqe
 from dualpixel.io.atomic import atomic_path
-from dualpixel.io.images import IMAGE_SUFFIXES, max_level, read_rgb, read_rgb_with_depth
+from dualpixel.io.images import IMAGE_SUFFIXES, max_level, read_rgb, read_views
 from dualpixel.progress import progress_bar
 
 if TYPE_CHECKING:
@@ -140,16 +140,17 @@ def _score(method: str, name: str, category: str, output: np.ndarray, target: np
 
 def _deblur_views(deblur: Callable[[np.ndarray, np.ndarray], np.ndarray], left: np.ndarray,
                   right: np.ndarray, bits: int, encoding: ViewEncoding | None) -> np.ndarray:
-    """``deblur`` of views read as RGB from ``bits``-bit files; linear raw views through the
-    encoding the models take (grey ones as one channel, copied back to three for scoring)."""
-    if encoding is None or not encoding.linear:
-        return deblur(left, right)
+    """``deblur`` of views ``(H, W, C)`` as read from ``bits``-bit files, fed as ``dualpixel
+    deblur`` feeds them (:func:`~dualpixel.inference.encoding.deblur_encoded`: in their
+    encoding, grey files as one channel); the output ``(H, W, 3)``, grey copied, for scoring."""
     from dualpixel.inference.encoding import deblur_encoded
 
-    grey = all(np.array_equal(v[..., 0], v[..., c]) for v in (left, right) for c in (1, 2))
-    views = (left[..., :1], right[..., :1]) if grey else (left, right)
-    output = deblur_encoded(deblur, *views, encoding, scale=max_level(bits))
-    return np.repeat(output, 3, axis=2) if grey else output
+    return _as_rgb(deblur_encoded(deblur, left, right, encoding, scale=max_level(bits)))
+
+
+def _as_rgb(image: np.ndarray) -> np.ndarray:
+    """``(H, W, 3)``: a grey image's one channel copied to R, G and B."""
+    return np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image
 
 
 def evaluate(
@@ -179,8 +180,9 @@ def evaluate(
         if categories and not category:
             raise InputFileError(example.left, f"{example.name} is not in the category list")
         target = read_rgb(example.target)
-        (left, bits), right = read_rgb_with_depth(example.left), read_rgb(example.right)
-        combined = read_rgb(example.combined) if example.combined else (left + right) / 2
+        left, right, (bits, _) = read_views(example.left, example.right)
+        combined = (read_rgb(example.combined) if example.combined
+                    else _as_rgb((left + right) / 2))
         results.append(_score("input", example.name, category, combined, target, niqe_model,
                               None, example.combined or example.left, align))
         images = {"input": combined}
