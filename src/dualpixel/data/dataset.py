@@ -11,6 +11,7 @@ left and right views swap; a vertical flip keeps them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,10 +55,15 @@ class DPPatchDataset(Dataset):
         cache: keep decoded frames in memory, per process (small datasets, CPU training).
         store: a folder of decoded frames shared by every process through memory maps
             (:class:`~dualpixel.data.frame_store.FrameStore`; loader workers, GPU training).
+        transform: ``transform(sequence, images)`` turns each cropped frame's images
+            ``{key: (h, w, 3)}`` into what the model is trained on (e.g. raw values encoded as
+            ``dualpixel deblur`` encodes them); picklable for loader processes.
     """
 
     def __init__(self, sequences: list[DPSequence], config: PatchConfig, *, cache: bool = False,
-                 store: str | Path | None = None):
+                 store: str | Path | None = None,
+                 transform: Callable[[DPSequence, dict[str, np.ndarray]],
+                                     dict[str, np.ndarray]] | None = None):
         if not sequences:
             raise ParameterError("no sequences to draw patches from")
         self.config = config
@@ -73,6 +79,7 @@ class DPPatchDataset(Dataset):
                 )
         self._cache: dict[DPFramePaths, dict[str, np.ndarray]] | None = {} if cache else None
         self._store = FrameStore(store) if store is not None else None
+        self.transform = transform
 
     def __len__(self) -> int:
         return len(self.sequences)
@@ -106,11 +113,14 @@ class DPPatchDataset(Dataset):
                 if self.config.min_sharpness <= 0 or sharpness(crop) >= self.config.min_sharpness:
                     break
         h, w = (size, size) if size is not None else (height, width)
+        crops = [{key: expand(f[key][top : top + h, left : left + w]) for key in f}
+                 for f in frames]
+        if self.transform is not None:
+            crops = [self.transform(sequence, crop) for crop in crops]
         item = {
-            key: torch.from_numpy(
-                np.stack([expand(f[key][top : top + h, left : left + w]) for f in frames])
-            ).permute(0, 3, 1, 2).contiguous()
-            for key in frames[0]
+            key: torch.from_numpy(np.stack([crop[key] for crop in crops]))
+            .permute(0, 3, 1, 2).contiguous()
+            for key in crops[0]
         }
         radial = radial_distance(h, w, full_size=(height, width), top=top, left=left)
         item["radial"] = torch.from_numpy(radial)[None, None].expand(len(frames), 1, h, w).clone()

@@ -56,6 +56,10 @@ class TrainConfig:
     synthetic_data: str | list[str] | None = None
     synthetic_split: str = "train"
     synthetic_as_frames: bool = False  # sRDPD+: synthetic frames as single images
+    # Ours: synthetic folders stored as raw values (synth encoding linear) are trained on as
+    # "stored" (their values read as display values) or as "model": through the encoding
+    # `deblur --encoding linear` gives raw views (dualpixel.training.raw_views); also validated so.
+    raw_views: str = "stored"
     val_data: str | list[str] | None = None
     val_split: str = "test"
     val_limit: int | None = None  # validate on the first N sequences only
@@ -114,6 +118,8 @@ class TrainConfig:
             check_plain_name(getattr(self, key), key)
         if self.real_data is None and self.synthetic_data is None:
             raise ParameterError("give real_data, synthetic_data or both")
+        if self.raw_views not in ("stored", "model"):
+            raise ParameterError(f"raw_views must be 'stored' or 'model', got {self.raw_views!r}")
         for name, most in _COUNT_LIMITS.items():  # they size work and memory: bounded
             value = getattr(self, name)
             if value is not None and not 1 <= value <= most:

@@ -56,6 +56,7 @@ from dualpixel.models.widen import widen_network
 from dualpixel.progress import progress_bar
 from dualpixel.training.config import MACHINE_KEYS, TrainConfig, load_config, save_config
 from dualpixel.training.losses import DeblurLoss
+from dualpixel.training.raw_views import RawViewsAsModel, raw_views_transform
 
 __all__ = ["DataKind", "TrainResult", "Trainer", "resolve_device", "train", "weight_average"]
 
@@ -102,9 +103,11 @@ def _data_kinds(config: TrainConfig) -> list[DataKind]:
         frames = 1 if config.synthetic_as_frames else config.sequence_frames
         as_frames = config.synthetic_as_frames
         batch = config.sequence_batch * (config.sequence_frames if as_frames else 1)
+        transform = raw_views_transform(config.synthetic_data, config.raw_views)
         kinds.append(DataKind(
             "synthetic",
-            DPPatchDataset(sequences, PatchConfig(frames=frames, **common), **stored),
+            DPPatchDataset(sequences, PatchConfig(frames=frames, **common), **stored,
+                           transform=transform),
             batch,
         ))
     return kinds
@@ -139,10 +142,12 @@ def fast_numerics(device: torch.device) -> bool:
 
 
 def validate(
-    model: DeblurNet, sequences: list[DPSequence], device: torch.device
+    model: DeblurNet, sequences: list[DPSequence], device: torch.device,
+    transform: RawViewsAsModel | None = None,
 ) -> tuple[float, dict[str, torch.Tensor] | None]:
     """Mean PSNR over whole frames of ``sequences`` (state carried through each sequence), in
-    float32 whatever the machine, so that selection does not depend on it."""
+    float32 whatever the machine, so that selection does not depend on it; each frame through
+    ``transform`` first, as training takes it."""
     # Imported here: inference imports the training-free model code only.
     from dualpixel.inference.deblur import deblur_sequence, load_sequence_frames
 
@@ -152,6 +157,8 @@ def validate(
     scores, sample = [], None
     for sequence in sequences:
         frames = load_sequence_frames(sequence)
+        if transform is not None:
+            frames = [transform(sequence, frame) for frame in frames]
         outputs = deblur_sequence(model, frames, device=device, precision="fp32")
         for frame, output in zip(frames, outputs):
             scores.append(psnr(output, frame["target"]))
@@ -374,6 +381,7 @@ class Trainer:
         self.val_sequences = None
         if config.val_data is not None:
             self.val_sequences = _discover(config.val_data, config.val_split)[: config.val_limit]
+        self.val_transform = raw_views_transform(config.val_data, config.raw_views)
         self.real_val_sequences = _real_validation(config.real_val_data)
         model = build_model(config.model, width=config.width, peepholes=config.peepholes,
                             lstm_dropout=config.lstm_dropout, residual=config.residual,
@@ -518,7 +526,7 @@ class Trainer:
         writer, step = self.writer, self.step
         if self.val_sequences:
             record["val_psnr"], sample = validate(self.averaged, self.val_sequences,
-                                                  self.device)
+                                                  self.device, self.val_transform)
             if writer is not None:
                 writer.add_scalar("val/psnr", record["val_psnr"], step)
                 if sample is not None and self.config.log_images:
