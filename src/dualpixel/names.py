@@ -5,9 +5,9 @@ from __future__ import annotations
 
 __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS",
            "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "MAX_SEQUENCES", "OVERSHOOT_MODES",
-           "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RENAMED",
-           "RENAMED_UNTIL", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES", "output_modes_suffix",
-           "renamed_keys", "warn_renamed"]
+           "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RAW_VIEWS",
+           "RENAMED", "RENAMED_UNTIL", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES",
+           "output_modes_suffix", "renamed_keys", "warn_renamed"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -48,6 +48,9 @@ DEFAULT_OVERSHOOT = "model"
 #: How DP views store light (:mod:`dualpixel.inference.encoding`): display values ("srgb",
 #: photographs and the DPDD) or raw sensor values ("linear").
 ENCODINGS: tuple[str, ...] = ("srgb", "linear")
+#: How training reads synthetic frames stored as raw values (:mod:`dualpixel.training.raw_views`):
+#: as stored, or as ``deblur --encoding linear`` feeds raw views to the model.
+RAW_VIEWS: tuple[str, ...] = ("stored", "model")
 
 
 def output_modes_suffix(brightness: str, overshoot: str, *, flips: bool = False,

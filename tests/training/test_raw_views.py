@@ -92,5 +92,5 @@ def test_training_and_validation_take_the_setting(raw_dataset, tmp_path):
         scores[setting] = result.history[-1]["val_psnr"]
     # the same (untrained) weights scored on other values: raw-stored frames are read differently
     assert abs(scores["model"] - scores["stored"]) > 0.5
-    with pytest.raises(ParameterError, match="raw_views must be"):
+    with pytest.raises(ParameterError, match="raw_views must be one of stored, model"):
         load_config(None, dict(common, raw_views="linear"))

@@ -19,6 +19,7 @@ from dualpixel.errors import ParameterError, check_range, check_seed
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.paths import check_plain_name
 from dualpixel.models.registry import model_spec
+from dualpixel.names import RAW_VIEWS
 from dualpixel.training.losses import LOSS_REDUCTIONS
 
 __all__ = ["LR_SCHEDULES", "TrainConfig", "load_config", "save_config"]
@@ -118,8 +119,9 @@ class TrainConfig:
             check_plain_name(getattr(self, key), key)
         if self.real_data is None and self.synthetic_data is None:
             raise ParameterError("give real_data, synthetic_data or both")
-        if self.raw_views not in ("stored", "model"):
-            raise ParameterError(f"raw_views must be 'stored' or 'model', got {self.raw_views!r}")
+        if self.raw_views not in RAW_VIEWS:
+            raise ParameterError(f"raw_views must be one of {', '.join(RAW_VIEWS)}, got "
+                                 f"{self.raw_views!r}")
         for name, most in _COUNT_LIMITS.items():  # they size work and memory: bounded
             value = getattr(self, name)
             if value is not None and not 1 <= value <= most:

@@ -21,11 +21,9 @@ from dualpixel.data.layout import DPSequence
 from dualpixel.errors import InputFileError
 from dualpixel.inference.encoding import ViewEncoding, to_model
 from dualpixel.io.documents import read_mapping
+from dualpixel.names import RAW_VIEWS
 
 __all__ = ["RAW_VIEWS", "RawViewsAsModel", "raw_views_transform", "stored_black_level"]
-
-#: Values of the training setting ``raw_views``.
-RAW_VIEWS = ("stored", "model")
 
 
 def stored_black_level(root: str | Path) -> float | None:
