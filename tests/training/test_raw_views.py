@@ -1,6 +1,8 @@
 """raw_views: model: raw-stored synthetic frames are trained and validated on as `deblur
 --encoding linear` feeds raw views to the model; display-stored ones are untouched."""
 
+import pickle
+
 import numpy as np
 import pytest
 import torch
@@ -46,6 +48,9 @@ def test_black_level_is_read_from_the_dataset(raw_dataset, tiny_synthetic_datase
     assert stored_black_level(tmp_path) is None  # not made by synth
     assert raw_views_transform([str(raw_dataset)], "stored") is None
     assert raw_views_transform(str(tiny_synthetic_dataset), "model") is None
+    transform = raw_views_transform([str(raw_dataset), str(tiny_synthetic_dataset)], "model")
+    assert transform.roots == ((raw_dataset.resolve(), BLACK),)
+    assert pickle.loads(pickle.dumps(transform)) == transform  # loader processes get a copy
 
 
 def test_crops_are_what_deblur_feeds_the_model_for_raw_views(raw_dataset,
