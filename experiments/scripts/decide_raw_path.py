@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 from pathlib import Path
+
+from decide_seventh import gain, scene_gains  # this folder: the seventh decision's readers
 
 SETS = ["canon-840", "canon-hd", "canon-stored", "dslr", "phone", "phone-raw", "phone-close"]
 TARGET_SET, TARGET_MARGIN = "phone-raw-linear", 0.10  # item 1: dB above v15 there
@@ -19,25 +20,6 @@ PSNR_SLACK = 0.05  # item 1: dB below v15 allowed on every other set
 TOLERANCE = {"local_brightness": 0.0005, "overshoot": 0.05}  # item 2: check-model's own
 FRAME_BRIGHTNESS = 0.01  # item 2
 SCENE_SLACK, DEV_FLOOR_HD = 0.1, 1.5  # item 3
-
-
-def summary(folder: Path) -> dict:
-    return json.loads((folder / "summary.json").read_text())["summary"]
-
-
-def gain(folder: Path) -> float:
-    rows = summary(folder)
-    name = next(k for k in rows if k != "input")
-    return rows[name]["combined"]["psnr"] - rows["input"]["combined"]["psnr"]
-
-
-def scene_gains(folder: Path) -> dict[str, float]:
-    """Per scene, the model's PSNR gain over the input (other methods' rows left out)."""
-    rows = list(csv.DictReader(open(folder / "per_image.csv")))
-    given = {r["name"]: float(r["psnr"]) for r in rows if r["method"] == "input"}
-    model = {r["name"]: float(r["psnr"]) for r in rows
-             if r["method"] not in ("input", "dpdnet")}
-    return {name: model[name] - given[name] for name in model}
 
 
 def main() -> None:

@@ -28,6 +28,6 @@ echo dev done $(date +%T)
 [ -f $OUT/target-free/target_free.csv ] || $DP -q check-model --input ../shared/data/dp-real-nogt \
   --input ../shared/data/canon-dp-real --input ../shared/data/canon-dp-real-hd \
   --checkpoint rdpd-light.v15 --checkpoint $CAND --brightness tied --overshoot model \
-  --flips off --reference rdpd-light.v15 -o $OUT/target-free > $OUT/target-free.log || true
+  --flips off --reference rdpd-light.v15 -o $OUT/target-free > $OUT/target-free.log
 echo checks done $(date +%T)
 .venv/bin/python experiments/scripts/decide_raw_path.py --run $RUN --out $OUT

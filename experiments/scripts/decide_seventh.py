@@ -34,7 +34,8 @@ def gain(folder: Path) -> float:
 def scene_gains(folder: Path) -> dict[str, float]:
     """Per scene, the model's PSNR gain over the input (the published DPDNet rows left out)."""
     rows = list(csv.DictReader(open(folder / "per_image.csv")))
-    model = {r["name"]: float(r["psnr"]) for r in rows if r["method"].startswith("rdpd")}
+    model = {r["name"]: float(r["psnr"]) for r in rows
+             if r["method"] not in ("input", "dpdnet")}
     given = {r["name"]: float(r["psnr"]) for r in rows if r["method"] == "input"}
     return {name: model[name] - given[name] for name in model}
 
