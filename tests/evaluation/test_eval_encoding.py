@@ -17,6 +17,15 @@ from dualpixel.io.dpdd import role_folder
 BLACK, WHITE = 1024, 16383
 
 
+def _write_dataset(root, images, channels):
+    """A DPDD-layout dataset of one capture, each image stored with ``channels`` channels."""
+    for role, values in images.items():
+        folder = role_folder(root, "test", role)
+        folder.mkdir(parents=True)
+        stored = values if channels == 1 else cv2.merge([values] * 3)
+        cv2.imwrite(str(folder / "capture.png"), stored)
+
+
 @pytest.fixture()
 def raw_dataset(tmp_path):
     """One 14-bit grey pair above a black level, its combined image and a sharp target."""
@@ -27,11 +36,8 @@ def raw_dataset(tmp_path):
     images = {"left": np.roll(blurred, -1, axis=1), "right": np.roll(blurred, 1, axis=1),
               "combined": blurred, "target": sharp}
     root = tmp_path / "pixel"
-    for role, light in images.items():
-        folder = role_folder(root, "test", role)
-        folder.mkdir(parents=True)
-        raw = np.rint(BLACK + light * (WHITE - BLACK)).astype(np.uint16)
-        cv2.imwrite(str(folder / "capture.png"), raw)
+    _write_dataset(root, {role: np.rint(BLACK + light * (WHITE - BLACK)).astype(np.uint16)
+                          for role, light in images.items()}, 1)
     return root
 
 
@@ -61,15 +67,6 @@ def test_eval_feeds_linear_views_as_deblur_does(raw_dataset, tmp_path, tiny_chec
     assert summary["view_findings"] == []
     assert summary["encoding"] == {"encoding": "linear", "black_level": BLACK,
                                    "white_level": WHITE}
-
-
-def _write_dataset(root, images, channels):
-    """A DPDD-layout dataset of one capture, each image stored with ``channels`` channels."""
-    for role, values in images.items():
-        folder = role_folder(root, "test", role)
-        folder.mkdir(parents=True)
-        stored = values if channels == 1 else cv2.merge([values] * 3)
-        cv2.imwrite(str(folder / "capture.png"), stored)
 
 
 @pytest.fixture(scope="module")
