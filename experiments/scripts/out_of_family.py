@@ -1,0 +1,41 @@
+"""Cameras outside the family (issue #54): the table of what out_of_family.sh measured, read as
+docs/log/2026-11-28-twelfth-session.md fixed before the run.
+
+    python experiments/scripts/out_of_family.py runs/out-of-family
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from statistics import mean
+
+from decide_seventh import gain, scene_gains
+
+SETS = ["paper", "disk", "gaussian", "punnappurath", "phone-noisy", "large-blur"]
+MODELS = ["rdpd-light.v15", "rdpd-light.v12", "rdpd-wide.v2"]
+TIE = 0.05  # dB: v15 "loses" a set only below v12 by more than this
+
+
+def main(out: Path) -> None:
+    gains = {m: {s: gain(out / "eval" / s / m) for s in SETS} for m in MODELS}
+    losing = {m: {s: sum(g < 0 for g in scene_gains(out / "eval" / s / m).values())
+                  for s in SETS} for m in MODELS}
+    print("| set | " + " | ".join(MODELS) + " | v15 - v12 |")
+    print("|---|" + "---|" * (len(MODELS) + 1))
+    for s in SETS:
+        cells = [f"{gains[m][s]:+.2f} ({losing[m][s]} lose)" for m in MODELS]
+        diff = gains["rdpd-light.v15"][s] - gains["rdpd-light.v12"][s]
+        print(f"| {s} | " + " | ".join(cells) + f" | {diff:+.2f} |")
+    means = {m: mean(gains[m].values()) for m in MODELS}
+    print("| mean | " + " | ".join(f"{means[m]:+.2f}" for m in MODELS) + " | "
+          f"{means['rdpd-light.v15'] - means['rdpd-light.v12']:+.2f} |")
+    agrees = means["rdpd-light.v12"] > means["rdpd-wide.v2"]
+    print(f"\nranks v12 above v2 as the unseen photographs did: {'yes' if agrees else 'no'}")
+    behind = [s for s in SETS if gains["rdpd-light.v15"][s] < gains["rdpd-light.v12"][s] - TIE]
+    print(f"sets where v15 is below v12 by more than {TIE} dB: {', '.join(behind) or 'none'}")
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).parent))
+    main(Path(sys.argv[1] if len(sys.argv) > 1 else "runs/out-of-family"))
