@@ -1,12 +1,14 @@
 """Cameras outside the family (issue #54): the table of what out_of_family.sh measured, read as
 docs/log/2026-11-28-twelfth-session.md fixed before the run.
 
-    python experiments/scripts/out_of_family.py runs/out-of-family
+    python experiments/scripts/out_of_family.py runs/out-of-family \
+        [--csv docs/results/outside-family.csv]   # the model card's table reads it
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
+import csv
 from pathlib import Path
 from statistics import mean
 
@@ -15,6 +17,22 @@ from decide_seventh import gain, scene_gains
 SETS = ["paper", "disk", "gaussian", "punnappurath", "phone-noisy", "large-blur"]
 MODELS = ["rdpd-light.v15", "rdpd-light.v12", "rdpd-wide.v2"]
 TIE = 0.05  # dB: v15 "loses" a set only below v12 by more than this
+
+
+def write_results(out: Path, path: Path) -> None:
+    """Per set, model and image: the input's and the model's PSNR (the model card's source)."""
+    rows = []
+    for s in SETS:
+        for m in MODELS:
+            found = list(csv.DictReader(open(out / "eval" / s / m / "per_image.csv")))
+            given = {r["name"]: r["psnr"] for r in found if r["method"] == "input"}
+            rows += [{"evaluation": s, "image": r["name"], "method": r["method"],
+                      "input_psnr": f"{float(given[r['name']]):.4f}",
+                      "psnr": f"{float(r['psnr']):.4f}"} for r in found if r["method"] != "input"]
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
 
 
 def main(out: Path) -> None:
@@ -37,5 +55,10 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(Path(__file__).parent))
-    main(Path(sys.argv[1] if len(sys.argv) > 1 else "runs/out-of-family"))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", nargs="?", type=Path, default=Path("runs/out-of-family"))
+    parser.add_argument("--csv", type=Path, help="also write the per-image results here")
+    args = parser.parse_args()
+    main(args.out)
+    if args.csv:
+        write_results(args.out, args.csv)

@@ -9,6 +9,7 @@ from dualpixel.errors import InputFileError
 from dualpixel.evaluation.tables import (
     dev_scene_table,
     held_out_table,
+    outside_family_table,
     target_free_table,
     update_documents,
     weights_table,
@@ -52,6 +53,19 @@ def test_target_free_means_per_camera_group():
     assert len(table) == 4  # the method not asked for is left out
 
 
+def test_outside_family_gains_and_losing_images_per_camera():
+    def row(evaluation, image, method, given, psnr):
+        return {"evaluation": evaluation, "image": image, "method": method,
+                "input_psnr": str(given), "psnr": str(psnr)}
+
+    rows = [row("disk", "seq_1", "m+tied", 20, 23), row("disk", "seq_2", "m+tied", 30, 29),
+            row("disk", "seq_1", "other", 20, 40), row("paper", "seq_1", "m+tied", 20, 21),
+            row("paper", "seq_1", "n", 20, 22)]
+    table = outside_family_table(rows, {"m+tied": "`m` (tied)", "n": "`n`"}).splitlines()
+    assert table[0] == "| model | disk (2) | paper (1) |"  # the unasked method left out
+    assert table[2:] == ["| `m` (tied) | +1.00 (1 lose) | +1.00 |", "| `n` | – | +2.00 |"]
+
+
 def test_weights_table_reads_the_registry_rows():
     row = SimpleNamespace(metrics={"canon-dp-real": {"psnr": 26.5, "ssim": 0.7812}},
                           output={"brightness": "tied", "flips": True})
@@ -68,6 +82,8 @@ def test_a_document_without_its_markers_is_refused(tmp_path):
     (tmp_path / "docs" / "results").mkdir(parents=True)
     (tmp_path / "docs" / "results" / "target-free.csv").write_text(
         "pair,method,brightness_change\n")
+    (tmp_path / "docs" / "results" / "outside-family.csv").write_text(
+        "evaluation,image,method,input_psnr,psnr\n")
     (tmp_path / "README.md").write_text("no markers\n")
     with pytest.raises(InputFileError, match="generated: weights"):
         update_documents(tmp_path, check=True)

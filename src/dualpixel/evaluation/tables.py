@@ -3,8 +3,10 @@ results CSVs, never typed (as torchvision generates its weights table).
 
 Sources: ``registry.json`` (:mod:`dualpixel.weights`: tags, aliases, metrics, output settings),
 ``docs/results/TAG.csv`` (per image of every evaluation a tag's recipe ran, written by
-``dualpixel release``) and ``docs/results/target-free.csv`` (``dualpixel check-model`` on the
-real pairs without targets, each shipped model with its own settings). Each table sits in a
+``dualpixel release``), ``docs/results/target-free.csv`` (``dualpixel check-model`` on the
+real pairs without targets, each shipped model with its own settings) and
+``docs/results/outside-family.csv`` (per image, each shipped model on synthetic cameras none was
+trained on: ``experiments/scripts/out_of_family.sh``). Each table sits in a
 document between ``<!-- generated: NAME -->`` and ``<!-- end generated: NAME -->``;
 ``python -m dualpixel.evaluation.tables`` rewrites them, ``--check`` only compares.
 """
@@ -23,8 +25,9 @@ from typing import Any
 
 from dualpixel.errors import DualPixelError, InputFileError
 
-__all__ = ["DOCUMENTS", "dev_scene_table", "held_out_table", "method_label", "render_tables",
-           "target_free_table", "update_documents", "weights_table"]
+__all__ = ["DOCUMENTS", "dev_scene_table", "held_out_table", "method_label",
+           "outside_family_table", "render_tables", "target_free_table", "update_documents",
+           "weights_table"]
 
 #: The dev scenes' evaluations and their column titles.
 DEV_SETS = {"canon-dp-real": "Canon 840x512", "canon-dp-real-hd": "Canon 1620x980"}
@@ -36,7 +39,8 @@ DEV_REFERENCES = {
 }
 #: Which tables each document holds (paths relative to the repository root).
 DOCUMENTS = {"README.md": ("weights",),
-             "src/dualpixel/weights/MODEL_CARD.md": ("held-out", "dev-scenes", "target-free")}
+             "src/dualpixel/weights/MODEL_CARD.md": ("held-out", "outside-family", "dev-scenes",
+                                                     "target-free")}
 #: Camera groups of the target-free pairs: (label, test on the pair's name), first match wins.
 PAIR_GROUPS: tuple[tuple[str, Callable[[str], bool]], ...] = (
     ("Pixel 4 (MP4)", lambda n: n.startswith("dp-real-nogt/pixel-mp4-")),
@@ -149,6 +153,35 @@ def held_out_table(results: Mapping[str, list[dict[str, str]]],
     return "\n".join(lines)
 
 
+def outside_family_table(rows: Iterable[dict[str, str]], labels: Mapping[str, str]) -> str:
+    """A row per method, a column per synthetic camera outside the training family (an
+    ``evaluation`` of ``outside-family.csv``, with its number of images): the method's mean
+    PSNR gain over the blurred input (dB) and how many of its images lose against their input."""
+    gains: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for row in rows:
+        if row["method"] in labels:
+            gains[row["method"]][row["evaluation"]].append(
+                float(row["psnr"]) - float(row["input_psnr"]))
+    cameras: dict[str, int] = {}
+    for by_camera in gains.values():
+        for camera, values in by_camera.items():
+            cameras[camera] = max(cameras.get(camera, 0), len(values))
+    lines = ["| model | " + " | ".join(f"{c} ({n})" for c, n in cameras.items()) + " |",
+             "|---" * (len(cameras) + 1) + "|"]
+    for method in (m for m in labels if m in gains):
+        cells = []
+        for camera in cameras:
+            values = gains[method].get(camera)
+            if not values:
+                cells.append("–")
+                continue
+            losing = sum(v < 0 for v in values)
+            cells.append(f"{sum(values) / len(values):+.2f}"
+                         + (f" ({losing} lose)" if losing else ""))
+        lines.append(f"| {labels[method]} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def _mean(rows: list[dict[str, str]], key: str) -> float:
     values = [float(r[key]) for r in rows if r[key] not in ("", "nan")
               and not math.isnan(float(r[key]))]
@@ -213,19 +246,29 @@ def render_tables(root: str | Path) -> dict[str, str]:
     results = {tag: _read_csv(results_dir / f"{tag}.csv") for tag in tags
                if (results_dir / f"{tag}.csv").is_file()}
     target_free = _read_csv(results_dir / "target-free.csv")
-    methods = {}
-    for row in sorted(target_free, key=lambda r: _method_parts(r["method"])[0] != default):
-        label = method_label(row["method"])
-        tag, modes = _method_parts(row["method"])
-        if label is not None and set(modes) == set(_mode_words(WEIGHTS[tag].output)):
-            methods.setdefault(row["method"], label)
+    outside = _read_csv(results_dir / "outside-family.csv")
     return {
         "weights": weights_table({tag: WEIGHTS[tag] for tag in tags}, ALIASES,
                                  DEFAULT_CHECKPOINT, results),
         "dev-scenes": dev_scene_table(results, {tag: f"`{tag}`" for tag in tags}),
         "held-out": held_out_table(results, {tag: f"`{tag}`" for tag in tags}),
-        "target-free": target_free_table(target_free, methods),
+        "outside-family": outside_family_table(outside, _shipped_methods(outside, default)),
+        "target-free": target_free_table(target_free, _shipped_methods(target_free, default)),
     }
+
+
+def _shipped_methods(rows: Iterable[dict[str, str]], default: str) -> dict[str, str]:
+    """The results methods of ``rows`` that are a shipped tag run with its own output settings,
+    each with its table label; the default's first."""
+    from dualpixel.weights import WEIGHTS
+
+    methods: dict[str, str] = {}
+    for row in sorted(rows, key=lambda r: _method_parts(r["method"])[0] != default):
+        label = method_label(row["method"])
+        tag, modes = _method_parts(row["method"])
+        if label is not None and set(modes) == set(_mode_words(WEIGHTS[tag].output)):
+            methods.setdefault(row["method"], label)
+    return methods
 
 
 def _replace(text: str, name: str, table: str, path: Path) -> str:
