@@ -1,6 +1,7 @@
 """Target-free checks against known answers (issue #54): on held-out synthetic DP frames, what
 `dualpixel check-model`'s checks say of the sharp target (a perfect deblur) and of each model,
-beside each model's true local brightness error against the target and its PSNR.
+beside each model's true local brightness error and flat-block detail error against the target
+and its PSNR.
 
     python experiments/scripts/checks_calibration.py DATASET [DATASET ...] \\
         --checkpoint rdpd-light --checkpoint runs/family6/ship/rdpd-light.v15.safetensors
@@ -19,6 +20,7 @@ import numpy as np
 from dualpixel.data.layout import discover_any
 from dualpixel.evaluation.target_free import (
     check_deblurred,
+    flat_detail_error,
     local_brightness_error,
     model_methods,
 )
@@ -45,19 +47,23 @@ def main() -> None:
             for name, output in outputs.items():
                 report = check_deblurred(left, right, output)
                 row = rows.setdefault(name, {"shift": [], "overshoot": [], "error": [],
-                                             "psnr": []})
+                                             "invented": [], "flat_error": [], "psnr": []})
                 row["shift"].append(report.local_brightness)
                 row["overshoot"].append(report.overshoot)
                 row["error"].append(local_brightness_error(output, target))
+                row["invented"].append(report.invented_texture)
+                row["flat_error"].append(flat_detail_error(left, right, output, target))
                 mse = float(np.mean((output - target) ** 2))
                 row["psnr"].append(-10 * np.log10(mse) if mse > 0 else np.inf)
         print(root)
-        summary[str(root)] = {name: {k: float(np.mean(v)) for k, v in row.items()}
-                              for name, row in rows.items()}
-        for name, row in rows.items():
-            print(f"  {name:60.60} local shift {np.mean(row['shift']):.4f}  overshoot "
-                  f"{np.mean(row['overshoot']):.3f}  true local error {np.mean(row['error']):.4f}"
-                  f"  PSNR {np.mean(row['psnr']):.2f}", flush=True)
+        means = {name: {k: float(np.nanmean(v)) for k, v in row.items()}  # NaN: no flat block
+                 for name, row in rows.items()}
+        summary[str(root)] = means
+        for name, row in means.items():
+            print(f"  {name:40.40} local shift {row['shift']:.4f}  overshoot "
+                  f"{row['overshoot']:.3f}  true local error {row['error']:.4f}  invented "
+                  f"{row['invented']:.3f}  flat detail error {row['flat_error']:.3f}  PSNR "
+                  f"{row['psnr']:.2f}", flush=True)
     if args.json:
         with open(args.json, "w") as file:
             json.dump(summary, file, indent=1)

@@ -15,6 +15,7 @@ from dualpixel.evaluation.target_free import (
     check_deblurred,
     check_folder,
     compare_to_reference,
+    flat_detail_error,
     local_brightness_error,
     markdown_table,
     model_methods,
@@ -83,6 +84,41 @@ def test_the_local_brightness_error_against_a_known_target(frame):
         local_brightness_error(target[:, :64], target)
     with pytest.raises(ParameterError, match="encoding must be one of"):
         local_brightness_error(target, target, encoding="log")
+
+
+def test_the_flat_detail_error_tells_restored_texture_from_invented():
+    """A background of fine texture 3 m away: the blur leaves it flat in the views, so the
+    checks count the target's texture there as invented (more than an output that invents
+    noise). Against the known target, the perfect deblur scores 0 and invented noise more than
+    the unchanged input; a frame with no flat block gives NaN."""
+    rng = np.random.default_rng(5)
+    coarse, fine = (cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32),
+                                     (0, 0), sigma) for sigma in (2.0, 0.8))
+    near = np.arange(320)[None, :] < 128
+    rgb = np.clip(0.45 + np.where(near[..., None], 1.2 * coarse, 0.06 * fine), 0.02, 0.9)
+    depth = np.where(near, 1.0, 3.0).repeat(192, 0).astype(np.float32)
+    import dualpixel
+
+    frame = {k: np.asarray(v, np.float32) for k, v in dualpixel.synthesize(
+        rgb, depth, lens_set="dslr-840", noise=False, distortion=False, light="linear").items()}
+    left, right, target = frame["left"], frame["right"], frame["target"]
+    blurred = identity(frame)
+    made_up = np.clip(blurred + 0.02 * cv2.GaussianBlur(
+        rng.standard_normal(blurred.shape).astype(np.float32), (0, 0), 0.8), 0, 1)
+    perfect = check_deblurred(left, right, target)
+    assert perfect.flat_blocks >= 20 and perfect.invented_texture > 0.5
+    assert check_deblurred(left, right, made_up).invented_texture < perfect.invented_texture
+    assert flat_detail_error(left, right, target, target) == 0.0
+    unchanged = flat_detail_error(left, right, blurred, target)
+    assert unchanged > 0.5
+    assert flat_detail_error(left, right, made_up, target) > unchanged + 0.03
+
+
+def test_no_flat_block_gives_no_flat_detail_error(frame):
+    assert np.isnan(flat_detail_error(frame["left"], frame["right"], identity(frame),
+                                      frame["target"]))
+    with pytest.raises(ParameterError, match="target"):
+        flat_detail_error(frame["left"], frame["right"], identity(frame), frame["target"][:, :64])
 
 
 @pytest.mark.parametrize("gain", [0.95, 1.03])

@@ -43,7 +43,8 @@ from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
     "TargetFreeReport", "check_deblurred", "check_folder", "check_model",
-    "compare_to_reference", "local_brightness_error", "markdown_table", "method_settings",
+    "compare_to_reference", "flat_detail_error", "local_brightness_error", "markdown_table",
+    "method_settings",
     "model_methods", "read_pairs", "reference_method", "summarise_reports",
     "write_target_free_report",
 ]
@@ -159,6 +160,85 @@ def local_brightness_error(output: np.ndarray, target: np.ndarray, *,
                                      mean).mean())
 
 
+def _check_frame(images: dict[str, np.ndarray], noise_sigma: float) -> int:
+    """Refuse what :func:`_check_images` refuses, a ``noise_sigma`` outside [0, 8] px and
+    images too small for two rows of four blocks; the block side (px)."""
+    if not (math.isfinite(noise_sigma) and 0 <= noise_sigma <= 8):
+        raise ParameterError(f"noise_sigma must be in [0, 8] px, got {noise_sigma}")
+    _check_images(images)
+    height, width = next(iter(images.values())).shape[:2]
+    patch = block_size(width)
+    if height < 2 * patch or width < 4 * patch:
+        raise ParameterError(f"images must be at least {4 * patch}x{2 * patch} px for the "
+                             f"target-free checks, got {width}x{height}")
+    return patch
+
+
+def _shown(pictures: list[np.ndarray], encoding: str, noise_sigma: float) -> list[np.ndarray]:
+    """``pictures`` (stored in ``encoding``) as display values, after a Gaussian of
+    ``noise_sigma`` px in their own encoding, as the checks see them."""
+    if noise_sigma > 0:  # noise and dither that the model removes are no change to judge
+        pictures = [smooth(v, noise_sigma) for v in pictures]
+    if encoding == "srgb":
+        return pictures
+    return [linear_to_srgb_array(v) for v in pictures]
+
+
+def _block_grid(shown_left: np.ndarray, shown_right: np.ndarray,
+                patch: int) -> tuple[np.ndarray, np.ndarray, tuple[slice, slice]]:
+    """The views' disparity per block, which blocks are textured, and the pixels the grid
+    covers (:func:`~dualpixel.data.statistics.block_disparity_map`)."""
+    views = [np.repeat(v, 3, axis=2) if v.shape[2] == 1 else v for v in (shown_left, shown_right)]
+    shifts, textured, start = block_disparity_map(*views, patch=patch,
+                                                  max_shift=min(12, patch // 4))
+    rows, cols = shifts.shape
+    return shifts, textured, (slice(0, rows * patch), slice(start, start + cols * patch))
+
+
+def _flat_blocks(grey_shown_in: np.ndarray, core: tuple[slice, slice], patch: int) -> np.ndarray:
+    """Blocks of the grid with no structure the blur could have left: the input's mean
+    gradient after a Gaussian of 2 px below :data:`FLAT_GRADIENT`."""
+    smooth_in = cv2.GaussianBlur(grey_shown_in, (0, 0), 2.0, borderType=cv2.BORDER_REFLECT)
+    structure = block_sums(gradient_magnitude(smooth_in[..., None])[core], patch) / patch**2
+    return structure < FLAT_GRADIENT
+
+
+def _fine_detail(grey: np.ndarray) -> np.ndarray:
+    """What a Gaussian of 2 px removes from ``grey``."""
+    return grey - cv2.GaussianBlur(grey, (0, 0), 2.0, borderType=cv2.BORDER_REFLECT)
+
+
+def flat_detail_error(left: np.ndarray, right: np.ndarray, output: np.ndarray,
+                      target: np.ndarray, *, encoding: str = "srgb",
+                      noise_sigma: float = NOISE_SIGMA) -> float:
+    """The checks' invented-texture measure taken against the sharp target, where one is known
+    (held-out synthetic frames): over the blocks :func:`check_deblurred` calls flat, the RMS
+    difference between the output's fine detail and the target's, in levels of 255 of the
+    display values, after the checks' smoothing. 0 for a perfect deblur, whose invented texture
+    is not 0 (a blur can leave a block flat whose target has texture); NaN when no block is
+    flat. All four images float ``(H, W, C)`` in [0, 1], one shape and ``encoding``.
+
+    >>> image = np.full((64, 128, 1), 0.5, np.float32)
+    >>> flat_detail_error(image, image, image, image)
+    0.0
+    """
+    to_linear = _to_linear(encoding)
+    patch = _check_frame({"left": left, "right": right, "output": output, "target": target},
+                         noise_sigma)
+    combined = 0.5 * (to_linear(left) + to_linear(right))
+    combined = combined if encoding == "linear" else linear_to_srgb_array(combined)
+    shown_left, shown_right, shown_in, shown_out, shown_target = _shown(
+        [left, right, combined, output, target], encoding, noise_sigma)
+    _, _, core = _block_grid(shown_left, shown_right, patch)
+    flat = _flat_blocks(shown_in.mean(axis=2), core, patch)
+    if not flat.any():
+        return math.nan
+    difference = (_fine_detail(shown_out.mean(axis=2))
+                  - _fine_detail(shown_target.mean(axis=2)))[core]
+    return 255.0 * math.sqrt(float(block_sums(difference**2, patch)[flat].sum())
+                             / (flat.sum() * patch**2))
+
+
 def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
                     encoding: str = "srgb", noise_sigma: float = NOISE_SIGMA,
                     palette: bool | None = None) -> TargetFreeReport:
@@ -174,23 +254,12 @@ def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
     ``palette`` images (at most 256 colours, as GIF frames; detected when None), whose dither
     was added to the stored values and is smoothed there before they are linearised.
     """
-    if not (math.isfinite(noise_sigma) and 0 <= noise_sigma <= 8):
-        raise ParameterError(f"noise_sigma must be in [0, 8] px, got {noise_sigma}")
     to_linear = _to_linear(encoding)
-    _check_images({"left": left, "right": right, "output": output})
-    patch = block_size(left.shape[1])
-    if left.shape[0] < 2 * patch or left.shape[1] < 4 * patch:
-        raise ParameterError(f"images must be at least {4 * patch}x{2 * patch} px for the "
-                             f"target-free checks, got {left.shape[1]}x{left.shape[0]}")
+    patch = _check_frame({"left": left, "right": right, "output": output}, noise_sigma)
     lin_in = 0.5 * (to_linear(left) + to_linear(right))  # the combined image
-    pictures = [left, right, lin_in if encoding == "linear" else linear_to_srgb_array(lin_in),
-                output]
-    if noise_sigma > 0:  # noise and dither that the model removes are no change to judge
-        pictures = [smooth(v, noise_sigma) for v in pictures]
-    if encoding == "srgb":
-        shown_left, shown_right, shown_in, shown_out = pictures
-    else:
-        shown_left, shown_right, shown_in, shown_out = (linear_to_srgb_array(v) for v in pictures)
+    shown_left, shown_right, shown_in, shown_out = _shown(
+        [left, right, lin_in if encoding == "linear" else linear_to_srgb_array(lin_in), output],
+        encoding, noise_sigma)
     if palette is None:
         palette = is_palette_image(left)
     if palette:  # dither added to the stored values: smoothed there, then linearised
@@ -224,11 +293,7 @@ def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
         overshoot = halo = 0.0
 
     # block classes on the disparity grid
-    views = [np.repeat(v, 3, axis=2) if v.shape[2] == 1 else v for v in (shown_left, shown_right)]
-    shifts, textured, start = block_disparity_map(*views, patch=patch,
-                                                  max_shift=min(12, patch // 4))
-    rows, cols = shifts.shape
-    core = (slice(0, rows * patch), slice(start, start + cols * patch))
+    shifts, textured, core = _block_grid(shown_left, shown_right, patch)
     in_focus = textured & (np.abs(shifts) <= IN_FOCUS_SHIFT)
     defocused = textured & (np.abs(shifts) >= DEFOCUSED_SHIFT)
 
@@ -238,11 +303,8 @@ def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
                     if in_focus.any() else math.nan)
 
     grey_shown_in, grey_shown_out = shown_in.mean(axis=2), shown_out.mean(axis=2)
-    smooth_in = cv2.GaussianBlur(grey_shown_in, (0, 0), 2.0, borderType=cv2.BORDER_REFLECT)
-    structure = block_sums(gradient_magnitude(smooth_in[..., None])[core], patch) / patch**2
-    flat = structure < FLAT_GRADIENT
-    fine_in, fine_out = (g - cv2.GaussianBlur(g, (0, 0), 2.0, borderType=cv2.BORDER_REFLECT)
-                         for g in (grey_shown_in, grey_shown_out))
+    flat = _flat_blocks(grey_shown_in, core, patch)
+    fine_in, fine_out = _fine_detail(grey_shown_in), _fine_detail(grey_shown_out)
     added = (block_sums(fine_out[core] ** 2, patch) - block_sums(fine_in[core] ** 2, patch))
     invented_blocks = 255.0 * np.sqrt(np.clip(added / patch**2, 0.0, None))
     invented = float(invented_blocks[flat].mean()) if flat.any() else math.nan
