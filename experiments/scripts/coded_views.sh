@@ -21,3 +21,4 @@ for item in canon-840:gif canon-hd:jpeg80 dslr:jpeg80 phone:jpeg80; do
   done
   echo "$name done $(date +%T)"
 done
+.venv/bin/python experiments/scripts/coded_views_report.py "$OUT"
