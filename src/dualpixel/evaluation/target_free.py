@@ -44,8 +44,7 @@ from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 __all__ = [
     "TargetFreeReport", "check_deblurred", "check_folder", "check_model",
     "compare_to_reference", "flat_detail_error", "local_brightness_error", "markdown_table",
-    "method_settings",
-    "model_methods", "read_pairs", "reference_method", "summarise_reports",
+    "method_settings", "model_methods", "read_pairs", "reference_method", "summarise_reports",
     "write_target_free_report",
 ]
 
