@@ -28,9 +28,10 @@ def _write_dataset(root, images, channels):
 
 @pytest.fixture()
 def raw_dataset(tmp_path):
-    """One 14-bit grey pair above a black level, its combined image and a sharp target."""
+    """One 14-bit grey pair above a black level, its combined image and a sharp target (patches
+    of 7.5 px: on an 8-px grid they would read as a coder's blocks)."""
     rng = np.random.default_rng(0)
-    sharp = cv2.resize(rng.uniform(0.02, 0.4, (12, 16)).astype(np.float32), (128, 96),
+    sharp = cv2.resize(rng.uniform(0.02, 0.4, (12, 16)).astype(np.float32), (120, 90),
                        interpolation=cv2.INTER_NEAREST)
     blurred = cv2.GaussianBlur(sharp, (0, 0), 1.5)
     images = {"left": np.roll(blurred, -1, axis=1), "right": np.roll(blurred, 1, axis=1),

@@ -90,6 +90,38 @@ def test_views_sum_doubles_and_strict_stops(frame, tiny_checkpoint, tmp_path):
     assert np.abs(api - direct).max() < 1e-5
 
 
+def test_block_coded_views_are_named():
+    """A synthetic pair of smooth surfaces passes; the same views through JPEG at quality 80
+    (8-px blocks, whatever the grid's offset) are named."""
+    import cv2
+
+    def jpeg(image, offset=0):
+        stored = np.round(image[offset:, offset:] * 255).astype(np.uint8)
+        data = cv2.imencode(".jpg", stored, [cv2.IMWRITE_JPEG_QUALITY, 80])[1]
+        return cv2.imdecode(data, cv2.IMREAD_UNCHANGED).astype(np.float32) / 255
+
+    rng = np.random.default_rng(4)
+    shading = cv2.GaussianBlur(rng.standard_normal((288, 320, 3)).astype(np.float32), (0, 0), 4)
+    rgb = np.clip(0.45 + 0.03 * shading / shading.std(), 0.02, 0.9)
+    depth = np.where(np.arange(320)[None, :] < 128, 1.0, 3.0).repeat(288, 0).astype(np.float32)
+    views = dualpixel.synthesize(rgb, depth, lens_set="dslr-840", noise=False, distortion=False)
+    left, right = (np.asarray(views[k], np.float32) for k in ("left", "right"))
+    assert "block-coded" not in codes(dualpixel.check_views(left, right))
+    for offset in (0, 3):
+        found = dualpixel.check_views(jpeg(left, offset), jpeg(right, offset))
+        assert codes(found) == ["block-coded"] and "losslessly" in found[0].message
+
+
+def test_block_coded_real_pairs(shared_dir):
+    from dualpixel.inference.view_checks import BLOCK_CODED, blockiness
+
+    pairs = shared_dir / "data" / "dp-real-nogt"
+    video = read_rgb(pairs / "pixel-mp4-07" / "left.png")
+    still = read_rgb(pairs / "sdirt-box-001" / "left.png")
+    assert blockiness(video) > BLOCK_CODED > blockiness(still)
+    assert blockiness(still[:255]) is None  # too small to tell
+
+
 def test_mixed_bit_depths_are_named(frame, tmp_path):
     from dualpixel.inference.view_checks import check_views
 
