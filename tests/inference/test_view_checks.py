@@ -122,6 +122,16 @@ def test_block_coded_real_pairs(shared_dir):
     assert blockiness(still[:255]) is None  # too small to tell
 
 
+def test_a_dark_photograph_is_not_sent_to_views_sum_without_a_word(shared_dir):
+    """Without a combined image, a dark real phone pair (never above half of full scale) reads
+    like views that sum to it: the finding names both, so that a user of a dark photograph does
+    not double its views."""
+    pair = shared_dir / "data" / "dp-real-nogt" / "pixel-gif-04"
+    left, right = (read_rgb(pair / f"{side}.png") for side in ("left", "right"))
+    found = [f for f in dualpixel.check_views(left, right) if f.code == "half-bright"]
+    assert found and "--views-sum" in found[0].message and "just dark" in found[0].message
+
+
 def test_mixed_bit_depths_are_named(frame, tmp_path):
     from dualpixel.inference.view_checks import check_views
 

@@ -125,8 +125,9 @@ def _brightness(left: np.ndarray, right: np.ndarray,
                 max(mean_left, mean_right) > 0.02:
             findings.append(ViewFinding("half-bright", (
                 "the views never exceed half of full scale, as views that sum to the combined "
-                "image do (a raw A/B split): pass --views-sum (views_sum=True), or scale them "
-                "by 2")))
+                "image do (a raw A/B split): if they are such halves, pass --views-sum "
+                "(views_sum=True) or scale them by 2; if the photograph is just dark (as raw "
+                "phone views often are), nothing needs doing")))
         return findings
     mean_combined = float(combined.mean())
     if mean_combined <= 0.01:
