@@ -173,6 +173,15 @@ def _check_frame(images: dict[str, np.ndarray], noise_sigma: float) -> int:
     return patch
 
 
+def _combined(left: np.ndarray, right: np.ndarray,
+              encoding: str) -> tuple[np.ndarray, np.ndarray]:
+    """The combined image (the views' mean in linear light): in linear light, and stored in
+    ``encoding`` as the views are."""
+    to_linear = _to_linear(encoding)
+    linear = 0.5 * (to_linear(left) + to_linear(right))
+    return linear, linear if encoding == "linear" else linear_to_srgb_array(linear)
+
+
 def _shown(pictures: list[np.ndarray], encoding: str, noise_sigma: float) -> list[np.ndarray]:
     """``pictures`` (stored in ``encoding``) as display values, after a Gaussian of
     ``noise_sigma`` px in their own encoding, as the checks see them."""
@@ -221,11 +230,9 @@ def flat_detail_error(left: np.ndarray, right: np.ndarray, output: np.ndarray,
     >>> flat_detail_error(image, image, image, image)
     0.0
     """
-    to_linear = _to_linear(encoding)
     patch = _check_frame({"left": left, "right": right, "output": output, "target": target},
                          noise_sigma)
-    combined = 0.5 * (to_linear(left) + to_linear(right))
-    combined = combined if encoding == "linear" else linear_to_srgb_array(combined)
+    _, combined = _combined(left, right, encoding)
     shown_left, shown_right, shown_in, shown_out, shown_target = _shown(
         [left, right, combined, output, target], encoding, noise_sigma)
     _, _, core = _block_grid(shown_left, shown_right, patch)
@@ -255,10 +262,9 @@ def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
     """
     to_linear = _to_linear(encoding)
     patch = _check_frame({"left": left, "right": right, "output": output}, noise_sigma)
-    lin_in = 0.5 * (to_linear(left) + to_linear(right))  # the combined image
+    lin_in, stored_in = _combined(left, right, encoding)
     shown_left, shown_right, shown_in, shown_out = _shown(
-        [left, right, lin_in if encoding == "linear" else linear_to_srgb_array(lin_in), output],
-        encoding, noise_sigma)
+        [left, right, stored_in, output], encoding, noise_sigma)
     if palette is None:
         palette = is_palette_image(left)
     if palette:  # dither added to the stored values: smoothed there, then linearised
