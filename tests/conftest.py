@@ -29,6 +29,35 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     items.sort(key=lambda item: rank.get(getattr(item, "originalname", ""), len(LONGEST)))
 
 
+def write_photographs(folder: Path) -> Path:
+    """Three small photographs, each recognisable in a rendered frame by its colours: red only
+    (green and blue 0), green only (red and blue 0), and grey (a grey file, R = G = B when
+    read): patches of random levels with fine noise, so that they have regions and texture."""
+    import cv2
+    import numpy as np
+
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(7)
+    for name, (height, width), channel in (("red", (120, 160), 2), ("green", (140, 150), 1),
+                                           ("grey", (100, 200), None)):
+        level = np.kron(rng.uniform(40, 250, (height // 20 + 1, width // 20 + 1)),
+                        np.ones((20, 20)))[:height, :width]
+        value = np.clip(level + rng.normal(0, 12, (height, width)), 1, 255).astype(np.uint8)
+        if channel is None:
+            cv2.imwrite(str(folder / f"{name}.png"), value)
+        else:
+            bgr = np.zeros((height, width, 3), np.uint8)
+            bgr[:, :, channel] = value
+            cv2.imwrite(str(folder / f"{name}.png"), bgr)
+    return folder
+
+
+@pytest.fixture(scope="session")
+def photo_folder(tmp_path_factory) -> Path:
+    """:func:`write_photographs` in a folder of the session's."""
+    return write_photographs(tmp_path_factory.mktemp("photographs"))
+
+
 @pytest.fixture(scope="session")
 def shared_dir() -> Path:
     if not SHARED.is_dir():

@@ -26,6 +26,7 @@ import pytest
 from click.testing import CliRunner
 
 from dualpixel.cli.main import cli
+from tests.conftest import write_photographs
 from tests.test_docs import _command_lines
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -148,6 +149,7 @@ def _bring(folder: Path, dataset: str) -> None:
             (folder / "dpdd" / f"test_{role}").mkdir(parents=True, exist_ok=True)
             shutil.copy(scene / f"{image}.png", folder / "dpdd" / f"test_{role}" / f"{name}.png")
     (folder / "indoor_outdoor.csv").write_text("a,indoor\nb,outdoor\nc,outdoor\n")
+    write_photographs(folder / "my-photos")
     for name in ("predictions", "targets"):
         shutil.copytree(folder / "dpdd" / "test_c" / "target", folder / name)
     for view in ("left", "right"):  # measured PSFs: one of the Pixel 4's

@@ -25,8 +25,9 @@ LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")
 #: Named synthesis settings (:data:`dualpixel.synthesis.dataset.SYNTH_SETTINGS`): what the
 #: shipped default model was trained on, or the paper's.
 SYNTH_SETTINGS_NAMES: tuple[str, ...] = ("shipped", "paper")
-#: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`).
-SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo")
+#: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`): "photographic" covers
+#: the frame with real photographs (``scenes --photos DIR``).
+SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo", "photographic")
 #: The most sequences one procedural scene folder holds.
 MAX_SEQUENCES = 100_000
 #: Inference precisions (:mod:`dualpixel.inference.precision`).

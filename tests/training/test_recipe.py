@@ -13,7 +13,7 @@ from dualpixel.cli.main import cli
 from dualpixel.errors import InputFileError
 from dualpixel.models import load_model, read_metadata
 from dualpixel.training.recipe import load_recipe, reproduce
-from tests.conftest import write_dpdd_pairs
+from tests.conftest import write_dpdd_pairs, write_photographs
 
 RECIPES = Path(__file__).resolve().parents[2] / "recipes"
 TINY_SCENES = {"sequences": 1, "frames": 2, "width": 96, "height": 64}
@@ -33,6 +33,8 @@ def _shrunk(source: Path, folder: Path, real: Path) -> Path:
     for step in raw.get("data", []):
         if "scenes" in step:
             step["scenes"].update(TINY_SCENES)
+            if "photos" in step["scenes"]:  # three small photographs of the test's own
+                step["scenes"]["photos"] = str(write_photographs(folder / "photos"))
         else:
             step["synth"].update(max_layers=40)
     for section in [raw.get("train", {})] + [p.setdefault("set", {}) for p in raw["phases"]]:

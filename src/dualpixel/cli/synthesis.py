@@ -67,23 +67,42 @@ def psf(output: Path, radii: list[float], order: float, alpha: float, beta: floa
 @click.option("--size", default="320x240", callback=parse_size, help="Frame size WIDTHxHEIGHT.")
 @click.option("--leaves", type=click.IntRange(0), default=28, help="Shapes per scene.")
 @click.option("--seed", type=SEED, default=0, help="Scene seed.")
-@click.option("--layout", type=click.Choice(SCENE_LAYOUTS), default="leaves",
+@click.option("--layout", type=click.Choice(SCENE_LAYOUTS), default=None,
               help="leaves: shapes at random depths; photo: an in-focus subject, ground plane, "
-                   "background and occluders, with richer textures (writes the focus distance).")
+                   "background and occluders, with richer textures (writes the focus distance); "
+                   "photographic: that layout on real photographs (--photos, else the package's "
+                   "own few) [default: photographic with --photos, else leaves].")
+@click.option("--photos", type=click.Path(path_type=Path), default=None,
+              help="Folder of photographs for the photographic layout (JPEG, PNG, TIFF, ...; "
+                   "never enlarged, so each needs a side of at least half the frame's shorter "
+                   "side).")
+@click.option("--skip-bad", is_flag=True,
+              help="Leave out (and name) unreadable files of --photos instead of stopping.")
 @click.option("--relief", type=click.FloatRange(0.0, 0.5), default=0.0, show_default=True,
               help="Relief of textured surfaces: the largest relative depth change their fine "
                    "structure makes (0: flat surfaces).")
 @click.option("--workers", type=click.IntRange(1), default=1,
               help="Parallel processes (the output does not depend on it).")
 def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], leaves: int,
-           seed: int, layout: str, relief: float, workers: int) -> None:
-    """Render procedural RGB-D sequences (the built-in default input)."""
-    from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
+           seed: int, layout: str | None, photos: Path | None, skip_bad: bool, relief: float,
+           workers: int) -> None:
+    """Render procedural RGB-D sequences (the built-in default input), or scenes whose surfaces
+    are photographs (--photos)."""
+    from dualpixel.synthesis.scenes import SceneConfig, photo_library, write_scene_folder
 
+    if layout is None:
+        layout = "photographic" if photos is not None else "leaves"
+    if photos is not None and layout != "photographic":
+        raise click.BadParameter(f"photographs are for --layout photographic, not {layout}",
+                                 param_hint="--photos")
+    if skip_bad and photos is None:
+        raise click.BadParameter("is for --photos", param_hint="--skip-bad")
     config = SceneConfig(width=size[0], height=size[1], frames=frames, leaves=leaves,
                          layout=layout, relief=relief)
-    write_scene_folder(output, sequences, config, seed=seed, workers=workers)
-    click.echo(f"wrote {sequences} sequences of {frames} frames to {output}")
+    library = photo_library(config, photos, skip_bad=skip_bad)
+    write_scene_folder(output, sequences, config, seed=seed, workers=workers, photos=library)
+    click.echo(f"wrote {sequences} sequences of {frames} frames to {output}"
+               + (f" ({len(library)} photographs of {photos})" if photos is not None else ""))
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)

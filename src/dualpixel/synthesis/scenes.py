@@ -6,6 +6,14 @@ back plane. Textures are crops of the natural photographs that scikit-image ship
 dead-leaves textures, which keep natural image statistics (the reason dead-leaves data is used to
 train restoration networks). Over a sequence the camera pans (parallax: near leaves move more) and
 each leaf drifts and moves in depth, smoothly. Depth is exact, in metres, per frame.
+
+The "photographic" layout makes real photographs most of the frame (a folder of them,
+:class:`~dualpixel.synthesis.photo_library.PhotoLibrary`; the package's small set without
+one): a whole photograph is the far plane or wall (photographs side by side when none covers
+the frame), regions of it that follow its own edges are brought to depths of their own (so
+depth edges, and the occlusions at them, fall on real object boundaries, as in a photograph),
+and objects cut from other photographs along their edges, or textured by them, stand between
+it and the camera; procedural textures are a minority (a quarter of the objects).
 """
 
 from __future__ import annotations
@@ -21,15 +29,18 @@ import numpy as np
 from dualpixel.errors import ParameterError, check_range, check_seed, is_integer
 from dualpixel.names import MAX_SEQUENCES, SCENE_LAYOUTS
 from dualpixel.parallel import completed
+from dualpixel.synthesis.photo_library import PhotoLibrary, shipped_library
 from dualpixel.synthesis.textures import dead_leaves, load_photograph, random_texture
 
 __all__ = ["MAX_SEQUENCES", "SCENE_LAYOUTS", "SceneConfig", "check_sequence_count",
-           "render_scene_sequence", "write_scene_folder"]
+           "photo_library", "photo_regions", "photo_side", "render_scene_sequence",
+           "write_scene_folder"]
 
 #: "leaves": textured shapes at log-uniform depths before a slanted plane (the original default).
 #: "photo": laid out like a photograph: an in-focus subject near the centre (the camera focuses on
 #: it), a ground plane receding to a background, objects between them and, sometimes, a blurred
 #: foreground occluder; textures from :mod:`dualpixel.synthesis.textures`.
+#: "photographic": the "photo" layout's geometry on real photographs (see the module's text).
 
 _PHOTOS = ("astronaut", "coffee", "cat", "rocket", "brick", "grass", "gravel", "camera")
 
@@ -48,7 +59,8 @@ class SceneConfig:
     plane_near: float = 4.0
     camera_speed: float = 6.0  # px per frame for a surface at 1 m ... scaled by 1/depth
     leaf_speed: float = 2.0  # px per frame
-    layout: str = "leaves"  # "leaves" (dead-leaves world) or "photo" (subject, ground, background)
+    layout: str = "leaves"  # "leaves" (dead-leaves world), "photo" (subject, ground,
+    # background) or "photographic" (that geometry on real photographs)
     # Ours: relief of textured surfaces (every shape; the background in the "photo" layout), the
     # largest relative depth change within one (0: flat, as before): depth follows each
     # texture's fine structure, so the blur varies inside objects and their details occlude one
@@ -67,6 +79,27 @@ class SceneConfig:
             raise ParameterError(
                 f"layout must be one of {', '.join(SCENE_LAYOUTS)}, got {self.layout!r}"
             )
+
+
+def photo_side(config: SceneConfig) -> int:
+    """The shortest side (px) a photograph needs to texture ``config``'s scenes unenlarged:
+    half the frame's shorter side (a background wider than every photograph is tiled)."""
+    return max(min(config.width, config.height) // 2, 16)
+
+
+def photo_library(config: SceneConfig, folder: str | Path | None, *, skip_bad: bool = False
+                  ) -> PhotoLibrary | None:
+    """The photographs of ``config``'s scenes: ``folder``'s (checked, see
+    :meth:`PhotoLibrary.from_folder`), the package's own for the photographic layout without a
+    folder, None for the other layouts (which take no folder)."""
+    if config.layout != "photographic":
+        if folder is not None:
+            raise ParameterError(f"photos are for the photographic layout, not "
+                                 f"{config.layout!r}")
+        return None
+    if folder is None:
+        return shipped_library(photo_side(config))
+    return PhotoLibrary.from_folder(folder, min_side=photo_side(config), skip_bad=skip_bad)
 
 
 @functools.lru_cache(maxsize=1)
@@ -188,6 +221,114 @@ def _photo_world(
     return background, depth, leaves, focus
 
 
+def photo_regions(rgb: np.ndarray, *, regions: int = 200) -> np.ndarray:
+    """Regions of a photograph that follow its edges, ``(H, W)`` int32 labels from 0.
+
+    Felzenszwalb and Huttenlocher's graph segmentation (scikit-image) at half resolution,
+    regions of at least ``1 / regions`` of the area: what the photograph's own colour edges
+    enclose (objects, their parts), the surfaces a depth map of the scene would follow.
+    """
+    from skimage.segmentation import felzenszwalb
+
+    height, width = rgb.shape[:2]
+    small = cv2.resize(rgb, (max(width // 2, 1), max(height // 2, 1)),
+                       interpolation=cv2.INTER_AREA)
+    labels = felzenszwalb(small, scale=200, sigma=0.0,  # the half-size image is smooth enough
+                          min_size=max(small.shape[0] * small.shape[1] // regions, 4))
+    return cv2.resize(labels.astype(np.int32), (width, height), interpolation=cv2.INTER_NEAREST)
+
+
+def _cut_out(rng: np.random.Generator, texture: np.ndarray) -> np.ndarray | None:
+    """The region of ``texture`` (a square photo crop) around its centre, with its neighbours
+    that lie mostly inside, as a shape mask along the photograph's own edges; None when that
+    region is too small or too large to make an object."""
+    size = texture.shape[0]
+    labels = photo_regions(texture, regions=60)
+    border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    inside = np.setdiff1d(np.unique(labels), border)
+    center = labels[size // 2, size // 2]
+    chosen = [center] + [int(k) for k in inside if rng.uniform() < 0.5]
+    mask = np.isin(labels, chosen)
+    share = float(mask.mean())
+    return mask if 0.12 <= share <= 0.85 else None
+
+
+def _photographic_world(
+    rng: np.random.Generator, config: SceneConfig, margin: int, library: PhotoLibrary
+) -> tuple[np.ndarray, np.ndarray, list[_Leaf], float]:
+    """Background photograph and depth (with margin), shapes and the focus distance of the
+    photographic layout: the "photo" layout's subject, background and occluders, on real
+    photographs, with the background's own regions at depths of their own."""
+    height, width = config.height + 2 * margin, config.width + 2 * margin
+    short = min(config.height, config.width)
+    subject = float(np.exp(rng.uniform(np.log(1.0), np.log(6.0))))
+    far = subject * float(np.exp(rng.uniform(np.log(1.5), np.log(40.0))))
+    background, tiles = library.texture(rng, height, width)
+    # the far plane, slanted (inverse depth linear across the frame), maybe with a ground
+    # plane receding from near the camera to it; walls side by side each at its own distance
+    rows = np.arange(height, dtype=np.float64)[:, None]
+    cols = np.arange(width, dtype=np.float64)[None, :]
+    angle = rng.uniform(0, 2 * np.pi)
+    ramp = (np.cos(angle) * cols / width + np.sin(angle) * rows / height)
+    inverse = (1 + rng.uniform(0, 0.6) * (ramp - ramp.min())) / far
+    if tiles.max() > 0:
+        walls = np.exp(rng.uniform(np.log(subject / far * 1.2), 0.0, int(tiles.max()) + 1))
+        inverse = inverse / np.minimum(walls[tiles], 1.0)
+    if rng.uniform() < 0.5:
+        horizon = int(rng.uniform(0.3, 0.8) * height)
+        near = subject * rng.uniform(0.35, 1.0)
+        t = np.clip((rows - horizon) / max(height - horizon, 1), 0.0, 1.0)
+        inverse = np.maximum(inverse, (1 - t) / far + t / near)
+    depth = (1.0 / inverse).astype(np.float32)
+    # regions of the photograph brought to their own depths, along its own edges
+    labels = photo_regions(background)
+    areas = np.bincount(labels.ravel()) / labels.size
+    movable = np.flatnonzero((areas >= 0.004) & (areas <= 0.35))
+    count = int(rng.integers(0, min(len(movable), 12) + 1))
+    for k in rng.permutation(movable)[:count]:
+        d = subject * float(np.exp(rng.uniform(np.log(0.6), np.log(far / subject))))
+        depth[labels == k] = d
+
+    def texture(size: int) -> np.ndarray:
+        if rng.uniform() < 0.25 or not len(library.covering(size, size)):
+            return random_texture(rng, size, size)  # procedural: a minority
+        return library.crop(rng, size, size)
+
+    def leaf(size: int, x: float, y: float, d: float, tilt: float = 0.0) -> _Leaf:
+        rgb = texture(size)
+        mask = _cut_out(rng, rgb) if rng.uniform() < 0.5 else None
+        return _Leaf(
+            texture=rgb, mask=_shape_mask(rng, size) if mask is None else mask,
+            x=x - size / 2, y=y - size / 2, depth=d,
+            vx=config.leaf_speed * rng.normal(), vy=config.leaf_speed * rng.normal() * 0.5,
+            depth_rate=rng.normal(0, 0.01), tilt=tilt,
+        )
+
+    leaves = []
+    for _ in range(int(rng.integers(1, 7))):  # objects between subject and background
+        size = int(rng.uniform(0.1, 0.5) * short) + 8
+        d = subject * float(np.exp(rng.uniform(np.log(1.1), np.log(far / subject))))
+        leaves.append(leaf(size, rng.uniform(-0.1, 1.1) * config.width,
+                           rng.uniform(-0.1, 1.1) * config.height, d))
+    # the subject: one or two objects near the centre, or a region of the background itself
+    subject_regions = [k for k in movable if 0.01 <= areas[k] <= 0.2]
+    if subject_regions and rng.uniform() < 0.35:
+        depth[labels == int(rng.choice(subject_regions))] = subject
+    else:
+        for _ in range(int(rng.integers(1, 3))):
+            size = int(rng.uniform(0.35, 0.85) * short) + 8
+            leaves.append(leaf(size, rng.uniform(0.2, 0.8) * config.width,
+                               rng.uniform(0.25, 0.8) * config.height,
+                               subject * (1 + rng.normal(0, 0.02)), tilt=rng.normal(0, 0.1)))
+    if rng.uniform() < 0.35:  # a foreground occluder at the frame's edge
+        size = int(rng.uniform(0.2, 0.6) * short) + 8
+        x = rng.choice([rng.uniform(-0.2, 0.15), rng.uniform(0.85, 1.2)]) * config.width
+        leaves.append(leaf(size, x, rng.uniform(0, 1) * config.height,
+                           subject * rng.uniform(0.3, 0.8)))
+    focus = subject if rng.uniform() < 0.85 else subject * float(np.exp(rng.normal(0, 0.4)))
+    return background, depth, leaves, focus
+
+
 def _shape_mask(rng: np.random.Generator, size: int) -> np.ndarray:
     """A geometric shape (see :func:`_leaf_mask`) or an organic blob (thresholded smooth noise)."""
     if rng.uniform() < 0.6:
@@ -199,26 +340,35 @@ def _shape_mask(rng: np.random.Generator, size: int) -> np.ndarray:
     return field > 0.0
 
 
-def render_scene_sequence(seed: int, config: SceneConfig) -> list[tuple[np.ndarray, np.ndarray]]:
+def render_scene_sequence(
+    seed: int, config: SceneConfig, photos: PhotoLibrary | None = None
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Render one sequence: a list of ``(rgb float32 (H, W, 3) in [0, 1], depth float32 (H, W))``.
 
-    The same ``seed`` and ``config`` always give the same frames.
+    The same ``seed``, ``config`` and ``photos`` (the photographic layout's photographs; the
+    package's own without them) always give the same frames.
     """
-    return render_scene(seed, config)[0]
+    return render_scene(seed, config, photos)[0]
 
 
 def render_scene(
-    seed: int, config: SceneConfig
+    seed: int, config: SceneConfig, photos: PhotoLibrary | None = None
 ) -> tuple[list[tuple[np.ndarray, np.ndarray]], float | None]:
-    """Like :func:`render_scene_sequence`, with the focus distance (m) of the "photo" layout
-    (the subject's depth, or occasionally a missed focus), None for "leaves"."""
+    """Like :func:`render_scene_sequence`, with the focus distance (m) of the "photo" and
+    "photographic" layouts (the subject's depth, or occasionally a missed focus), None for
+    "leaves"."""
     rng = np.random.default_rng(check_seed("seed", seed))
     height, width = config.height, config.width
     pan = config.camera_speed * rng.uniform(-1, 1, 2) * np.array([1.0, 0.3])
     margin = int(abs(pan).max() * config.frames / config.plane_near) + 8
     focus = None
-    if config.layout == "photo":
-        background, back_depth, leaves, focus = _photo_world(rng, config, margin)
+    if config.layout in ("photo", "photographic"):
+        if config.layout == "photo":
+            background, back_depth, leaves, focus = _photo_world(rng, config, margin)
+        else:
+            library = shipped_library(photo_side(config)) if photos is None else photos
+            background, back_depth, leaves, focus = _photographic_world(rng, config, margin,
+                                                                        library)
         parallax_depth = float(np.median(back_depth))
         if config.relief:
             back_depth = back_depth * (1 - config.relief * _relief(background))
@@ -288,7 +438,9 @@ def _check_description(root: Path, settings: dict) -> None:
     path = root / SCENES_DESCRIPTION
     if path.is_file():
         existing = read_mapping(path, "scenes description (remove the folder and rerun)")
-        differ = differing_settings(settings, existing, ignore=("status", "sequences"))
+        # the photographs are compared by content, wherever their folder is given from
+        differ = differing_settings(settings, existing,
+                                    ignore=("status", "sequences", "folder"))
         if differ:
             raise InputFileError(root, "holds scenes made with other settings (differs in "
                                        f"{', '.join(differ)}); choose another output folder")
@@ -335,19 +487,26 @@ def check_sequence_count(sequences: object) -> int:
 
 def write_scene_folder(
     output: str | Path, sequences: int, config: SceneConfig, *, seed: int = 0,
-    progress: bool = True, workers: int = 1,
+    progress: bool = True, workers: int = 1, photos: PhotoLibrary | None = None,
 ) -> list[Path]:
     """Write procedural sequences as an RGB-D folder: ``seq_NNN/rgb/*.png`` (8-bit),
-    ``seq_NNN/depth/*.npy`` (float32 metres) and, for the "photo" layout, ``seq_NNN/scene.json``
-    with the focus distance (read by defocus profiles). Sequence k uses seed ``(seed, k)``, so the
-    folder is the same whatever ``workers`` (parallel processes); files are written atomically
-    and existing complete sequences are kept."""
+    ``seq_NNN/depth/*.npy`` (float32 metres) and, for the "photo" and "photographic" layouts,
+    ``seq_NNN/scene.json`` with the focus distance (read by defocus profiles). Sequence k uses
+    seed ``(seed, k)``, so the folder is the same whatever ``workers`` (parallel processes);
+    files are written atomically and existing complete sequences are kept. ``photos``: the
+    photographic layout's photographs (:class:`PhotoLibrary`; the package's own without it),
+    recorded in ``scenes.json`` by folder, count and digest."""
     from dualpixel.io.atomic import remove_partials
     from dualpixel.io.lock import folder_lock
     from dualpixel.progress import progress_bar
 
     check_range("workers", workers, low=1)
     check_seed("seed", seed)
+    if photos is not None and config.layout != "photographic":
+        raise ParameterError(f"photographs are for the photographic layout, not "
+                             f"{config.layout!r}")
+    if config.layout == "photographic" and photos is None:
+        photos = shipped_library(photo_side(config))
     sequences = check_sequence_count(sequences)
     root = Path(output)
     folders = [root / f"seq_{k:03d}" for k in range(sequences)]
@@ -356,10 +515,11 @@ def write_scene_folder(
         settings = asdict(config)
         if not settings["relief"]:  # as recorded before the setting existed
             del settings["relief"]
-        description = {"config": settings, "seed": seed}
+        description = {"config": settings, "seed": seed,
+                       **({"photos": photos.describe()} if photos is not None else {})}
         _check_description(root, description)
         remove_partials(root)  # temporary files of writes a kill interrupted
-        missing = [(folder, k, names, config, seed) for k, folder in enumerate(folders)
+        missing = [(folder, k, names, config, seed, photos) for k, folder in enumerate(folders)
                    if not all((folder / "depth" / f"{n}.npy").is_file()
                               and (folder / "rgb" / f"{n}.png").is_file() for n in names)]
         if missing:
@@ -373,14 +533,14 @@ def write_scene_folder(
 
 
 def _write_sequence(folder: Path, k: int, names: list[str], config: SceneConfig,
-                    seed: int) -> None:
+                    seed: int, photos: PhotoLibrary | None) -> None:
     """Render sequence ``k`` of the folder (seed ``(seed, k)``) and write its frames as
     ``names``."""
     from dualpixel.io.atomic import atomic_path
     from dualpixel.io.images import save_npy, write_png
 
     sequence_seed = int(np.random.SeedSequence((seed, k)).generate_state(1)[0])
-    frames, focus = render_scene(sequence_seed, config)
+    frames, focus = render_scene(sequence_seed, config, photos)
     if focus is not None:
         with atomic_path(folder / "scene.json") as tmp:
             tmp.write_text(json.dumps({"focus_distance": focus, "layout": config.layout}))

@@ -5,7 +5,8 @@ with phases inside it) holds:
 
 - ``name``, ``description``;
 - ``data``: steps run in order, each ``{name, scenes: {...}}`` (:class:`SceneConfig` keys plus
-  ``sequences`` and ``seed``) or ``{name, synth: {...}}`` (:class:`SynthConfig` keys plus
+  ``sequences``, ``seed`` and, for the photographic layout, ``photos``, a folder of photographs
+  relative to the working directory, and ``skip_bad``) or ``{name, synth: {...}}`` (:class:`SynthConfig` keys plus
   ``input``, a step's name or a folder, and ``format``; ``camera`` is a shipped camera's name
   (:mod:`dualpixel.cameras`) or a camera file, relative to the recipe). Step NAME writes
   ``OUTPUT/data/NAME``;
@@ -341,14 +342,31 @@ def _data_folder(recipe: Recipe, output: Path, value: Any) -> Any:
     return str(output / "data" / value) if isinstance(value, str) and value in steps else value
 
 
-def scene_config(step: DataStep):
-    """``(SceneConfig, sequences, seed)`` of a scenes step."""
-    from dualpixel.synthesis.scenes import SceneConfig, check_sequence_count
+def scene_config(step: DataStep, *, read_photos: bool = True):
+    """``(SceneConfig, sequences, seed, photos)`` of a scenes step; ``photos`` (a folder of
+    photographs for the photographic layout, relative to the working directory, with
+    ``skip_bad``) becomes its :class:`~dualpixel.synthesis.photo_library.PhotoLibrary`, every
+    photograph read and checked (``read_photos=False``: None, the folder only looked for)."""
+    from dualpixel.synthesis.scenes import SceneConfig, check_sequence_count, photo_library
 
     args = dict(step.args)
     sequences = check_sequence_count(args.pop("sequences", 1))
     seed = check_seed("seed", args.pop("seed", 0))
-    return SceneConfig(**args), sequences, seed
+    folder, skip_bad = args.pop("photos", None), args.pop("skip_bad", False)
+    if not isinstance(skip_bad, bool):
+        raise ParameterError(f"skip_bad must be true or false, got {skip_bad!r}")
+    if folder is not None and not isinstance(folder, str):
+        raise ParameterError(f"photos must be a folder, got {folder!r}")
+    config = SceneConfig(**args)
+    if not read_photos:
+        if folder is not None and config.layout != "photographic":
+            raise ParameterError(f"photos are for the photographic layout, not "
+                                 f"{config.layout!r}")
+        if folder is not None and not Path(folder).is_dir():
+            raise InputFileError(folder, "photo folder not found (photos are relative to the "
+                                         "working directory)")
+        return config, sequences, seed, None
+    return config, sequences, seed, photo_library(config, folder, skip_bad=skip_bad)
 
 
 def synth_config(recipe: Recipe, step: DataStep, output: Path):
@@ -414,7 +432,7 @@ def check_recipe(recipe: Recipe, output: Path = Path("OUTPUT")) -> None:
         where = f"data step {step.name}"
         try:
             if step.kind == "scenes":
-                scene_config(step)
+                scene_config(step, read_photos=False)
             else:
                 source = step.args.get("input")
                 if isinstance(source, str) and source not in steps_seen and "/" not in source:
@@ -598,9 +616,9 @@ def run_data(recipe: Recipe, output: Path, *, workers: int = 1, progress: bool =
         folder = output / "data" / step.name
         log(f"[data {number}/{len(recipe.data)}, {_elapsed(started)}] {step.name}: {step.kind}")
         if step.kind == "scenes":
-            config, sequences, seed = scene_config(step)
+            config, sequences, seed, photos = scene_config(step)
             write_scene_folder(folder, sequences, config, seed=seed, workers=workers,
-                               progress=progress)
+                               progress=progress, photos=photos)
         else:
             config, source, fmt = synth_config(recipe, step, output)
             summary = synthesize_dataset(source, fmt, folder, config, workers=workers,
