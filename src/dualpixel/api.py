@@ -77,7 +77,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
            precision: str = "auto", views_sum: bool = False,
            backend: str = "torch", encoding: str = "srgb", black_level: float | None = None,
            white_level: float | None = None, right_gain: float | np.ndarray = 1.0,
-           brightness: str | None = None,
+           auto_exposure: bool = True, brightness: str | None = None,
            overshoot: str | None = None) -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD), or ``views_sum=True`` for views that sum to it (a raw A/B split; they
@@ -102,6 +102,9 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     and ``white_level`` in the views' own units, e.g. 1024 and 16383 for uint16 arrays of
     14-bit data, and ``right_gain`` for DP shading, a number or a flat-field map): the views are
     encoded as the models were trained and the output decoded back to the views' encoding.
+    ``auto_exposure`` (linear views): each pair's light is scaled so that a high percentile of
+    the combined image sits where the training frames put it, and the output scaled back
+    (:meth:`~dualpixel.inference.encoding.ViewEncoding.exposed`); ``False`` leaves it.
     A pair that looks linear but is declared display-encoded, or the reverse, gives a warning.
 
     >>> out = deblur(np.full((32, 48, 3), 0.5, np.float32), np.full((32, 48, 3), 0.5, np.float32))
@@ -121,7 +124,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     from dualpixel.models.unet import DeblurNet
     from dualpixel.weights import run_settings
 
-    view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain)
+    view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain,
+                                 auto_exposure=auto_exposure)
     channels, scale = min(image_channels(left), 3), full_scale(left)
     lefts, layout = as_image_batch(left, "left")
     rights = None
@@ -149,6 +153,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     for finding in encoding_findings(lefts[0], (rights if rights is not None else lefts)[0],
                                      encoding):
         warnings.warn(finding.message, stacklevel=2)
+    view_encoding = view_encoding.exposed(lefts, lefts if rights is None else rights,
+                                          scale=scale, views_sum=views_sum)
     lefts, rights_in = to_model(lefts, lefts if rights is None else rights, view_encoding,
                                 scale=scale, views_sum=views_sum)
     rights = None if rights is None else rights_in

@@ -197,3 +197,74 @@ def test_pixel_dp_import_turns_the_views_and_writes_the_dpdd_layout(raw_pair, ti
     bad = CliRunner().invoke(cli, ["import-pixel-dp", str(colour), "-o", str(tmp_path / "y")])
     assert bad.exit_code != 0 and "colour image" in bad.output
     assert not (tmp_path / "y" / "test_l" / "source" / "colour.png").exists()
+
+
+def test_exposure_gain_known_answers():
+    from dualpixel.inference.encoding import EXPOSURE_MAX_GAIN, EXPOSURE_TARGET, exposure_gain
+
+    dark = np.full((100, 100, 1), 0.05, np.float32)
+    assert exposure_gain(dark, dark) == pytest.approx(EXPOSURE_TARGET / 0.05)
+    assert exposure_gain(dark * 0, dark * 0) == EXPOSURE_MAX_GAIN  # black stays black
+    bright = np.full((100, 100, 3), 0.9, np.float32)
+    assert exposure_gain(bright, bright) == 1.0  # never darkened
+    # a small bright patch (0.5 % of the frame, above the 99th percentile) is never clipped
+    patchy = dark.copy()
+    patchy[:5, :10] = 0.4
+    assert exposure_gain(patchy, patchy) == pytest.approx(1 / 0.4)
+    # a batch: one gain per pair, shaped to scale (N, H, W, C)
+    batch = np.stack([dark, np.full_like(dark, 0.35)])
+    gains = exposure_gain(batch, batch)
+    assert gains.shape == (2, 1, 1, 1)
+    np.testing.assert_allclose(gains.ravel(), [EXPOSURE_TARGET / 0.05, 2.0], rtol=1e-5)
+
+
+def test_auto_exposure_hands_the_network_one_view_whatever_the_exposure(raw_pair):
+    """Synthetic raw views of one scene at several exposures reach the network as the same
+    views (up to the views' rounding), and the output comes back at each one's exposure; off,
+    the network sees each exposure as it is."""
+    light = [(v.astype(np.float64) - BLACK) / (WHITE - BLACK) for v in raw_pair]  # <= 0.25
+    seen, outputs = [], []
+    for exposure in (0.5, 1.0, 2.0, 3.0):  # peaks at 12 % to 75 % of full scale
+        views = [(BLACK + exposure * v * (WHITE - BLACK)) / 65535 for v in light]
+        views = [v[..., None].astype(np.float32) for v in views]
+        encoding = ViewEncoding("linear", BLACK, WHITE).exposed(*views, scale=65535)
+        assert encoding.light_gain > 1.0
+        model_left, model_right = to_model(*views, encoding, scale=65535)
+        seen.append(model_left)
+        out = from_model(model_left, encoding, 1, scale=65535)  # an identity network
+        np.testing.assert_allclose(out, views[0], atol=1e-5)
+        off = ViewEncoding("linear", BLACK, WHITE, auto_exposure=False)
+        outputs.append(to_model(*views, off, scale=65535)[0])
+    for other in seen[1:]:
+        np.testing.assert_allclose(other, seen[0], atol=2e-3)
+    assert abs(float(outputs[0].mean()) - float(outputs[-1].mean())) > 0.1
+
+
+def test_auto_exposure_in_the_api_and_cli(raw_pair, tmp_path):
+    """The shipped model on dark raw views: with auto exposure (the default) its output at two
+    exposures agrees once scaled back; off, the option changes the output."""
+    light = [(v.astype(np.float64) - BLACK) / (WHITE - BLACK) for v in raw_pair]
+    outs = {}
+    for exposure in (0.5, 1.5):
+        views = [((BLACK + exposure * v * (WHITE - BLACK)) / 65535).astype(np.float32)
+                 for v in light]
+        for auto in (True, False):
+            out = dualpixel.deblur(*views, device="cpu", encoding="linear",
+                                   black_level=BLACK / 65535, white_level=WHITE / 65535,
+                                   auto_exposure=auto)
+            outs[exposure, auto] = (out * 65535 - BLACK) / (WHITE - BLACK) / exposure
+    same = np.abs(outs[0.5, True] - outs[1.5, True]).mean()
+    differ = np.abs(outs[0.5, False] - outs[1.5, False]).mean()
+    assert same < 1e-5 and differ > 3e-4, (same, differ)
+    left = write_grey16(tmp_path / "left.png", raw_pair[0])
+    right = write_grey16(tmp_path / "right.png", raw_pair[1])
+    written = {}
+    for flag in ("--auto-exposure", "--no-auto-exposure"):
+        out = tmp_path / f"{flag}.png"
+        result = CliRunner().invoke(cli, [
+            "deblur", "--left", str(left), "--right", str(right), "-o", str(out), "--device",
+            "cpu", "--encoding", "linear", "--black-level", str(BLACK), "--white-level",
+            str(WHITE), flag])
+        assert result.exit_code == 0, result.output
+        written[flag] = cv2.imread(str(out), cv2.IMREAD_UNCHANGED).astype(np.float64)
+    assert np.abs(written["--auto-exposure"] - written["--no-auto-exposure"]).mean() > 2

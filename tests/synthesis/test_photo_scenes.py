@@ -106,7 +106,7 @@ def test_the_folder_is_recorded_and_another_content_refused(photo_folder, tmp_pa
     assert record["photos"]["photographs"] == 3 and record["config"]["layout"] == "photographic"
     assert json.loads((out / "seq_000" / "scene.json").read_text())["focus_distance"] > 0
     cv2.imwrite(str(photos / "red.png"), np.zeros((150, 150, 3), np.uint8))
-    with pytest.raises(InputFileError, match="other settings.*digest"):
+    with pytest.raises(InputFileError, match=r"other settings.*digest"):
         write_scene_folder(out, 1, SMALL, progress=False, photos=photo_library(SMALL, photos))
 
 

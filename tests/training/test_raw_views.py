@@ -9,7 +9,7 @@ import torch
 
 from dualpixel.data import DPPatchDataset, PatchConfig, discover_dp_dataset
 from dualpixel.errors import ParameterError
-from dualpixel.inference.encoding import ViewEncoding, deblur_encoded
+from dualpixel.inference.encoding import ViewEncoding, deblur_encoded, to_model
 from dualpixel.io.images import read_view
 from dualpixel.training import load_config, train
 from dualpixel.training.raw_views import raw_views_transform, stored_black_level
@@ -78,7 +78,11 @@ def test_crops_are_what_deblur_feeds_the_model_for_raw_views(raw_dataset,
         for key in ("left", "right"):
             np.testing.assert_allclose(mine[key][0].permute(1, 2, 0).numpy(), seen[key],
                                        atol=1e-6)
-        deblur_encoded(network, views[2], views[2], linear, scale=65535.0)
+        # the target at the views' exposure (the one the linear mode gives this frame)
+        exposed = linear.exposed(views[0], views[1], scale=65535.0)
+        assert exposed.light_gain > 1.0  # the raw frames are dark
+        seen.clear()
+        network(*to_model(views[2], views[2], exposed, scale=65535.0))
         np.testing.assert_allclose(mine["target"][0].permute(1, 2, 0).numpy(), seen["left"],
                                    atol=1e-6)
         # raw values are dark (exposure gain 0.4-0.8 above the black level): encoded, brighter

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -52,6 +53,11 @@ _OVERSHOOT_OPTION = click.option(
     "--overshoot", type=click.Choice(OVERSHOOT_MODES), default=None,
     help="limited: keep the output within the input's range near each pixel (no halos beside "
          "edges); model: as the network gives it." + _OWN)
+_AUTO_EXPOSURE_OPTION = click.option(
+    "--auto-exposure/--no-auto-exposure", default=True, show_default=True,
+    help="Linear views: scale their light so a high percentile of the combined image sits "
+         "where the training frames put it (raw views are often far darker), and scale the "
+         "output back.")
 # The levels of linear views, for the commands that point to deblur's own help.
 _BLACK_LEVEL_OPTION = click.option("--black-level", type=float, default=None,
                                    help="Linear views: see deblur.")
@@ -130,6 +136,7 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
               default=None, metavar="LEFT RIGHT",
               help="Linear views: a DP capture of a flat, evenly lit surface; the right view's "
                    "gain map is taken from it (instead of --right-gain).")
+@_AUTO_EXPOSURE_OPTION
 @click.option("--strict", is_flag=True,
               help="Stop on a doubtful pair (views swapped, wrong brightness, ...) instead of "
                    "warning.")
@@ -148,7 +155,7 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined: Path | None,
            split: str, output: Path, views_sum: bool, encoding: str, black_level: float | None,
            white_level: float | None, right_gain: float, flat_field: tuple[Path, Path] | None,
-           strict: bool, checkpoint: str,
+           auto_exposure: bool, strict: bool, checkpoint: str,
            tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
            backend: str, flips: bool | None, multiscale: bool, brightness: str | None,
            overshoot: str | None) -> None:
@@ -170,7 +177,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     from dualpixel.weights import run_settings
 
     view_encoding = view_encoding_from_files(encoding, black_level, white_level, right_gain,
-                                             flat_field)
+                                             flat_field, auto_exposure=auto_exposure)
     views = model_spec(_network_name(checkpoint)).views
     # the inputs and outputs are checked before the model loads
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
@@ -248,10 +255,11 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
                    "files' own values.")
 @_BLACK_LEVEL_OPTION
 @_WHITE_LEVEL_OPTION
+@_AUTO_EXPOSURE_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, align, tile, overlap,
                      device, precision, backend, flips, multiscale, brightness,
-                     overshoot, encoding, black_level, white_level) -> None:
+                     overshoot, encoding, black_level, white_level, auto_exposure) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
     from dualpixel.inference.encoding import ViewEncoding
@@ -260,7 +268,7 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         output=output, dataset=dataset, split=split, pred=pred, target=target, compare=compare,
         categories=categories, niqe_model=niqe_model, niqe=not no_niqe, figures=figures,
         save_outputs=save_outputs, align=None if align == "none" else align,
-        encoding=ViewEncoding(encoding, black_level, white_level))
+        encoding=ViewEncoding(encoding, black_level, white_level, auto_exposure=auto_exposure))
     deblurrer, method, meta = None, "model", {}
     if not no_model and pred is None and target is None:
         from dualpixel.inference import Deblurrer
@@ -419,6 +427,7 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
               show_default=True, help="How the views store light (see deblur --encoding).")
 @_BLACK_LEVEL_OPTION
 @_WHITE_LEVEL_OPTION
+@_AUTO_EXPOSURE_OPTION
 @click.option("--strict", is_flag=True,
               help="Exit with status 1 when a model does worse than --reference, or changes a "
                    "photograph's brightness by more than 1 %.")
@@ -439,7 +448,8 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
 @_PRECISION_OPTION
 def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[str, ...],
                 reference: str | None, output: Path, encoding: str, black_level: float | None,
-                white_level: float | None, strict: bool, brightness: tuple[str, ...],
+                white_level: float | None, auto_exposure: bool, strict: bool,
+                brightness: tuple[str, ...],
                 overshoot: tuple[str, ...], flips: tuple[str, ...], tile: int | None,
                 device: str, precision: str) -> None:
     """Target-free checks of models on real DP pairs without ground truth: brightness kept,
@@ -463,8 +473,9 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
             raise click.BadParameter(str(error), param_hint="--reference") from None
     view_encoding = ViewEncoding(encoding, black_level, white_level)
     # linear pairs are read as light (black level off), and the models take them so
+    light = dataclasses.replace(LINEAR_LIGHT, auto_exposure=auto_exposure)
     methods = model_methods(checkpoints, device=device,
-                            encoding=LINEAR_LIGHT if view_encoding.linear else None, tile=tile,
+                            encoding=light if view_encoding.linear else None, tile=tile,
                             precision=precision, brightness=brightness or None,
                             overshoot=overshoot or None, flips=passes)
     rows = []

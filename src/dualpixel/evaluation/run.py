@@ -136,7 +136,8 @@ def _view_findings(sequences, encoding: ViewEncoding | None = None) -> list[dict
         combined = read_rgb(first.combined) if first.combined is not None else None
         findings = encoding_findings(left, right, encoding.encoding if encoding else "srgb")
         if encoding is not None and encoding.linear:  # checked as the model takes them
-            left, right = to_model(left, right, encoding, scale=max_level(bits))
+            exposed = encoding.exposed(left, right, scale=max_level(bits))
+            left, right = to_model(left, right, exposed, scale=max_level(bits))
             combined = None
         for finding in findings + check_views(left, right, combined=combined):
             found.append({"example": sequence.name, "code": finding.code,

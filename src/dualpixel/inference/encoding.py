@@ -7,12 +7,16 @@ right view a little darker or brighter than the left (DP shading). :class:`ViewE
 pair stores light; :func:`to_model` turns the views into what the models take (black level off,
 scaled by the white level, the right view's gain applied, sRGB-encoded, grey copied to R, G and B)
 and :func:`from_model` turns the output back (decoded to linear, black level back on, one
-channel for grey views). :func:`encoding_findings` warns when the views look linear but are
+channel for grey views). Linear views are also brought to the exposure the models were trained
+at (:meth:`ViewEncoding.exposed`): a phone's raw views often peak at a third of full scale,
+darker than any training frame; their light is scaled up for the network and the output scaled
+back. :func:`encoding_findings` warns when the views look linear but are
 declared display-encoded, or the reverse.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,8 +31,9 @@ from dualpixel.names import ENCODINGS
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
-    "ENCODINGS", "LINEAR_LIGHT", "ViewEncoding", "deblur_encoded", "encoding_findings",
-    "flat_field_gain", "from_model", "linear_light", "to_model", "view_encoding_from_files",
+    "ENCODINGS", "EXPOSURE_TARGET", "LINEAR_LIGHT", "ViewEncoding", "deblur_encoded",
+    "encoding_findings", "exposure_gain", "flat_field_gain", "from_model", "linear_light",
+    "to_model", "view_encoding_from_files",
 ]
 
 #: Views whose median lies below this fraction of full scale, with 99 % of values below
@@ -37,6 +42,16 @@ LINEAR_MEDIAN = 0.08
 LINEAR_P99 = 0.5
 #: Views declared linear whose median lies above this look display-encoded.
 ENCODED_MEDIAN = 0.3
+#: Where the training frames put the light of a high percentile (:data:`EXPOSURE_PERCENTILE`)
+#: of the combined image, linear, full scale 1: the median over procedural "photo" scenes is
+#: 0.67, over scenes of the validation photographs 0.78.
+EXPOSURE_TARGET = 0.7
+EXPOSURE_PERCENTILE = 99.0
+#: The brightest values kept below full scale by the exposure: all but this percentile's tail.
+EXPOSURE_PEAK_PERCENTILE = 99.99
+#: The largest exposure gain (dark views are noisy: beyond this the noise, not the light, is
+#: what the network would see).
+EXPOSURE_MAX_GAIN = 16.0
 
 
 @dataclass(frozen=True)
@@ -47,13 +62,18 @@ class ViewEncoding:
     are required, in the views' own units (the file's numbers for 8/16-bit files and integer
     arrays, fractions of 1 for float arrays); ``right_gain`` multiplies the right view (after
     the black level is taken off) to match the left: a number, or an ``(H, W)`` map from a
-    flat-field capture (:func:`flat_field_gain`).
+    flat-field capture (:func:`flat_field_gain`). ``auto_exposure``: linear views are brought
+    to the training frames' exposure (:meth:`exposed`; on by default); ``light_gain``: the
+    factor on their light that does it, per image (a number, or an array ``(..., 1, 1, 1)``
+    over a batch), undone on the output.
     """
 
     encoding: str = "srgb"
     black_level: float | None = None
     white_level: float | None = None
     right_gain: float | np.ndarray = 1.0
+    auto_exposure: bool = True
+    light_gain: float | np.ndarray = 1.0
 
     def __post_init__(self) -> None:
         if self.encoding not in ENCODINGS:
@@ -61,7 +81,8 @@ class ViewEncoding:
                                  f"got {self.encoding!r}")
         if self.encoding == "srgb":
             if (self.black_level is not None or self.white_level is not None
-                    or not np.all(np.asarray(self.right_gain) == 1.0)):
+                    or not np.all(np.asarray(self.right_gain) == 1.0)
+                    or not np.all(np.asarray(self.light_gain) == 1.0)):
                 raise ParameterError("black_level, white_level and right_gain are for linear "
                                      "views; pass encoding='linear' (--encoding linear) with them")
             return
@@ -73,13 +94,28 @@ class ViewEncoding:
         black, white = float(self.black_level), float(self.white_level)
         if not (math.isfinite(black) and math.isfinite(white) and 0 <= black < white):
             raise ParameterError(f"need 0 <= black_level < white_level, got {black} and {white}")
-        gain = np.asarray(self.right_gain, np.float64)
-        if not np.isfinite(gain).all() or (gain <= 0).any():
-            raise ParameterError("right_gain must be positive and finite")
+        for name in ("right_gain", "light_gain"):
+            gain = np.asarray(getattr(self, name), np.float64)
+            if not np.isfinite(gain).all() or (gain <= 0).any():
+                raise ParameterError(f"{name} must be positive and finite")
+        if not isinstance(self.auto_exposure, (bool, np.bool_)):
+            raise ParameterError(f"auto_exposure must be True or False, got "
+                                 f"{self.auto_exposure!r}")
 
     @property
     def linear(self) -> bool:
         return self.encoding == "linear"
+
+    def exposed(self, left: np.ndarray, right: np.ndarray, *, scale: float = 1.0,
+                views_sum: bool = False) -> ViewEncoding:
+        """This encoding with the :attr:`light_gain` of views ``(..., H, W, C)``
+        (:func:`exposure_gain`) when they are linear and :attr:`auto_exposure` is on; else
+        itself. Compute it once per photograph or sequence (a sequence keeps one exposure)."""
+        if not (self.linear and self.auto_exposure):
+            return self
+        plain = dataclasses.replace(self, light_gain=1.0)
+        gain = exposure_gain(*linear_light(left, right, plain, scale=scale, views_sum=views_sum))
+        return dataclasses.replace(self, light_gain=gain)
 
 
 def _check_gain_shape(gain: np.ndarray, shape: tuple[int, int]) -> None:
@@ -96,15 +132,39 @@ def linear_light(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
                  scale: float = 1.0, views_sum: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Linear raw views ``(..., H, W, C)`` (fractions of ``scale``, the full scale of the
     views' own units) as light in [0, 1]: the black level taken off, divided by the span to the
-    white level, the right view's gain applied, each doubled with ``views_sum``."""
+    white level, the right view's gain applied, each doubled with ``views_sum``, times the
+    encoding's :attr:`~ViewEncoding.light_gain` (its exposure)."""
     black = float(encoding.black_level) / scale
     white = float(encoding.white_level) / scale
     gain = np.asarray(encoding.right_gain, np.float32)
     _check_gain_shape(gain, left.shape[-3:-1])
     gain = gain[..., None] if gain.ndim == 2 else gain
-    span, factor = white - black, 2.0 if views_sum else 1.0
+    span = white - black
+    factor = (2.0 if views_sum else 1.0) * np.asarray(encoding.light_gain, np.float32)
     return (np.clip((left - black) / span * factor, 0.0, 1.0),
             np.clip((right - black) / span * gain * factor, 0.0, 1.0))
+
+
+def exposure_gain(left: np.ndarray, right: np.ndarray) -> float | np.ndarray:
+    """The factor on linear light ``(..., H, W, C)`` in [0, 1] that puts the
+    :data:`EXPOSURE_PERCENTILE` of the combined image (the views' mean) at
+    :data:`EXPOSURE_TARGET`, where the training frames have it: at least 1 (bright views are
+    left as they are), at most :data:`EXPOSURE_MAX_GAIN` and what keeps all but the brightest
+    0.01 % below full scale (nothing that was not clipped is clipped). A number for one pair,
+    ``(N, 1, 1, 1)`` for a batch.
+
+    >>> dark = np.full((8, 8, 1), 0.1, np.float32)
+    >>> float(exposure_gain(dark, dark))
+    7.0
+    """
+    combined = 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
+    flat = combined.reshape(*combined.shape[:-3], -1)
+    high, peak = np.percentile(flat, [EXPOSURE_PERCENTILE, EXPOSURE_PEAK_PERCENTILE], axis=-1)
+    with np.errstate(divide="ignore"):
+        gain = np.minimum(EXPOSURE_TARGET / high, 1.0 / peak)
+    gain = np.clip(np.nan_to_num(gain, nan=1.0, posinf=EXPOSURE_MAX_GAIN), 1.0,
+                   EXPOSURE_MAX_GAIN)
+    return float(gain) if np.ndim(gain) == 0 else gain.reshape(*gain.shape, 1, 1, 1)
 
 
 def to_model(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
@@ -133,7 +193,8 @@ def from_model(output: np.ndarray, encoding: ViewEncoding, channels: int, *,
     if encoding.linear:
         black = float(encoding.black_level) / scale
         white = float(encoding.white_level) / scale
-        output = np.clip(srgb_to_linear_array(output) * (white - black) + black, 0.0, 1.0)
+        light = srgb_to_linear_array(output) / np.asarray(encoding.light_gain, np.float32)
+        output = np.clip(light * (white - black) + black, 0.0, 1.0)
     return output.astype(np.float32, copy=False)
 
 
@@ -174,15 +235,16 @@ def encoding_findings(left: np.ndarray, right: np.ndarray, encoding: str) -> lis
 
 def view_encoding_from_files(encoding: str, black_level: float | None, white_level: float | None,
                              right_gain: float = 1.0,
-                             flat_field: tuple[str | Path, str | Path] | None = None
-                             ) -> ViewEncoding:
+                             flat_field: tuple[str | Path, str | Path] | None = None, *,
+                             auto_exposure: bool = True) -> ViewEncoding:
     """A :class:`ViewEncoding` as ``dualpixel deblur`` takes it: the right view's gain a number
     or, with ``flat_field`` (left and right image files of a flat-field DP capture), the map
     :func:`flat_field_gain` makes from them (levels in the files' own units)."""
     from dualpixel.io.images import max_level, read_views
 
     if flat_field is None:
-        return ViewEncoding(encoding, black_level, white_level, right_gain)
+        return ViewEncoding(encoding, black_level, white_level, right_gain,
+                            auto_exposure=auto_exposure)
     if encoding != "linear" or black_level is None:
         raise ParameterError("--flat-field is for linear views: give --encoding linear with "
                              "--black-level and --white-level")
@@ -190,7 +252,7 @@ def view_encoding_from_files(encoding: str, black_level: float | None, white_lev
         raise ParameterError("give --flat-field or --right-gain, not both")
     left, right, (bits, _) = read_views(*flat_field)
     gain = flat_field_gain(left, right, black_level=black_level / max_level(bits))
-    return ViewEncoding(encoding, black_level, white_level, gain)
+    return ViewEncoding(encoding, black_level, white_level, gain, auto_exposure=auto_exposure)
 
 
 def deblur_encoded(deblurrer: Callable[[np.ndarray, np.ndarray | None], np.ndarray],
@@ -198,6 +260,6 @@ def deblur_encoded(deblurrer: Callable[[np.ndarray, np.ndarray | None], np.ndarr
                    scale: float = 1.0, views_sum: bool = False) -> np.ndarray:
     """One pair ``(H, W, C)`` in its own encoding through ``deblurrer`` (a
     :class:`~dualpixel.inference.Deblurrer`): the output in the same encoding and channels."""
-    encoding = encoding or ViewEncoding()
+    encoding = (encoding or ViewEncoding()).exposed(left, right, scale=scale, views_sum=views_sum)
     model_left, model_right = to_model(left, right, encoding, scale=scale, views_sum=views_sum)
     return from_model(deblurrer(model_left, model_right), encoding, left.shape[-1], scale=scale)

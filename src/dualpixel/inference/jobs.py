@@ -178,7 +178,8 @@ def run_deblur_jobs(
     (:func:`~dualpixel.inference.view_checks.views_from_sum`); it needs the right views too
     (refused before any work without them). ``encoding``: how the views store light
     (:class:`~dualpixel.inference.encoding.ViewEncoding`; display values by default); the
-    output is written back in it.
+    output is written back in it. Linear views of a sequence take the exposure of its first
+    pair (:meth:`~dualpixel.inference.encoding.ViewEncoding.exposed`).
     """
     encoding = encoding or ViewEncoding()
     if views_sum and any(job.right is None for sequence in jobs for job in sequence):
@@ -190,14 +191,17 @@ def run_deblur_jobs(
             left, right, bits, right_bits = _read_pair(job)
             channels, scale = left.shape[2], max_level(bits)
             raw = (left, right if right is not None else left, encoding.encoding)
+            if index == 0:  # one exposure per sequence (linear views), from its first pair
+                exposed = encoding.exposed(left, raw[1], scale=scale,
+                                           views_sum=views_sum and right is not None)
             if right is None:
-                left = to_model(left, left, encoding, scale=scale)[0]
+                left = to_model(left, left, exposed, scale=scale)[0]
             else:
-                left, right = to_model(left, right, encoding, scale=scale, views_sum=views_sum)
+                left, right = to_model(left, right, exposed, scale=scale, views_sum=views_sum)
                 if index == 0:
                     _check_first_frame(job, left, right, (bits, right_bits), strict=strict,
                                        report=report, raw=raw)
-            output = from_model(deblurrer(left, right), encoding, channels, scale=scale)
+            output = from_model(deblurrer(left, right), exposed, channels, scale=scale)
             write_png(job.output, output[..., 0] if channels == 1 else output, bit_depth=bits,
                       metadata=read_metadata(job.left))
             yield job.output

@@ -135,8 +135,9 @@ class PhotoLibrary:
     def crop(self, rng: np.random.Generator, height: int, width: int, *,
              index: int | None = None) -> np.ndarray:
         """A ``(height, width, 3)`` float32 region of one photograph (``index``, else drawn among
-        those that cover it): shown at a scale drawn log-uniformly between the smallest that
-        covers the region and 1 (never enlarged), a random position, a random mirror image.
+        those that cover it): shown at a scale drawn log-uniformly in [1/4, 3/4], or the
+        smallest that covers the region where that is larger (never above 1: never enlarged),
+        at a random position, maybe mirrored.
 
         Raises :class:`ParameterError` when no photograph covers the region (see
         :meth:`texture`, which tiles then).
@@ -150,9 +151,11 @@ class PhotoLibrary:
         low = max(height / photo.shape[0], width / photo.shape[1])
         if low > 1.0:
             raise ParameterError(f"{self.paths[index]} does not cover {width}x{height} px")
-        # denser detail than the original is as real as the original: down to a quarter
-        scale = float(np.exp(rng.uniform(np.log(max(low, 0.25)), 0.0))) if low < 1 else 1.0
-        scale = max(scale, low)
+        # shown at 1/4 to 3/4 of its size unless it must be larger to cover the region: denser
+        # detail is as real as the original's, and a JPEG's 8-px blocks are resampled away
+        low_scale, high_scale = max(low, 0.25), max(low, 0.75)
+        scale = float(np.exp(rng.uniform(np.log(low_scale), np.log(high_scale))))
+        scale = min(max(scale, low), 1.0)
         if scale < 1.0:
             size = (max(width, round(photo.shape[1] * scale)),
                     max(height, round(photo.shape[0] * scale)))

@@ -285,9 +285,9 @@ def _photographic_world(
     areas = np.bincount(labels.ravel()) / labels.size
     movable = np.flatnonzero((areas >= 0.004) & (areas <= 0.35))
     count = int(rng.integers(0, min(len(movable), 12) + 1))
-    for k in rng.permutation(movable)[:count]:
-        d = subject * float(np.exp(rng.uniform(np.log(0.6), np.log(far / subject))))
-        depth[labels == k] = d
+    for k in rng.permutation(movable)[:count]:  # most behind the subject, as in photographs
+        low, high = (0.6, 0.95) if rng.uniform() < 0.2 else (1.05, far / subject)
+        depth[labels == k] = subject * float(np.exp(rng.uniform(np.log(low), np.log(high))))
 
     def texture(size: int) -> np.ndarray:
         if rng.uniform() < 0.25 or not len(library.covering(size, size)):

@@ -7,7 +7,9 @@ linear_to_raw`). A user's raw views reach the model through ``--encoding linear`
 level, sRGB-encoded). The training setting ``raw_views`` says which of the two a model is trained
 on: ``"stored"`` (the values as the files hold them, read as display values: how the shipped
 recipes trained) or ``"model"`` (each crop's views and target through ``to_model``, white level
-at full scale, so the loss is taken on what the model gives a user of the linear mode).
+at full scale, at the exposure the linear mode would give the crop (:meth:`~dualpixel.inference.
+encoding.ViewEncoding.exposed`), so the loss is taken on what the model gives a user of the
+linear mode).
 """
 
 from __future__ import annotations
@@ -63,7 +65,8 @@ class RawViewsAsModel:
         black = self.black_level(sequence)
         if black is None:
             return images
-        encoding = ViewEncoding("linear", black, 1.0)
+        # the crop's views at the exposure the linear mode gives them (the target alike)
+        encoding = ViewEncoding("linear", black, 1.0).exposed(images["left"], images["right"])
         out = dict(images)
         out["left"], out["right"] = to_model(images["left"], images["right"], encoding)
         if "target" in images:

@@ -6,9 +6,10 @@ with phases inside it) holds:
 - ``name``, ``description``;
 - ``data``: steps run in order, each ``{name, scenes: {...}}`` (:class:`SceneConfig` keys plus
   ``sequences``, ``seed`` and, for the photographic layout, ``photos``, a folder of photographs
-  relative to the working directory, and ``skip_bad``) or ``{name, synth: {...}}`` (:class:`SynthConfig` keys plus
-  ``input``, a step's name or a folder, and ``format``; ``camera`` is a shipped camera's name
-  (:mod:`dualpixel.cameras`) or a camera file, relative to the recipe). Step NAME writes
+  relative to the working directory, and ``skip_bad``) or ``{name, synth: {...}}``
+  (:class:`SynthConfig` keys plus ``input``, a step's name or a folder, and ``format``;
+  ``camera`` is a shipped camera's name (:mod:`dualpixel.cameras`) or a camera file, relative
+  to the recipe). Step NAME writes
   ``OUTPUT/data/NAME``;
 - ``train``: :class:`TrainConfig` keys shared by every phase (``architecture: rdpd-light``, a
   name of :data:`~dualpixel.models.spec.ARCHITECTURES`, stands for its model, width, residual
