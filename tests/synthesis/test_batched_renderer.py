@@ -1,0 +1,100 @@
+"""The batched renderer: the default renderer's layers and compositing, many frames at once."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from dualpixel.errors import ParameterError
+from dualpixel.optics.psf import PSFParams
+from dualpixel.optics.thin_lens import CAMERA_PRESETS, coc_radius
+from dualpixel.synthesis.batched_renderer import crop_margin, render_batch
+from dualpixel.synthesis.layers import quantise_layers
+from dualpixel.synthesis.renderer import render_dp_views
+from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
+
+
+def _psnr(a: torch.Tensor, b: torch.Tensor) -> float:
+    return float(10 * torch.log10(1 / ((a - b) ** 2).mean().clamp_min(1e-20)))
+
+
+@pytest.fixture(scope="module")
+def frames():
+    """Three 320x224 dead-leaves frames with their depth (m)."""
+    config = SceneConfig(width=320, height=224, frames=1, leaves=20)
+    out = [render_scene_sequence(seed, config)[0] for seed in range(3)]
+    images = torch.stack([torch.from_numpy(rgb).permute(2, 0, 1) for rgb, _ in out])
+    depths = torch.stack([torch.from_numpy(depth) for _, depth in out])
+    return images, depths
+
+
+@pytest.mark.parametrize("name", ["set0", "set1", "set2", "set3", "set4"])
+def test_batch_is_the_default_renderer_and_near_exact(frames, name):
+    images, depths = frames
+    coc = coc_radius(depths, CAMERA_PRESETS[name])
+    left, right = render_batch(images[:2], coc[:2])
+    assert left.shape == right.shape == images[:2].shape
+    for b in range(2):
+        fast = render_dp_views(images[b], coc[b])
+        exact = render_dp_views(images[b], coc[b], mode="exact")
+        assert _psnr(left[b], fast[0]) > 90 and _psnr(right[b], fast[1]) > 90
+        for mine, default, reference in (
+                (left[b], fast[0], exact[0]), (right[b], fast[1], exact[1]),
+                ((left[b] + right[b]) / 2, (fast[0] + fast[1]) / 2, (exact[0] + exact[1]) / 2)):
+            assert _psnr(mine, reference) >= max(45.0, _psnr(default, reference) - 0.05), name
+
+
+def test_each_frame_keeps_its_own_psf_and_model(frames):
+    images, depths = frames
+    coc = coc_radius(depths, CAMERA_PRESETS["set2"])
+    params = [PSFParams(), PSFParams(n=6.0, alpha=0.3), None]
+    models = ["ours", "ours", "gaussian"]
+    left, right = render_batch(images, coc, params, model=models)
+    for b in range(3):
+        alone = render_dp_views(images[b], coc[b], params[b], model=models[b])
+        assert _psnr(left[b], alone[0]) > 90 and _psnr(right[b], alone[1]) > 90
+    # the frames differ by their PSFs: the gaussian frame is not the "ours" render
+    ours = render_dp_views(images[2], coc[2])
+    assert _psnr(left[2], ours[0]) < 60
+
+
+def test_a_crop_with_its_margin_is_that_region_of_the_whole_frame(frames):
+    images, depths = frames
+    coc = coc_radius(depths[0], CAMERA_PRESETS["set1"])  # up to ~20 px of blur
+    whole_left, whole_right = render_batch(images[:1], coc[None])
+    labels, layer_coc = quantise_layers(coc, 500, mode="fast")
+    margin = crop_margin(float(coc.abs().max()))
+    assert margin % 16 == 0
+    y0, x0, size = 16, 32, 48  # the crop's origin on the 16-px grid, its context clipped
+    top, left_edge = max(y0 - margin, 0), max(x0 - margin, 0)
+    bottom, right_edge = min(y0 + size + margin, 224), min(x0 + size + margin, 320)
+    region = (slice(top, bottom), slice(left_edge, right_edge))
+    crop_left, crop_right = render_batch(
+        images[:1, :, region[0], region[1]], coc[None, region[0], region[1]],
+        layers=[(labels[region], layer_coc)])
+    inner = (slice(y0 - top, y0 - top + size), slice(x0 - left_edge, x0 - left_edge + size))
+    for crop, whole in ((crop_left, whole_left), (crop_right, whole_right)):
+        torch.testing.assert_close(crop[0][:, inner[0], inner[1]],
+                                   whole[0][:, y0:y0 + size, x0:x0 + size], atol=2e-5, rtol=0)
+
+
+def test_deterministic_and_in_double_precision(frames):
+    images, depths = frames[0][:1], frames[1][:1]
+    coc = coc_radius(depths, CAMERA_PRESETS["set1"])
+    first = render_batch(images, coc)
+    again = render_batch(images, coc)
+    assert all(torch.equal(a, b) for a, b in zip(first, again))
+    double = render_batch(images.double(), coc.double())
+    assert double[0].dtype == torch.float64
+    assert _psnr(double[0].float(), first[0]) > 90
+
+
+def test_bad_batches_are_refused(frames):
+    images, depths = frames
+    coc = coc_radius(depths, CAMERA_PRESETS["set0"])
+    with pytest.raises(ParameterError, match=r"\(B, C, H, W\)"):
+        render_batch(images[0], coc[0])
+    with pytest.raises(ParameterError, match="one entry per frame"):
+        render_batch(images, coc, [PSFParams()])
+    with pytest.raises(ParameterError, match="floating point"):
+        render_batch((images * 255).to(torch.uint8), coc)
