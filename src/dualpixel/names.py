@@ -6,7 +6,7 @@ from __future__ import annotations
 __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS",
            "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "MAX_SEQUENCES", "OVERSHOOT_MODES",
            "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RAW_VIEWS",
-           "RENAMED", "RENAMED_UNTIL", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES",
+           "RENAMED", "RENAMED_UNTIL", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES", "SYNTH_SOURCES",
            "output_modes_suffix", "renamed_keys", "warn_renamed"]
 
 #: Registrations of an output to its target before scoring
@@ -25,6 +25,9 @@ LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")
 #: Named synthesis settings (:data:`dualpixel.synthesis.dataset.SYNTH_SETTINGS`): what the
 #: shipped default model was trained on, or the paper's.
 SYNTH_SETTINGS_NAMES: tuple[str, ...] = ("shipped", "paper")
+#: Where a synth step's frames come from: written once (``synth``), or rendered as training
+#: draws them (:mod:`dualpixel.data.on_the_fly`; validation stays on written frames).
+SYNTH_SOURCES: tuple[str, ...] = ("written", "on-the-fly")
 #: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`): "photographic" covers
 #: the frame with real photographs (``scenes --photos DIR``).
 SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo", "photographic")

@@ -229,7 +229,7 @@ def test_auto_exposure_hands_the_network_one_view_whatever_the_exposure(raw_pair
         views = [v[..., None].astype(np.float32) for v in views]
         encoding = ViewEncoding("linear", BLACK, WHITE).exposed(*views, scale=65535)
         assert encoding.light_gain > 1.0
-        model_left, model_right = to_model(*views, encoding, scale=65535)
+        model_left, _ = to_model(*views, encoding, scale=65535)
         seen.append(model_left)
         out = from_model(model_left, encoding, 1, scale=65535)  # an identity network
         np.testing.assert_allclose(out, views[0], atol=1e-5)

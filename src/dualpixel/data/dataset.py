@@ -25,7 +25,8 @@ from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
 from dualpixel.filters import gradient_magnitude, sharpness
 
-__all__ = ["DPPatchDataset", "PatchConfig", "flip_horizontal", "gradient_magnitude", "sharpness"]
+__all__ = ["ConcatPatches", "DPPatchDataset", "PatchConfig", "flip_horizontal",
+           "gradient_magnitude", "sharpness"]
 
 
 @dataclass(frozen=True)
@@ -96,12 +97,18 @@ class DPPatchDataset(Dataset):
             self._cache[frame] = compact_frame(images)
         return images
 
+    def _frames(self, index: int, start: int, rng: np.random.Generator
+                ) -> list[dict[str, np.ndarray]]:
+        """Frames ``start ..`` of sequence ``index`` (``config.frames`` of them), read."""
+        return [self._load(f) for f in self.sequences[index].frames[start:
+                                                                    start + self.config.frames]]
+
     def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
         index, seed = key if isinstance(key, tuple) else (key, index_seed(key))
         rng = np.random.default_rng(seed)
         sequence = self.sequences[index]
         start = int(rng.integers(len(sequence.frames) - self.config.frames + 1))
-        frames = [self._load(f) for f in sequence.frames[start : start + self.config.frames]]
+        frames = self._frames(index, start, rng)
         size = self.config.patch_size
         height, width = sequence.height, sequence.width
         top = left = 0
@@ -130,6 +137,25 @@ class DPPatchDataset(Dataset):
             if rng.random() < 0.5:
                 item = {k: v.flip(-2) for k, v in item.items()}
         return item
+
+
+class ConcatPatches(Dataset):
+    """Several patch datasets as one, indexed in order (``(index, seed)`` keys, as
+    :class:`DPPatchDataset` takes them): the same indices as one dataset of all their sequences."""
+
+    def __init__(self, parts: list[Dataset]):
+        if not parts:
+            raise ParameterError("no datasets to draw patches from")
+        self.parts = parts
+        self.starts = np.cumsum([0] + [len(part) for part in parts])
+
+    def __len__(self) -> int:
+        return int(self.starts[-1])
+
+    def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
+        index, seed = key if isinstance(key, tuple) else (key, index_seed(key))
+        part = int(np.searchsorted(self.starts, index, side="right")) - 1
+        return self.parts[part][(index - int(self.starts[part]), seed)]
 
 
 def index_seed(index: int) -> int:

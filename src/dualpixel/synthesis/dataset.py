@@ -82,8 +82,8 @@ from dualpixel.synthesis.inputs import (
 )
 from dualpixel.synthesis.layers import check_render_mode
 
-__all__ = ["SYNTH_SETTINGS", "SynthConfig", "merge_shards", "read_manifest", "synthesis_settings",
-           "synthesize_dataset"]
+__all__ = ["SYNTH_SETTINGS", "SynthConfig", "merge_shards", "plan_jobs", "read_manifest",
+           "render_job", "synthesis_settings", "synthesize_dataset"]
 
 @dataclass(frozen=True)
 class SynthConfig:
@@ -326,20 +326,14 @@ def _quantise(image: torch.Tensor, bit_depth: int) -> np.ndarray:
     return quantise(image.permute(1, 2, 0).cpu().numpy(), bit_depth)
 
 
-def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
-            device: str = "cpu", png_compression: int | None = None) -> dict:
-    """Synthesise and write one frame; return its manifest record."""
-    return _finish_job(*_start_job(job, root, fmt, config, device, png_compression))
-
-
-def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
-               device: str, png_compression: int | None
-               ) -> tuple[dict, list[concurrent.futures.Future]]:
-    """Render one frame and hand its files to the writer threads: (its record, the writes)."""
+def render_job(job: FrameJob, fmt: InputFormat, config: SynthConfig, device: str = "cpu"
+               ) -> dict[str, np.ndarray]:
+    """One frame as a dataset stores it: ``left``, ``right``, ``combined``, ``target`` as
+    ``config.bit_depth`` integers ``(H, W, 3)`` (``(H, W)`` grey) and ``defocus`` float32
+    ``(H, W)`` px: what ``synth`` writes, and what on-the-fly training crops are cut from."""
     rgb, depth = load_frame(job.frame, fmt, max_depth=config.max_depth,
                             depth_scale=config.depth_scale)
     result = synthesize_frame(rgb, depth, job.draw, noise_seed=job.noise_seed, device=device)
-    paths = job.paths(root)
     left = _quantise(result.left, config.bit_depth)
     right = _quantise(result.right, config.bit_depth)
     if job.draw.light == "linear":  # the views' light summed, then encoded
@@ -350,6 +344,23 @@ def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
     if config.grey:  # the green channel alone
         left, right, combined, target = (image[..., 1] for image in (left, right, combined,
                                                                      target))
+    return {"left": left, "right": right, "combined": combined, "target": target,
+            "defocus": result.defocus.cpu().numpy().astype(np.float32)}
+
+
+def run_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
+            device: str = "cpu", png_compression: int | None = None) -> dict:
+    """Synthesise and write one frame; return its manifest record."""
+    return _finish_job(*_start_job(job, root, fmt, config, device, png_compression))
+
+
+def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
+               device: str, png_compression: int | None
+               ) -> tuple[dict, list[concurrent.futures.Future]]:
+    """Render one frame and hand its files to the writer threads: (its record, the writes)."""
+    stored = render_job(job, fmt, config, device)
+    left, right, combined, target = (stored[k] for k in ("left", "right", "combined", "target"))
+    paths = job.paths(root)
     # The encoders release the GIL: the frame's files are written side by side, and all of them
     # are in place before its manifest line (the frame's commit) is returned.
     # The views are written fast (stored, level 0); the target, read again at every epoch's
@@ -360,7 +371,7 @@ def _start_job(job: FrameJob, root: Path, fmt: InputFormat, config: SynthConfig,
               for name, data, level in (("left", left, view_level), ("right", right, view_level),
                                         ("combined", combined, view_level),
                                         ("target", target, png_compression))]
-    save_npy(paths["defocus"], result.defocus.cpu().numpy().astype(np.float32))
+    save_npy(paths["defocus"], stored["defocus"])
     record = {
         "key": job.key,
         "input": {"rgb": str(job.frame.rgb), "depth": str(job.frame.depth)},

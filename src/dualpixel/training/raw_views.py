@@ -25,7 +25,8 @@ from dualpixel.inference.encoding import ViewEncoding, to_model
 from dualpixel.io.documents import read_mapping
 from dualpixel.names import RAW_VIEWS
 
-__all__ = ["RAW_VIEWS", "RawViewsAsModel", "raw_views_transform", "stored_black_level"]
+__all__ = ["RAW_VIEWS", "RawViewsAsModel", "StoredRawViews", "as_model", "raw_views_transform",
+           "stored_black_level"]
 
 
 def stored_black_level(root: str | Path) -> float | None:
@@ -63,15 +64,31 @@ class RawViewsAsModel:
         """``images`` ``{left, right[, target]}`` ``(h, w, 3)`` stored values in [0, 1] as the
         model takes them (display values), for a raw-stored sequence; others unchanged."""
         black = self.black_level(sequence)
-        if black is None:
-            return images
-        # the crop's views at the exposure the linear mode gives them (the target alike)
-        encoding = ViewEncoding("linear", black, 1.0).exposed(images["left"], images["right"])
-        out = dict(images)
-        out["left"], out["right"] = to_model(images["left"], images["right"], encoding)
-        if "target" in images:
-            out["target"] = to_model(images["target"], images["target"], encoding)[0]
-        return out
+        return images if black is None else as_model(images, black)
+
+
+@dataclass(frozen=True)
+class StoredRawViews:
+    """The ``raw_views: model`` transform of a source whose every sequence is raw-stored with
+    ``black`` (a fraction of full scale): an on-the-fly source of ``encoding: linear``."""
+
+    black: float
+
+    def __call__(self, sequence: DPSequence,
+                 images: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return as_model(images, self.black)
+
+
+def as_model(images: dict[str, np.ndarray], black: float) -> dict[str, np.ndarray]:
+    """Raw-stored ``images`` ``{left, right[, target]}`` ``(h, w, 3)`` (black level ``black``,
+    white level full scale) as the linear mode hands them to the model: at the exposure it gives
+    the views (:meth:`~dualpixel.inference.encoding.ViewEncoding.exposed`), the target alike."""
+    encoding = ViewEncoding("linear", black, 1.0).exposed(images["left"], images["right"])
+    out = dict(images)
+    out["left"], out["right"] = to_model(images["left"], images["right"], encoding)
+    if "target" in images:
+        out["target"] = to_model(images["target"], images["target"], encoding)[0]
+    return out
 
 
 def raw_views_transform(roots: str | list[str] | None, raw_views: str) -> RawViewsAsModel | None:

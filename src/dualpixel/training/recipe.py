@@ -7,9 +7,10 @@ with phases inside it) holds:
 - ``data``: steps run in order, each ``{name, scenes: {...}}`` (:class:`SceneConfig` keys plus
   ``sequences``, ``seed`` and, for the photographic layout, ``photos``, a folder of photographs
   relative to the working directory, and ``skip_bad``) or ``{name, synth: {...}}``
-  (:class:`SynthConfig` keys plus ``input``, a step's name or a folder, and ``format``;
-  ``camera`` is a shipped camera's name (:mod:`dualpixel.cameras`) or a camera file, relative
-  to the recipe). Step NAME writes
+  (:class:`SynthConfig` keys plus ``input``, a step's name or a folder, ``format`` and
+  ``source``: ``written`` frames, or ``on-the-fly``, a source whose training crops are rendered
+  as they are drawn, :mod:`dualpixel.data.on_the_fly`; ``camera`` is a shipped camera's name
+  (:mod:`dualpixel.cameras`) or a camera file, relative to the recipe). Step NAME writes
   ``OUTPUT/data/NAME``;
 - ``train``: :class:`TrainConfig` keys shared by every phase (``architecture: rdpd-light``, a
   name of :data:`~dualpixel.models.spec.ARCHITECTURES`, stands for its model, width, residual
@@ -57,7 +58,7 @@ from typing import Any
 from dualpixel.errors import InputFileError, ParameterError, check_seed
 from dualpixel.io.documents import read_mapping
 from dualpixel.io.paths import check_plain_name
-from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES, renamed_keys
+from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES, SYNTH_SOURCES, renamed_keys
 from dualpixel.training.config import MACHINE_KEYS
 
 __all__ = ["MACHINE_SETTINGS", "OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe",
@@ -380,6 +381,9 @@ def synth_config(recipe: Recipe, step: DataStep, output: Path):
         raise ParameterError("needs input (a data step's name or a folder)")
     source = _data_folder(recipe, output, args.pop("input"))
     fmt = args.pop("format", "rgbd")
+    if args.pop("source", "written") not in SYNTH_SOURCES:
+        raise ParameterError(f"source must be one of {', '.join(SYNTH_SOURCES)}, got "
+                             f"{step.args['source']!r}")
     args = renamed_keys(args, f"{recipe.path}: data step {step.name}")
     if "camera" in args:
         camera = str(args["camera"])  # a shipped camera's name, or a file beside the recipe
@@ -535,6 +539,10 @@ def plan_text(recipe: Recipe, output: Path, until: str | None = None) -> str:
 
 
 def _step_state(folder: Path) -> str:
+    from dualpixel.data.on_the_fly import is_on_the_fly
+
+    if is_on_the_fly(folder):
+        return "done"
     for name in ("dataset.json", "scenes.json"):
         path = folder / name
         if path.is_file():
@@ -609,6 +617,7 @@ def _elapsed(started: float) -> str:
 def run_data(recipe: Recipe, output: Path, *, workers: int = 1, progress: bool = True,
              log=print) -> None:
     """Every data step (each resumes; a finished one is checked and skipped)."""
+    from dualpixel.data.on_the_fly import write_on_the_fly
     from dualpixel.synthesis.dataset import synthesize_dataset
     from dualpixel.synthesis.scenes import write_scene_folder
 
@@ -620,6 +629,9 @@ def run_data(recipe: Recipe, output: Path, *, workers: int = 1, progress: bool =
             config, sequences, seed, photos = scene_config(step)
             write_scene_folder(folder, sequences, config, seed=seed, workers=workers,
                                progress=progress, photos=photos)
+        elif step.args.get("source") == "on-the-fly":  # the recipe of its frames, no frames
+            config, source, fmt = synth_config(recipe, step, output)
+            write_on_the_fly(folder, source, fmt, config)
         else:
             config, source, fmt = synth_config(recipe, step, output)
             summary = synthesize_dataset(source, fmt, folder, config, workers=workers,

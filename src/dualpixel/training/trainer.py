@@ -99,18 +99,39 @@ def _data_kinds(config: TrainConfig) -> list[DataKind]:
             config.real_batch,
         ))
     if config.synthetic_data is not None:
-        sequences = _discover(config.synthetic_data, config.synthetic_split)
         frames = 1 if config.synthetic_as_frames else config.sequence_frames
         as_frames = config.synthetic_as_frames
         batch = config.sequence_batch * (config.sequence_frames if as_frames else 1)
-        transform = raw_views_transform(config.synthetic_data, config.raw_views)
-        kinds.append(DataKind(
-            "synthetic",
-            DPPatchDataset(sequences, PatchConfig(frames=frames, **common), **stored,
-                           transform=transform),
-            batch,
-        ))
+        patches = PatchConfig(frames=frames, **common)
+        kinds.append(DataKind("synthetic", _synthetic_dataset(config, patches, stored), batch))
     return kinds
+
+
+def _synthetic_dataset(config: TrainConfig, patches: PatchConfig, stored: dict[str, Any]):
+    """The synthetic data: written datasets read, on-the-fly sources rendered
+    (:mod:`dualpixel.data.on_the_fly`), in the order ``synthetic_data`` names them."""
+    from dualpixel.data.dataset import ConcatPatches
+    from dualpixel.data.on_the_fly import OnTheFlyDataset, is_on_the_fly
+    from dualpixel.training.raw_views import StoredRawViews
+
+    folders = ([config.synthetic_data] if isinstance(config.synthetic_data, str)
+               else list(config.synthetic_data))
+    if not any(is_on_the_fly(folder) for folder in folders):
+        sequences = _discover(folders, config.synthetic_split)
+        transform = raw_views_transform(folders, config.raw_views)
+        return DPPatchDataset(sequences, patches, **stored, transform=transform)
+    parts = []
+    for folder in folders:
+        if is_on_the_fly(folder):
+            part = OnTheFlyDataset(folder, patches)
+            if config.raw_views == "model" and part.raw_black_level is not None:
+                part.transform = StoredRawViews(part.raw_black_level)
+        else:
+            part = DPPatchDataset(discover_dp_dataset(folder, config.synthetic_split), patches,
+                                  **stored, transform=raw_views_transform(folder,
+                                                                          config.raw_views))
+        parts.append(part)
+    return ConcatPatches(parts)
 
 
 def _epoch_batches(
@@ -380,6 +401,13 @@ class Trainer:
         self.kinds = _data_kinds(config)
         self.val_sequences = None
         if config.val_data is not None:
+            from dualpixel.data.on_the_fly import is_on_the_fly
+
+            named = config.val_data
+            for folder in [named] if isinstance(named, str) else named:
+                if is_on_the_fly(folder):
+                    raise ParameterError(f"val_data {folder} is an on-the-fly source; validate "
+                                         "on frames written once (a synth folder)")
             self.val_sequences = _discover(config.val_data, config.val_split)[: config.val_limit]
         self.val_transform = raw_views_transform(config.val_data, config.raw_views)
         self.real_val_sequences = _real_validation(config.real_val_data)

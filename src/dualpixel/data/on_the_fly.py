@@ -1,0 +1,195 @@
+"""Training crops rendered on the fly from RGB-D scenes, instead of read from a written dataset.
+
+A written dataset (``dualpixel synth``) fixes each frame's camera, PSF shape, noise and
+exposure once, when it is written. An on-the-fly source keeps only the recipe: its folder holds
+:data:`ON_THE_FLY_FILE` (the scenes folder, its format and the :class:`~dualpixel.synthesis.
+dataset.SynthConfig`), and every training sample draws its own lens set, focus, PSF shape,
+distortion, noise and raw exposure from that config, with the seed the sampler hands it, as
+``synth`` draws them per sequence (:func:`~dualpixel.synthesis.dataset.plan_jobs`), renders the
+frame exactly as ``synth`` stores it (:func:`~dualpixel.synthesis.dataset.render_job`: the same
+quantisation, grey channel and combined image) and cuts the crop from it as
+:class:`~dualpixel.data.dataset.DPPatchDataset` cuts crops from files. So a crop equals the
+same region of a written frame with the same draw, and the samples follow the written
+dataset's distributions; only the files are gone.
+
+Training names such a folder wherever it names a dataset (``synthetic_data``; a recipe's synth
+step with ``source: on-the-fly``); validation stays on datasets written once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dualpixel.data.dataset import DPPatchDataset, PatchConfig
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.atomic import atomic_path
+
+__all__ = ["ON_THE_FLY_FILE", "OnTheFlyDataset", "is_on_the_fly", "write_on_the_fly",
+           "write_samples"]
+
+#: The file that makes a folder an on-the-fly source.
+ON_THE_FLY_FILE = "on-the-fly.json"
+
+
+def is_on_the_fly(folder: str | Path) -> bool:
+    """Whether ``folder`` is an on-the-fly source (holds :data:`ON_THE_FLY_FILE`)."""
+    return (Path(folder) / ON_THE_FLY_FILE).is_file()
+
+
+def write_on_the_fly(folder: str | Path, input_dir: str | Path, fmt: str, config) -> Path:
+    """Make ``folder`` an on-the-fly source of ``input_dir`` (RGB-D scenes in ``fmt``) under
+    ``config`` (:class:`~dualpixel.synthesis.dataset.SynthConfig`): every scene is checked
+    first (depth present, finite and positive; sizes), so a bad one is named before any
+    training. Written atomically; returns the descriptor's path."""
+    source = _Source(str(Path(input_dir).resolve()), fmt, config)
+    source.check()
+    root = Path(folder)
+    root.mkdir(parents=True, exist_ok=True)
+    path = root / ON_THE_FLY_FILE
+    record = {"input": source.input, "format": fmt, "config": config.as_dict()}
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(record, indent=2, sort_keys=True) + "\n")
+    return path
+
+
+@dataclass(frozen=True)
+class _Source:
+    input: str
+    fmt: str
+    config: object  # SynthConfig
+
+    @classmethod
+    def read(cls, folder: str | Path) -> _Source:
+        from dualpixel.io.documents import read_mapping
+        from dualpixel.synthesis.dataset import SynthConfig
+
+        path = Path(folder) / ON_THE_FLY_FILE
+        record = read_mapping(path, "on-the-fly source", syntax="json")
+        try:
+            return cls(str(record["input"]), str(record["format"]),
+                       SynthConfig(**record["config"]))
+        except (KeyError, TypeError, ParameterError) as error:
+            raise InputFileError(path, f"not an on-the-fly source description ({error})") from None
+
+    def sequences(self):
+        from dualpixel.synthesis.inputs import discover_sequences
+
+        return discover_sequences(self.input, self.fmt, split=self.config.split)
+
+    def check(self) -> None:
+        """Every scene's depth read and checked, and its size matched to its RGB."""
+        from dualpixel.io.images import image_size
+        from dualpixel.synthesis.inputs import load_depth
+
+        for sequence in self.sequences():
+            for frame in sequence.frames:
+                depth = load_depth(frame, self.fmt, max_depth=self.config.max_depth,
+                                   depth_scale=self.config.depth_scale)
+                if not np.isfinite(depth).all() or (depth <= 0).any():
+                    raise InputFileError(frame.depth, "depth must be finite and > 0 everywhere")
+                if image_size(frame.rgb) != depth.shape:
+                    raise InputFileError(frame.depth, f"depth is {depth.shape[1]}x"
+                                                      f"{depth.shape[0]}, unlike {frame.rgb}")
+
+
+@dataclass(frozen=True)
+class _Sequence:
+    """What :class:`DPPatchDataset` needs of a sequence, for one scene and lens set."""
+
+    name: str
+    height: int
+    width: int
+    frames: tuple
+    scene: int
+    lens_set: int
+
+
+class OnTheFlyDataset(DPPatchDataset):
+    """Crops of frames rendered on the fly (see the module's text): ``(index, seed)`` items as
+    :class:`DPPatchDataset` gives, one index per scene and lens set, the draw from the seed.
+    ``transform`` as for :class:`DPPatchDataset`.
+
+    Rendering runs where the item is made: in the DataLoader's worker processes (CPU).
+    """
+
+    def __init__(self, folder: str | Path, config: PatchConfig, *, transform=None):
+        from dualpixel.io.images import image_size
+
+        self.source = _Source.read(folder)
+        self.scenes = self.source.sequences()
+        lens_sets = self.source.config.lens_sets
+        sequences = []
+        for s, scene in enumerate(self.scenes):
+            height, width = image_size(scene.frames[0].rgb)
+            for c, lens_set in enumerate(lens_sets):
+                sequences.append(_Sequence(f"{scene.name}/{lens_set}", height, width,
+                                           scene.frames, s, c))
+        super().__init__(sequences, config, transform=transform)
+
+    @property
+    def raw_black_level(self) -> float | None:
+        """The black level (of full scale) its frames are stored above, None for display
+        values (see :mod:`dualpixel.training.raw_views`)."""
+        config = self.source.config
+        return float(config.black_level) if config.encoding == "linear" else None
+
+    def job(self, index: int, seed: int, frame: int):
+        """The frame job of sequence ``index``'s frame ``frame`` under the draw of ``seed``:
+        ``synth``'s own plan for that scene and lens set, with ``seed`` as its seed."""
+        from dualpixel.synthesis.dataset import plan_jobs
+
+        sequence = self.sequences[index]
+        config = dataclasses.replace(self.source.config, seed=int(seed) % 2**31,
+                                     lens_sets=(self.source.config.lens_sets[sequence.lens_set],))
+        return plan_jobs([self.scenes[sequence.scene]], config, self.source.fmt)[frame]
+
+    def _frames(self, index: int, start: int, rng: np.random.Generator
+                ) -> list[dict[str, np.ndarray]]:
+        seed = int(rng.integers(2**62))
+        return [self._frames_of_job(self.job(index, seed, k))
+                for k in range(start, start + self.config.frames)]
+
+    def _frames_of_job(self, job) -> dict[str, np.ndarray]:
+        """One job's frame as :func:`~dualpixel.data.layout.read_frame` reads it from the files
+        ``synth`` would write: ``left``, ``right``, ``target`` float32 ``(H, W, 3)``."""
+        from dualpixel.synthesis.dataset import render_job
+
+        stored = render_job(job, self.source.fmt, self.source.config)
+        return {key: _as_read(stored[key], self.source.config.bit_depth)
+                for key in ("left", "right", "target")}
+
+
+def _as_read(image: np.ndarray, bit_depth: int) -> np.ndarray:
+    """Stored integers as :func:`~dualpixel.io.images.read_rgb` returns the file written from
+    them: float32 ``(H, W, 3)`` in [0, 1], grey copied to the three channels."""
+    scale = 65535.0 if bit_depth == 16 else 255.0
+    values = image.astype(np.float32) / scale
+    if values.ndim == 2:
+        values = np.repeat(values[:, :, None], 3, axis=2)
+    return values
+
+
+def write_samples(dataset: OnTheFlyDataset, output: str | Path, count: int, *,
+                  seed: int = 0) -> Path:
+    """``count`` whole frames of ``dataset``, each with its own draw, written in the DPDD layout
+    (split ``train``) for ``dualpixel stats``: what the source trains on, made visible."""
+    from dualpixel.io.images import write_png
+    from dualpixel.synthesis.dataset import render_job
+
+    root = Path(output)
+    rng = np.random.default_rng(seed)
+    bits = dataset.source.config.bit_depth
+    for n in range(count):
+        index = int(rng.integers(len(dataset)))
+        job = dataset.job(index, int(rng.integers(2**62)), 0)
+        stored = render_job(job, dataset.source.fmt, dataset.source.config)
+        for role, folder in (("left", "train_l/source"), ("right", "train_r/source"),
+                             ("combined", "train_c/source"), ("target", "train_c/target")):
+            write_png(root / folder / f"seq_{n:03d}" / "frame_0000.png", stored[role],
+                      bit_depth=bits)
+    return root

@@ -1,0 +1,170 @@
+"""On-the-fly training crops: rendered as written datasets are, drawn per sample, trained on."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from scipy.stats import ks_2samp
+
+from dualpixel.data.dataset import PatchConfig
+from dualpixel.data.on_the_fly import (
+    ON_THE_FLY_FILE,
+    OnTheFlyDataset,
+    write_on_the_fly,
+    write_samples,
+)
+from dualpixel.data.statistics import dataset_statistics
+from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.io.images import read_rgb
+from dualpixel.models import load_model
+from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
+from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
+from dualpixel.training import load_config, train
+
+SETTINGS = dict(lens_sets=("dslr-840",), psf_bank="pixel4", noise_model="poisson-gaussian",
+                noise_sigmas=(0.006, 0.012, 0.025), bit_depth=8, distortion=True, seed=5)
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory) -> Path:
+    """16 one-frame photo scenes of 192x128 px."""
+    root = tmp_path_factory.mktemp("otf") / "scenes"
+    write_scene_folder(root, 16, SceneConfig(width=192, height=128, frames=1, layout="photo"),
+                       seed=2, progress=False)
+    return root
+
+
+@pytest.fixture(scope="module")
+def source(scenes) -> Path:
+    folder = scenes.parent / "source"
+    write_on_the_fly(folder, scenes, "rgbd", SynthConfig(**SETTINGS))
+    return folder
+
+
+def test_a_crop_is_the_region_of_the_frame_synth_writes_with_that_draw(scenes, source):
+    written = scenes.parent / "written"
+    synthesize_dataset(scenes, "rgbd", written, SynthConfig(**SETTINGS), workers=1,
+                       progress=False)
+    dataset = OnTheFlyDataset(source, PatchConfig(patch_size=None, flips=False))
+    frame = dataset._frames_of_job(dataset.job(0, SETTINGS["seed"], 0))
+    for role, folder in (("left", "train_l/source"), ("right", "train_r/source"),
+                         ("target", "train_c/target")):
+        on_disk = read_rgb(written / folder / "seq_001" / "frame_0000.png")
+        np.testing.assert_array_equal(frame[role], on_disk)
+
+
+def test_items_are_fixed_by_their_seed_and_differ_between_seeds(source):
+    dataset = OnTheFlyDataset(source, PatchConfig(patch_size=64))
+    assert len(dataset) == 16  # scenes x lens sets
+    a, b = dataset[(3, 11)], dataset[(3, 11)]
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert set(a) == {"left", "right", "target", "radial"} and a["left"].shape == (1, 3, 64, 64)
+    draws = {json.dumps(dataset.job(3, seed, 0).draw.describe(), sort_keys=True)
+             for seed in range(6)}
+    assert len(draws) == 6  # each sample its own camera, PSF shape, noise
+
+
+def _per_frame(root: Path) -> dict[str, np.ndarray]:
+    """Per frame (a frame's blocks share one draw, so frames are the independent samples):
+    median block blur and |disparity| (the measures of ``dualpixel stats``), noise, brightness."""
+    from dualpixel.data.layout import discover_any, read_frame
+    from dualpixel.data.statistics import frame_statistics
+
+    out: dict[str, list[float]] = {"blur": [], "disparity": [], "noise": [], "brightness": []}
+    for sequence in discover_any(root, "train"):
+        for paths in sequence.frames:
+            images = read_frame(paths)
+            stats = frame_statistics(images["left"], images["right"], images["target"], patch=32)
+            out["blur"].append(float(np.median(stats.blur)) if stats.blur.size else 0.0)
+            out["disparity"].append(float(np.median(np.abs(stats.disparity)))
+                                    if stats.disparity.size else 0.0)
+            out["noise"].append(stats.noise)
+            out["brightness"].append(float(images["left"].mean()))
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def test_samples_follow_the_written_datasets_distributions(scenes, source, tmp_path):
+    """The same settings written (another seed) and drawn on the fly: the same blur, disparity,
+    noise and brightness distributions (two-sample KS over frames, as ``dualpixel stats``
+    measures them); a dataset of other settings is told apart by the same test."""
+    written = tmp_path / "written"
+    synthesize_dataset(scenes, "rgbd", written, SynthConfig(**{**SETTINGS, "seed": 77}),
+                       workers=1, progress=False)
+    samples = write_samples(OnTheFlyDataset(source, PatchConfig(patch_size=None)),
+                            tmp_path / "samples", 32, seed=3)
+    other = tmp_path / "other"
+    synthesize_dataset(scenes, "rgbd", other, SynthConfig(**{
+        **SETTINGS, "lens_sets": ("dslr-1680-crop",), "noise_sigmas": (0.05,), "seed": 77}),
+        workers=1, progress=False)
+    mine, theirs, others = _per_frame(samples), _per_frame(written), _per_frame(other)
+    assert len(mine["noise"]) == 32 and len(theirs["noise"]) == 16
+    for key in mine:
+        assert ks_2samp(mine[key], theirs[key]).pvalue > 0.05, key
+    for key in ("noise", "disparity", "blur"):
+        assert ks_2samp(others[key], theirs[key]).pvalue < 0.01, key
+    summary = dataset_statistics(samples, split="train", patch=32).summary()
+    assert summary["frames"] == 32 and summary["noise_std"]["p50"] > 0
+
+
+def _config(source: Path, validation: Path, **changes):
+    data = source if isinstance(source, list) else str(source)
+    values = dict(model="rdpd", width=0.125, residual=True, synthetic_data=data,
+                  val_data=str(validation), val_split="train", val_limit=1, patch_size=32,
+                  sequence_batch=2, sequence_frames=1, epochs=2, iterations_per_epoch=2,
+                  workers=0, learning_rate=1e-3, lr_halve_every=1, tensorboard=False)
+    values.update(changes)
+    return load_config(None, values)
+
+
+def test_training_on_the_fly_is_fixed_by_its_seed_and_resumes(source, scenes, tmp_path):
+    validation = tmp_path / "val"
+    synthesize_dataset(scenes, "rgbd", validation, SynthConfig(**SETTINGS), workers=1,
+                       progress=False)
+    straight = train(_config(source, validation), tmp_path / "straight", progress=False)
+    train(_config(source, validation, workers=1), tmp_path / "again", progress=False)
+    train(_config(source, validation, epochs=1), tmp_path / "resumed", progress=False)
+    resumed = train(_config(source, validation), tmp_path / "resumed", resume=True,
+                    progress=False)
+    assert resumed.step == straight.step == 4
+    a = load_model(tmp_path / "straight" / "last.safetensors").state_dict()
+    for other in ("again", "resumed"):
+        b = load_model(tmp_path / other / "last.safetensors").state_dict()
+        for key in a:
+            torch.testing.assert_close(a[key], b[key], rtol=0, atol=0)
+    # written and on-the-fly data together, in the order given
+    mixed = train(_config([str(source), str(validation)], validation, epochs=1),
+                  tmp_path / "mixed", progress=False)
+    assert mixed.step == 2
+    with pytest.raises(ParameterError, match="on-the-fly source; validate"):
+        train(_config(source, source), tmp_path / "bad", progress=False)
+
+
+def test_bad_sources_are_named_before_any_work(scenes, tmp_path):
+    import shutil
+
+    broken = shutil.copytree(scenes, tmp_path / "broken")
+    depth = next(broken.rglob("*.npy"))
+    values = np.load(depth)
+    values[0, 0] = np.nan
+    np.save(depth, values)
+    with pytest.raises(InputFileError, match=r"\.npy.*NaN"):
+        write_on_the_fly(tmp_path / "s1", broken, "rgbd", SynthConfig(**SETTINGS))
+    values[0, 0] = -1.0
+    np.save(depth, values)
+    with pytest.raises(InputFileError, match=r"\.npy.*negative"):
+        write_on_the_fly(tmp_path / "s1", broken, "rgbd", SynthConfig(**SETTINGS))
+    no_depth = shutil.copytree(scenes, tmp_path / "nodepth")
+    shutil.rmtree(next(no_depth.glob("seq_*")) / "depth")
+    with pytest.raises(InputFileError, match="depth"):
+        write_on_the_fly(tmp_path / "s2", no_depth, "rgbd", SynthConfig(**SETTINGS))
+    with pytest.raises(ParameterError, match="nowhere"):
+        SynthConfig(**{**SETTINGS, "lens_sets": ("nowhere",)})
+    assert not (tmp_path / "s1" / ON_THE_FLY_FILE).exists()
+    good = tmp_path / "good"
+    write_on_the_fly(good, scenes, "rgbd", SynthConfig(**SETTINGS))
+    with pytest.raises(ParameterError, match="patch size 256 exceeds"):
+        OnTheFlyDataset(good, PatchConfig(patch_size=256))
