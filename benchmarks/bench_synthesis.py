@@ -26,6 +26,16 @@ without it installed a stand-in module that refuses to be used is put on their p
     .venv/bin/python benchmarks/bench_synthesis.py [--device cuda] [--sets set0,set4]
     .venv/bin/python benchmarks/bench_synthesis.py --end-to-end --sets set0,set4 \
         [--frames 3] [--authors-code CHECKOUT/synthetic_dp_defocus_blur_code]
+
+``--batched``: the batched renderer (:mod:`dualpixel.synthesis.batched_renderer`, many frames
+at once) against exact for every set (PSNR L / R / C, beside the default's) at the given size,
+and frames per second of the default (frame by frame) and the batched renderer (``--batch``
+frames per call) for set0 at 840x560 and 1920x1080. ``--training``: training iterations per
+second of rdpd-light (8 crops of 256 px) on a written dataset and on an on-the-fly source of
+the same settings (:mod:`dualpixel.data.on_the_fly`), CPU loader (``--loader-workers``).
+
+    .venv/bin/python benchmarks/bench_synthesis.py --batched [--device cuda] [--batch 8]
+    .venv/bin/python benchmarks/bench_synthesis.py --training [--loader-workers 0]
 """
 
 from __future__ import annotations
@@ -216,6 +226,90 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int,
                   f"{command_s / baseline_s:.3f} |{theirs}", flush=True)
 
 
+def batched(sets: list[str], width: int, height: int, device: str, batch: int,
+            repeat: int) -> None:
+    """Accuracy of the batched renderer against exact per set, and frames per second."""
+    from dualpixel.synthesis.batched_renderer import render_batch
+
+    frames = [render_scene_sequence(k, SceneConfig(width=width, height=height, frames=1,
+                                                   leaves=40))[0] for k in range(batch)]
+    images = torch.stack([torch.from_numpy(rgb).permute(2, 0, 1) for rgb, _ in frames])
+    depths = torch.stack([torch.from_numpy(depth) for _, depth in frames])
+    images, depths = images.to(device), depths.to(device)
+    params = PSFParams(n=6, alpha=0.6, beta=0.2)
+    print(f"frame {width}x{height} on {device}, torch threads {torch.get_num_threads()}")
+    print("| set | PSNR default vs exact L / R / C (dB) | PSNR batched vs exact L / R / C (dB) |")
+    print("|---|---|---|")
+    for name in sets:
+        coc = coc_radius(depths[0], CAMERA_PRESETS[name])
+        exact = render_dp_views(images[0], coc, params, mode="exact")
+        fast = render_dp_views(images[0], coc, params)
+        left, right = render_batch(images[:1], coc[None], params)
+        mine = (left[0], right[0])
+        cells = []
+        for views in (fast, mine):
+            cells.append(" / ".join(f"{v:.1f}" for v in (
+                psnr8(exact[0], views[0]), psnr8(exact[1], views[1]),
+                psnr8((exact[0] + exact[1]) / 2, (views[0] + views[1]) / 2))))
+        print(f"| {name} | {cells[0]} | {cells[1]} |", flush=True)
+    print(f"\n| set0 | default frames/s | batched frames/s ({batch} per call) | "
+          "batched / default |")
+    print("|---|---|---|---|")
+    for w, h in ((840, 560), (1920, 1080)):
+        scaled = torch.nn.functional.interpolate(images, size=(h, w), mode="bilinear")
+        depth = torch.nn.functional.interpolate(depths[:, None], size=(h, w))[:, 0]
+        coc = coc_radius(depth, CAMERA_PRESETS["set0"])
+        render_batch(scaled[:1, :, :64, :64], coc[:1, :64, :64], params)  # warm-up
+        def one_by_one(scaled=scaled, coc=coc):
+            return [render_dp_views(scaled[k], coc[k], params) for k in range(batch)]
+
+        def together(scaled=scaled, coc=coc):
+            return render_batch(scaled, coc, params)
+
+        _, t_fast, _ = median_timed(one_by_one, device, repeat)
+        _, t_batch, _ = median_timed(together, device, repeat)
+        print(f"| {w}x{h} | {batch / t_fast:.2f} | {batch / t_batch:.2f} | "
+              f"{t_fast / t_batch:.2f} |", flush=True)
+        if device.startswith("cuda"):
+            print(f"peak GPU memory {torch.cuda.max_memory_allocated() / 2**30:.2f} GiB")
+
+
+def training(iterations: int, loader_workers: int, device: str) -> None:
+    """Iterations per second of rdpd-light on written and on-the-fly data of one setting."""
+    from dualpixel.data.on_the_fly import write_on_the_fly
+    from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
+    from dualpixel.synthesis.scenes import write_scene_folder
+    from dualpixel.training import load_config, train
+
+    settings = SynthConfig(lens_sets=("dslr-840",), psf_bank="pixel4", bit_depth=8,
+                           noise_model="poisson-gaussian", noise_sigmas=(0.006, 0.025), seed=0)
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        write_scene_folder(root / "scenes", 8, SceneConfig(width=840, height=560, frames=1,
+                                                           layout="photo"), progress=False)
+        started = time.perf_counter()
+        synthesize_dataset(root / "scenes", "rgbd", root / "written", settings, workers=2,
+                           progress=False)
+        writing = time.perf_counter() - started
+        write_on_the_fly(root / "fly", root / "scenes", "rgbd", settings)
+        print(f"rdpd-light, 8 crops of 256 px, {iterations} iterations on {device}, "
+              f"{loader_workers} loader workers; writing the 8 frames took {writing:.1f} s")
+        print("| data | iterations/s |")
+        print("|---|---|")
+        for name in ("written", "fly"):
+            config = load_config(None, dict(
+                model="rdpd", width=0.5, residual=True, refiner=[32, 64, 128],
+                synthetic_data=str(root / name),
+                synthetic_as_frames=True, patch_size=256, sequence_batch=4, sequence_frames=2,
+                epochs=1, iterations_per_epoch=iterations, workers=loader_workers,
+                device=device, tensorboard=False, learning_rate=1e-4))
+            started = time.perf_counter()
+            result = train(config, root / f"run-{name}", progress=False)
+            seconds = result.history[-1]["seconds"]
+            print(f"| {name if name == 'written' else 'on the fly'} | "
+                  f"{iterations / seconds:.3f} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu")
@@ -232,7 +326,21 @@ def main() -> None:
     parser.add_argument("--authors-code", type=Path, default=None,
                         help="with --end-to-end: the authors' synthetic_dp_defocus_blur_code "
                              "folder, to time their generator on the same frames")
+    parser.add_argument("--batched", action="store_true",
+                        help="the batched renderer: accuracy and frames per second")
+    parser.add_argument("--batch", type=int, default=4, help="with --batched: frames per call")
+    parser.add_argument("--training", action="store_true",
+                        help="training iterations/s on written against on-the-fly data")
+    parser.add_argument("--iterations", type=int, default=6, help="with --training")
+    parser.add_argument("--loader-workers", type=int, default=0, help="with --training")
     args = parser.parse_args()
+    if args.batched:
+        batched(args.sets.split(","), args.width, args.height, args.device, args.batch,
+                args.repeat)
+        return
+    if args.training:
+        training(args.iterations, args.loader_workers, args.device)
+        return
     if args.end_to_end:
         end_to_end(args.sets.split(","), args.width, args.height, args.repeat, args.authors_code,
                    args.frames)
