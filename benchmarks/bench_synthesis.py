@@ -32,7 +32,7 @@ at once) against exact for every set (PSNR L / R / C, beside the default's) at t
 and frames per second of the default (frame by frame) and the batched renderer (``--batch``
 frames per call) for set0 at 840x560 and 1920x1080. ``--training``: training iterations per
 second of rdpd-light (8 crops of 256 px) on a written dataset and on an on-the-fly source of
-the same settings (:mod:`dualpixel.data.on_the_fly`), CPU loader (``--loader-workers``).
+the same settings (:mod:`dualpixel.synthesis.on_the_fly`), CPU loader (``--loader-workers``).
 
     .venv/bin/python benchmarks/bench_synthesis.py --batched [--device cuda] [--batch 8]
     .venv/bin/python benchmarks/bench_synthesis.py --training [--loader-workers 0]
@@ -276,8 +276,8 @@ def batched(sets: list[str], width: int, height: int, device: str, batch: int,
 
 def training(iterations: int, loader_workers: int, device: str) -> None:
     """Iterations per second of rdpd-light on written and on-the-fly data of one setting."""
-    from dualpixel.data.on_the_fly import write_on_the_fly
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
+    from dualpixel.synthesis.on_the_fly import write_on_the_fly
     from dualpixel.synthesis.scenes import write_scene_folder
     from dualpixel.training import load_config, train
 

@@ -26,7 +26,7 @@ LIGHT_SPACES: tuple[str, ...] = ("encoded", "linear")
 #: shipped default model was trained on, or the paper's.
 SYNTH_SETTINGS_NAMES: tuple[str, ...] = ("shipped", "paper")
 #: Where a synth step's frames come from: written once (``synth``), or rendered as training
-#: draws them (:mod:`dualpixel.data.on_the_fly`; validation stays on written frames).
+#: draws them (:mod:`dualpixel.synthesis.on_the_fly`; validation stays on written frames).
 SYNTH_SOURCES: tuple[str, ...] = ("written", "on-the-fly")
 #: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`): "photographic" covers
 #: the frame with real photographs (``scenes --photos DIR``).

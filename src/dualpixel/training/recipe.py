@@ -9,7 +9,7 @@ with phases inside it) holds:
   relative to the working directory, and ``skip_bad``) or ``{name, synth: {...}}``
   (:class:`SynthConfig` keys plus ``input``, a step's name or a folder, ``format`` and
   ``source``: ``written`` frames, or ``on-the-fly``, a source whose training crops are rendered
-  as they are drawn, :mod:`dualpixel.data.on_the_fly`; ``camera`` is a shipped camera's name
+  as they are drawn, :mod:`dualpixel.synthesis.on_the_fly`; ``camera`` is a shipped camera's name
   (:mod:`dualpixel.cameras`) or a camera file, relative to the recipe). Step NAME writes
   ``OUTPUT/data/NAME``;
 - ``train``: :class:`TrainConfig` keys shared by every phase (``architecture: rdpd-light``, a
@@ -539,7 +539,7 @@ def plan_text(recipe: Recipe, output: Path, until: str | None = None) -> str:
 
 
 def _step_state(folder: Path) -> str:
-    from dualpixel.data.on_the_fly import is_on_the_fly
+    from dualpixel.synthesis.on_the_fly import is_on_the_fly
 
     if is_on_the_fly(folder):
         return "done"
@@ -617,8 +617,8 @@ def _elapsed(started: float) -> str:
 def run_data(recipe: Recipe, output: Path, *, workers: int = 1, progress: bool = True,
              log=print) -> None:
     """Every data step (each resumes; a finished one is checked and skipped)."""
-    from dualpixel.data.on_the_fly import write_on_the_fly
     from dualpixel.synthesis.dataset import synthesize_dataset
+    from dualpixel.synthesis.on_the_fly import write_on_the_fly
     from dualpixel.synthesis.scenes import write_scene_folder
 
     started = time.monotonic()

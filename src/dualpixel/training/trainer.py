@@ -109,9 +109,9 @@ def _data_kinds(config: TrainConfig) -> list[DataKind]:
 
 def _synthetic_dataset(config: TrainConfig, patches: PatchConfig, stored: dict[str, Any]):
     """The synthetic data: written datasets read, on-the-fly sources rendered
-    (:mod:`dualpixel.data.on_the_fly`), in the order ``synthetic_data`` names them."""
+    (:mod:`dualpixel.synthesis.on_the_fly`), in the order ``synthetic_data`` names them."""
     from dualpixel.data.dataset import ConcatPatches
-    from dualpixel.data.on_the_fly import OnTheFlyDataset, is_on_the_fly
+    from dualpixel.synthesis.on_the_fly import OnTheFlyDataset, is_on_the_fly
     from dualpixel.training.raw_views import StoredRawViews
 
     folders = ([config.synthetic_data] if isinstance(config.synthetic_data, str)
@@ -401,7 +401,7 @@ class Trainer:
         self.kinds = _data_kinds(config)
         self.val_sequences = None
         if config.val_data is not None:
-            from dualpixel.data.on_the_fly import is_on_the_fly
+            from dualpixel.synthesis.on_the_fly import is_on_the_fly
 
             named = config.val_data
             for folder in [named] if isinstance(named, str) else named:

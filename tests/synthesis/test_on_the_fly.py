@@ -11,17 +11,17 @@ import torch
 from scipy.stats import ks_2samp
 
 from dualpixel.data.dataset import PatchConfig
-from dualpixel.data.on_the_fly import (
-    ON_THE_FLY_FILE,
-    OnTheFlyDataset,
-    write_on_the_fly,
-    write_samples,
-)
 from dualpixel.data.statistics import dataset_statistics
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.images import read_rgb
 from dualpixel.models import load_model
 from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
+from dualpixel.synthesis.on_the_fly import (
+    ON_THE_FLY_FILE,
+    OnTheFlyDataset,
+    write_on_the_fly,
+    write_samples,
+)
 from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 from dualpixel.training import load_config, train
 
