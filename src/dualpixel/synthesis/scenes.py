@@ -180,7 +180,6 @@ def _photo_world(
 ) -> tuple[np.ndarray, np.ndarray, list[_Leaf], float]:
     """Background image and depth (with margin), shapes and the focus distance of a photo layout."""
     height, width = config.height + 2 * margin, config.width + 2 * margin
-    short = min(config.height, config.width)
     subject = float(np.exp(rng.uniform(np.log(1.0), np.log(6.0))))
     far = subject * float(np.exp(rng.uniform(np.log(2.5), np.log(40.0))))
     background = random_texture(rng, height, width)
@@ -194,31 +193,50 @@ def _photo_world(
         depth[horizon:] = 1.0 / ((1 - t) / far + t / near)
 
     def leaf(size: int, x: float, y: float, d: float, tilt: float = 0.0) -> _Leaf:
-        return _Leaf(
-            texture=random_texture(rng, size, size), mask=_shape_mask(rng, size),
-            x=x - size / 2, y=y - size / 2, depth=d,
-            vx=config.leaf_speed * rng.normal(), vy=config.leaf_speed * rng.normal() * 0.5,
-            depth_rate=rng.normal(0, 0.01), tilt=tilt,
-        )
+        texture = random_texture(rng, size, size)
+        return _moving(rng, config, texture, _shape_mask(rng, size), x, y, d, tilt)
 
+    leaves = _arrange(rng, config, leaf, subject, far, objects=(2, 9))
+    focus = subject if rng.uniform() < 0.85 else subject * float(np.exp(rng.normal(0, 0.4)))
+    return background, depth, leaves, focus
+
+
+def _moving(rng: np.random.Generator, config: SceneConfig, texture: np.ndarray,
+            mask: np.ndarray, x: float, y: float, depth: float, tilt: float = 0.0) -> _Leaf:
+    """A shape centred at ``(x, y)`` px at ``depth`` m, drifting and moving in depth."""
+    size = mask.shape[0]
+    return _Leaf(
+        texture=texture, mask=mask, x=x - size / 2, y=y - size / 2, depth=depth,
+        vx=config.leaf_speed * rng.normal(), vy=config.leaf_speed * rng.normal() * 0.5,
+        depth_rate=rng.normal(0, 0.01), tilt=tilt,
+    )
+
+
+def _arrange(rng: np.random.Generator, config: SceneConfig, leaf, subject: float, far: float,
+             *, objects: tuple[int, int], subject_placed=lambda: False) -> list[_Leaf]:
+    """The photo layouts' shapes, far to near in drawing order: ``objects`` (a count range)
+    between the subject and the background, the subject near the centre (one or two shapes,
+    unless ``subject_placed()`` put it elsewhere), sometimes a near occluder at the frame's
+    edge. ``leaf(size, x, y, depth, tilt)`` makes each shape."""
+    short = min(config.height, config.width)
     leaves = []
-    for _ in range(int(rng.integers(2, 9))):  # objects between subject and background
+    for _ in range(int(rng.integers(*objects))):  # objects between subject and background
         size = int(rng.uniform(0.1, 0.5) * short) + 8
         d = subject * float(np.exp(rng.uniform(np.log(1.1), np.log(far / subject))))
         leaves.append(leaf(size, rng.uniform(-0.1, 1.1) * config.width,
                            rng.uniform(-0.1, 1.1) * config.height, d))
-    for _ in range(int(rng.integers(1, 3))):  # the subject, near the centre, maybe slanted
-        size = int(rng.uniform(0.35, 0.85) * short) + 8
-        leaves.append(leaf(size, rng.uniform(0.2, 0.8) * config.width,
-                           rng.uniform(0.25, 0.8) * config.height,
-                           subject * (1 + rng.normal(0, 0.02)), tilt=rng.normal(0, 0.1)))
+    if not subject_placed():
+        for _ in range(int(rng.integers(1, 3))):  # the subject, near the centre, maybe slanted
+            size = int(rng.uniform(0.35, 0.85) * short) + 8
+            leaves.append(leaf(size, rng.uniform(0.2, 0.8) * config.width,
+                               rng.uniform(0.25, 0.8) * config.height,
+                               subject * (1 + rng.normal(0, 0.02)), tilt=rng.normal(0, 0.1)))
     if rng.uniform() < 0.35:  # a foreground occluder at the frame's edge
         size = int(rng.uniform(0.2, 0.6) * short) + 8
         x = rng.choice([rng.uniform(-0.2, 0.15), rng.uniform(0.85, 1.2)]) * config.width
         leaves.append(leaf(size, x, rng.uniform(0, 1) * config.height,
                            subject * rng.uniform(0.3, 0.8)))
-    focus = subject if rng.uniform() < 0.85 else subject * float(np.exp(rng.normal(0, 0.4)))
-    return background, depth, leaves, focus
+    return leaves
 
 
 def photo_regions(rgb: np.ndarray, *, regions: int = 200) -> np.ndarray:
@@ -260,7 +278,6 @@ def _photographic_world(
     photographic layout: the "photo" layout's subject, background and occluders, on real
     photographs, with the background's own regions at depths of their own."""
     height, width = config.height + 2 * margin, config.width + 2 * margin
-    short = min(config.height, config.width)
     subject = float(np.exp(rng.uniform(np.log(1.0), np.log(6.0))))
     far = subject * float(np.exp(rng.uniform(np.log(1.5), np.log(40.0))))
     background, tiles = library.texture(rng, height, width)
@@ -297,34 +314,19 @@ def _photographic_world(
     def leaf(size: int, x: float, y: float, d: float, tilt: float = 0.0) -> _Leaf:
         rgb = texture(size)
         mask = _cut_out(rng, rgb) if rng.uniform() < 0.5 else None
-        return _Leaf(
-            texture=rgb, mask=_shape_mask(rng, size) if mask is None else mask,
-            x=x - size / 2, y=y - size / 2, depth=d,
-            vx=config.leaf_speed * rng.normal(), vy=config.leaf_speed * rng.normal() * 0.5,
-            depth_rate=rng.normal(0, 0.01), tilt=tilt,
-        )
+        return _moving(rng, config, rgb, _shape_mask(rng, size) if mask is None else mask,
+                       x, y, d, tilt)
 
-    leaves = []
-    for _ in range(int(rng.integers(1, 7))):  # objects between subject and background
-        size = int(rng.uniform(0.1, 0.5) * short) + 8
-        d = subject * float(np.exp(rng.uniform(np.log(1.1), np.log(far / subject))))
-        leaves.append(leaf(size, rng.uniform(-0.1, 1.1) * config.width,
-                           rng.uniform(-0.1, 1.1) * config.height, d))
-    # the subject: one or two objects near the centre, or a region of the background itself
-    subject_regions = [k for k in movable if 0.01 <= areas[k] <= 0.2]
-    if subject_regions and rng.uniform() < 0.35:
-        depth[labels == int(rng.choice(subject_regions))] = subject
-    else:
-        for _ in range(int(rng.integers(1, 3))):
-            size = int(rng.uniform(0.35, 0.85) * short) + 8
-            leaves.append(leaf(size, rng.uniform(0.2, 0.8) * config.width,
-                               rng.uniform(0.25, 0.8) * config.height,
-                               subject * (1 + rng.normal(0, 0.02)), tilt=rng.normal(0, 0.1)))
-    if rng.uniform() < 0.35:  # a foreground occluder at the frame's edge
-        size = int(rng.uniform(0.2, 0.6) * short) + 8
-        x = rng.choice([rng.uniform(-0.2, 0.15), rng.uniform(0.85, 1.2)]) * config.width
-        leaves.append(leaf(size, x, rng.uniform(0, 1) * config.height,
-                           subject * rng.uniform(0.3, 0.8)))
+    def subject_region() -> bool:
+        """The subject as a region of the background itself, sometimes."""
+        regions = [k for k in movable if 0.01 <= areas[k] <= 0.2]
+        if regions and rng.uniform() < 0.35:
+            depth[labels == int(rng.choice(regions))] = subject
+            return True
+        return False
+
+    leaves = _arrange(rng, config, leaf, subject, far, objects=(1, 7),
+                      subject_placed=subject_region)
     focus = subject if rng.uniform() < 0.85 else subject * float(np.exp(rng.normal(0, 0.4)))
     return background, depth, leaves, focus
 
