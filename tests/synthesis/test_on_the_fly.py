@@ -168,3 +168,26 @@ def test_bad_sources_are_named_before_any_work(scenes, tmp_path):
     write_on_the_fly(good, scenes, "rgbd", SynthConfig(**SETTINGS))
     with pytest.raises(ParameterError, match="patch size 256 exceeds"):
         OnTheFlyDataset(good, PatchConfig(patch_size=256))
+
+
+def test_synth_command_writes_a_source_and_names_bad_depth(scenes, tmp_path):
+    import shutil
+
+    from click.testing import CliRunner
+
+    from dualpixel.cli.main import cli
+
+    runner = CliRunner()
+    result = runner.invoke(cli, ["synth", "--input", str(scenes), "-o", str(tmp_path / "fly"),
+                                 "--source", "on-the-fly", "--lens-sets", "dslr-840"])
+    assert result.exit_code == 0, result.output
+    assert json.loads((tmp_path / "fly" / ON_THE_FLY_FILE).read_text())["config"][
+        "lens_sets"] == ["dslr-840"]
+    assert not list((tmp_path / "fly").rglob("*.png"))  # no frames written
+    broken = shutil.copytree(scenes, tmp_path / "broken")
+    depth = next(broken.rglob("*.npy"))
+    np.save(depth, np.full_like(np.load(depth), -2.0))
+    result = runner.invoke(cli, ["synth", "--input", str(broken), "-o", str(tmp_path / "f2"),
+                                 "--source", "on-the-fly"])
+    assert result.exit_code == 1 and depth.name in result.output
+    assert "negative" in result.output and "Traceback" not in result.output

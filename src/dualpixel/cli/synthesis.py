@@ -23,6 +23,7 @@ from dualpixel.names import (
     PSF_SHAPE_SOURCES,
     SCENE_LAYOUTS,
     SYNTH_SETTINGS_NAMES,
+    SYNTH_SOURCES,
     warn_renamed,
 )
 
@@ -179,6 +180,10 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
               help="zlib level of all the PNGs: 0 (stored, fastest, 20-30 % larger) to 9 "
                    "(smallest, ~10x slower to write)  [default: the views stored, the target "
                    "with a fast run-length strategy].")
+@click.option("--source", type=click.Choice(SYNTH_SOURCES), default="written", show_default=True,
+              help="written: render every frame into the folder; on-the-fly: write only these "
+                   "settings (on-the-fly.json), and training renders each crop as it draws it, "
+                   "with a draw of its own (validation needs written frames).")
 @click.option("--shard", default=None, callback=lambda _c, p, v: _shard(p, v), metavar="K/N",
               help="Render only the K-th of N interleaved parts of the frames (0-based), e.g. "
                    "K=$SLURM_ARRAY_TASK_ID; join the N folders with `dualpixel merge-shards`.")
@@ -191,7 +196,7 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
           light: str | None, grey: bool, encoding: str, black_level: float | None,
           raw_gains: list[float] | None, split: str, max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
-          png_compression: int | None, shard: tuple[int, int] | None) -> None:
+          png_compression: int | None, source: str, shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
     from dualpixel.optics.camera import load_camera
     from dualpixel.synthesis.dataset import SynthConfig, synthesis_settings, synthesize_dataset
@@ -221,6 +226,15 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         black_level=0.0 if black_level is None else black_level,
         raw_gains=(1.0, 1.0) if raw_gains is None else tuple(raw_gains),
     )
+    if source == "on-the-fly":
+        from dualpixel.synthesis.on_the_fly import write_on_the_fly
+
+        if shard is not None:
+            raise click.BadParameter("an on-the-fly source has no frames to share out",
+                                     param_hint="--shard")
+        click.echo(f"wrote {write_on_the_fly(output, input_dir, fmt, config)} (frames are "
+                   "rendered as training draws them)")
+        return
     summary = synthesize_dataset(input_dir, fmt, output, config, workers=workers, device=device,
                                  shard=shard, png_compression=png_compression)
     click.echo(f"{summary['status']}: {summary['frames_done']}/{summary['frames_total']} frames "
