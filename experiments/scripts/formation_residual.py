@@ -88,7 +88,7 @@ def residual(left, right, output, radius_of, textured) -> float:
 def _grey_linear(image: np.ndarray) -> torch.Tensor:
     image = np.asarray(image, np.float64)
     image = image.mean(axis=2) if image.ndim == 3 else image
-    return torch.from_numpy(srgb_to_linear_array(image))
+    return torch.from_numpy(np.asarray(srgb_to_linear_array(image), np.float64))
 
 
 def pairs():
