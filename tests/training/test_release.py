@@ -176,3 +176,40 @@ def test_a_run_brought_back_without_its_optimizer_state_releases(finished_run, t
     result = _release(run, weights, tmp_path / "results2", "--tag", TAG,
                       recipes=finished_run.parent / "recipes")
     assert result.exit_code == 1 and "has not finished" in result.output, result.output
+
+
+def test_a_hand_edited_registry_cannot_reach_outside_its_folder(finished_run, tmp_path):
+    """A tag or alias that is not a plain name, or a registry without its weights table, is
+    refused naming registry.json, and nothing outside --weights-dir is touched."""
+    weights = _weights_folder(tmp_path, finished_run)
+    registry = json.loads((weights / "registry.json").read_text())
+    outside = tmp_path / "precious.safetensors"
+    outside.write_bytes(b"user data")
+    results = tmp_path / "results"
+    for edit in (lambda r: r["weights"].update({"../precious": r["weights"][next(iter(
+                     r["weights"]))]}),
+                 lambda r: r["aliases"].update({"a/b": TAG}),
+                 lambda r: r.pop("weights"),
+                 lambda r: r.update({"aliases": ["not", "a", "table"]})):
+        edited = json.loads(json.dumps(registry))
+        edit(edited)
+        (weights / "registry.json").write_text(json.dumps(edited))
+        result = _release(finished_run, weights, results, "--tag", TAG, "--replaces",
+                          "../precious")
+        assert result.exit_code == 1 and "registry.json" in result.output, result.output
+        assert "Traceback" not in result.output
+        assert outside.read_bytes() == b"user data"
+        assert not (weights / f"{TAG}.safetensors").exists()
+
+
+def test_list_models_hands_out_copies():
+    import dualpixel
+
+    first = dualpixel.list_models()
+    tag = next(iter(first))
+    first[tag]["metrics"] = {"edited": 1.0}
+    first[tag]["aliases"].append("mine")
+    first.pop(tag)
+    again = dualpixel.list_models()
+    assert tag in again and "edited" not in again[tag].get("metrics", {})
+    assert "mine" not in again[tag]["aliases"]

@@ -24,6 +24,7 @@ from typing import Any
 
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.documents import read_mapping
+from dualpixel.io.paths import check_plain_name
 
 __all__ = ["Release", "release_run", "results_rows", "run_recipe"]
 
@@ -152,6 +153,25 @@ def _write_json(path: Path, value: Any) -> None:
         tmp.write_text(json.dumps(value, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
 
 
+def _checked_registry(path: Path) -> dict:
+    """A weights registry read for writing: its tables present and mappings, and every tag and
+    alias in them a plain name (a tag becomes ``TAG.safetensors`` in its folder, so a
+    hand-edited ``../x`` would reach outside it); an error names the file and the entry."""
+    registry = read_mapping(path, "weights registry")
+    if "weights" not in registry:
+        raise InputFileError(path, "has no 'weights' table: not a weights registry")
+    for table in ("weights", "deprecated", "aliases"):
+        if not isinstance(registry.get(table, {}), dict):
+            raise InputFileError(path, f"its {table!r} entry must be a table of tags")
+        registry.setdefault(table, {})
+        for name in registry[table]:
+            try:
+                check_plain_name(str(name), f"{table} entry")
+            except ParameterError as error:
+                raise InputFileError(path, str(error)) from None
+    return registry
+
+
 def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = None,
                 results_dir: str | Path | None = Path("docs/results"),
                 recipes_dir: str | Path = Path("recipes"), alias: str | None = None,
@@ -180,7 +200,7 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
                                           "(move it there, then release)")
     folder = Path(weights_dir) if weights_dir is not None else weights_folder()
     registry_path = folder / "registry.json"
-    registry = read_mapping(registry_path, "weights registry")
+    registry = _checked_registry(registry_path)
     names = {*registry["weights"], *registry["deprecated"], *registry["aliases"]}
     if tag in names:
         raise ParameterError(f"--tag {tag} already exists in {registry_path}: a tag is "

@@ -15,6 +15,7 @@ the deprecation map, which says which recipe phase remakes them. ``dualpixel rel
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import json
@@ -157,8 +158,13 @@ def phase_weights(recipe: str, phase: str) -> str | None:
     return None
 
 
-@functools.lru_cache(maxsize=1)
 def model_info() -> dict[str, dict]:
+    """Per shipped tag, what :func:`list_models` gives (a copy of its own for each caller)."""
+    return copy.deepcopy(_model_info())
+
+
+@functools.lru_cache(maxsize=1)
+def _model_info() -> dict[str, dict]:
     """Per shipped tag: doc, aliases, recipe and phase, architecture (the file's header only: no
     network is built and torch is not imported), parameter count, size, sha256, metrics and the
     output settings it runs with by default."""
@@ -185,7 +191,7 @@ def model_info() -> dict[str, dict]:
 def list_models() -> dict[str, dict]:
     """The shipped weights with their metadata (``dualpixel models`` prints the same); reads
     file headers only, without importing torch."""
-    return {tag: dict(row) for tag, row in model_info().items()}
+    return model_info()
 
 
 def model_card() -> str:
