@@ -22,7 +22,8 @@ from dualpixel.io.atomic import atomic_path
 from dualpixel.models.registry import build_model, model_spec
 from dualpixel.models.unet import DeblurNet
 
-__all__ = ["build_from_metadata", "load_model", "load_weights", "read_metadata", "save_model"]
+__all__ = ["build_from_metadata", "canonical_safetensors", "load_model", "load_weights",
+           "read_metadata", "save_model"]
 
 FORMAT = "dualpixel-model-1"
 
@@ -55,9 +56,23 @@ def save_model(
         "temporal": json.dumps(bool(net.temporal)),
         "extra": json.dumps(extra or {}, sort_keys=True),
     }
-    data = save(tensors, metadata=metadata)  # in memory, so a full disk is a plain OSError
-    with atomic_path(path) as tmp:
+    data = canonical_safetensors(save(tensors, metadata=metadata))  # in memory, so a full
+    with atomic_path(path) as tmp:  # disk is a plain OSError
         tmp.write_bytes(data)
+
+
+def canonical_safetensors(data: bytes) -> bytes:
+    """A safetensors file's bytes with its JSON header in one order (keys sorted, compact): the
+    library writes the metadata in a hash map's random order, so equal weights gave files of
+    other sha256 from run to run. The tensor data and their offsets are unchanged; the header is
+    padded with spaces to 8 bytes, as the format's writer does."""
+    import struct
+
+    length = struct.unpack("<Q", data[:8])[0]
+    header = json.loads(data[8 : 8 + length])
+    text = json.dumps(header, sort_keys=True, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 8)
+    return struct.pack("<Q", len(text)) + text + data[8 + length :]
 
 
 def read_metadata(path: str | Path) -> dict[str, Any]:
