@@ -268,3 +268,15 @@ def test_auto_exposure_in_the_api_and_cli(raw_pair, tmp_path):
         assert result.exit_code == 0, result.output
         written[flag] = cv2.imread(str(out), cv2.IMREAD_UNCHANGED).astype(np.float64)
     assert np.abs(written["--auto-exposure"] - written["--no-auto-exposure"]).mean() > 2
+
+
+def test_one_file_is_not_a_pair(raw_pair, tiny_checkpoint, tmp_path):
+    left = write_grey16(tmp_path / "left.png", raw_pair[0])
+    link = tmp_path / "also-left.png"
+    link.symlink_to(left)
+    for right in (left, link):
+        result = CliRunner().invoke(cli, ["deblur", "--left", str(left), "--right", str(right),
+                                          "--checkpoint", str(tiny_checkpoint), "--device",
+                                          "cpu", "-o", str(tmp_path / "out.png")])
+        assert result.exit_code == 1 and "is --left too" in result.output, result.output
+        assert "Traceback" not in result.output and not (tmp_path / "out.png").exists()

@@ -93,6 +93,9 @@ def plan_deblur_jobs(
         raise InputFileError(left, "not found")
     if right is not None and not right.exists():
         raise InputFileError(right, "not found")
+    if right is not None and left.resolve() == right.resolve():
+        raise InputFileError(right, f"is --left too ({left}): give the two views of a capture, "
+                                    "each from its own file or folder")
     if right is not None and left.is_dir() != right.is_dir():
         kind = "a folder" if left.is_dir() else "a file"
         raise InputFileError(right, f"must be {kind}, like --left {left}")
