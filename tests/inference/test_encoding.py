@@ -280,3 +280,28 @@ def test_one_file_is_not_a_pair(raw_pair, tiny_checkpoint, tmp_path):
                                           "cpu", "-o", str(tmp_path / "out.png")])
         assert result.exit_code == 1 and "is --left too" in result.output, result.output
         assert "Traceback" not in result.output and not (tmp_path / "out.png").exists()
+
+
+def test_levels_that_do_not_fit_the_views_are_named(raw_pair, tiny_checkpoint, tmp_path):
+    """Levels of another bit depth, a black level above every value: refused naming the file
+    and what the views hold (they ran to a constant or saturated image)."""
+    eight_bit = tmp_path / "left8.png"
+    cv2.imwrite(str(eight_bit), (raw_pair[0] // 257).astype(np.uint8))
+    right8 = tmp_path / "right8.png"
+    cv2.imwrite(str(right8), (raw_pair[1] // 257).astype(np.uint8))
+    left = write_grey16(tmp_path / "left.png", raw_pair[0])
+    right = write_grey16(tmp_path / "right.png", raw_pair[1])
+    for views, levels, words in (
+            ((eight_bit, right8), ("1024", "16383"), ("left8.png", "beyond", "full scale (255)")),
+            ((left, right), ("60000", "65535"), ("left.png", "black_level 60000", "largest"))):
+        result = CliRunner().invoke(cli, [
+            "deblur", "--left", str(views[0]), "--right", str(views[1]), "--checkpoint",
+            str(tiny_checkpoint), "--device", "cpu", "-o", str(tmp_path / "out.png"),
+            "--encoding", "linear", "--black-level", levels[0], "--white-level", levels[1]])
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        for word in words:
+            assert word in result.output, result.output
+        assert not (tmp_path / "out.png").exists()
+    with pytest.raises(ParameterError, match="beyond these views' full scale"):
+        dualpixel.deblur(raw_pair[0], raw_pair[1], model=tiny_checkpoint, device="cpu",
+                         encoding="linear", black_level=0, white_level=70000)

@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 
 from dualpixel.data.statistics import block_disparity_map, block_sums
-from dualpixel.errors import ParameterError
+from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.filters import gradient_magnitude
 from dualpixel.inference.brightness import is_palette_image, smooth
 from dualpixel.inference.encoding import ENCODINGS, ViewEncoding
@@ -369,6 +369,10 @@ def read_pairs(root: str | Path, split: str | None = None,
         frame = sequence.frames[0]
         left, right, (bits, _) = read_views(frame.left, frame.right)
         if encoding is not None and encoding.linear:
+            try:
+                encoding.check_levels(left, right, scale=max_level(bits))
+            except ParameterError as error:  # levels that do not fit this file
+                raise InputFileError(frame.left, str(error)) from None
             left, right = linear_light(left, right, encoding, scale=max_level(bits))
         pairs.append((sequence.name, left, right))
     return pairs

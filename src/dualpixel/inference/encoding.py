@@ -106,11 +106,34 @@ class ViewEncoding:
     def linear(self) -> bool:
         return self.encoding == "linear"
 
+    def check_levels(self, left: np.ndarray, right: np.ndarray, *, scale: float = 1.0) -> None:
+        """Refuse levels that do not fit views ``(..., H, W, C)`` read as fractions of
+        ``scale`` (the full scale of their own units: 255 or 65535 for 8- or 16-bit data, 1 for
+        floats): a white level beyond that full scale (levels of another bit depth), or a black
+        level at or above every value (the image would be black). A :class:`ParameterError`
+        saying what was given and what the views hold."""
+        if not self.linear:
+            return
+        black, white = float(self.black_level), float(self.white_level)
+        unit = "" if scale == 1.0 else f" of {scale:g}"
+        if white > scale * (1 + 1e-9):
+            raise ParameterError(f"white_level {white:g} is beyond these views' full scale "
+                                 f"({scale:g}): levels of another bit depth? give them in the "
+                                 "views' own units")
+        peak = float(max(np.max(left), np.max(right))) * scale
+        if black >= peak:
+            raise ParameterError(f"black_level {black:g} is at or above every value of the "
+                                 f"views (largest {peak:g}{unit}): nothing would be left above "
+                                 "it")
+
     def exposed(self, left: np.ndarray, right: np.ndarray, *, scale: float = 1.0,
-                views_sum: bool = False) -> ViewEncoding:
+                views_sum: bool = False, check: bool = True) -> ViewEncoding:
         """This encoding with the :attr:`light_gain` of views ``(..., H, W, C)``
         (:func:`exposure_gain`) when they are linear and :attr:`auto_exposure` is on; else
-        itself. Compute it once per photograph or sequence (a sequence keeps one exposure)."""
+        itself. Compute it once per photograph or sequence (a sequence keeps one exposure).
+        ``check``: first :meth:`check_levels` (off for training crops, which may be all black)."""
+        if check:
+            self.check_levels(left, right, scale=scale)
         if not (self.linear and self.auto_exposure):
             return self
         plain = dataclasses.replace(self, light_gain=1.0)

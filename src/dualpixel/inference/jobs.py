@@ -195,8 +195,11 @@ def run_deblur_jobs(
             channels, scale = left.shape[2], max_level(bits)
             raw = (left, right if right is not None else left, encoding.encoding)
             if index == 0:  # one exposure per sequence (linear views), from its first pair
-                exposed = encoding.exposed(left, raw[1], scale=scale,
-                                           views_sum=views_sum and right is not None)
+                try:
+                    exposed = encoding.exposed(left, raw[1], scale=scale,
+                                               views_sum=views_sum and right is not None)
+                except ParameterError as error:  # levels that do not fit this file
+                    raise InputFileError(job.left, str(error)) from None
             if right is None:
                 left = to_model(left, left, exposed, scale=scale)[0]
             else:

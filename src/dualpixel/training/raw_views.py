@@ -83,7 +83,8 @@ def as_model(images: dict[str, np.ndarray], black: float) -> dict[str, np.ndarra
     """Raw-stored ``images`` ``{left, right[, target]}`` ``(h, w, 3)`` (black level ``black``,
     white level full scale) as the linear mode hands them to the model: at the exposure it gives
     the views (:meth:`~dualpixel.inference.encoding.ViewEncoding.exposed`), the target alike."""
-    encoding = ViewEncoding("linear", black, 1.0).exposed(images["left"], images["right"])
+    encoding = ViewEncoding("linear", black, 1.0).exposed(images["left"], images["right"],
+                                                          check=False)
     out = dict(images)
     out["left"], out["right"] = to_model(images["left"], images["right"], encoding)
     if "target" in images:
