@@ -296,18 +296,19 @@ def training(iterations: int, loader_workers: int, device: str) -> None:
               f"{loader_workers} loader workers; writing the 8 frames took {writing:.1f} s")
         print("| data | iterations/s |")
         print("|---|---|")
-        for name in ("written", "fly"):
+        labels = {"written": "written", "fly": "on the fly, rendered by the loader",
+                  "fly-device": f"on the fly, rendered on {device} in training"}
+        for name, label in labels.items():
             config = load_config(None, dict(
                 model="rdpd", width=0.5, residual=True, refiner=[32, 64, 128],
-                synthetic_data=str(root / name),
+                render_on="device" if name == "fly-device" else "loader",
+                synthetic_data=str(root / name.removesuffix("-device")),
                 synthetic_as_frames=True, patch_size=256, sequence_batch=4, sequence_frames=2,
                 epochs=1, iterations_per_epoch=iterations, workers=loader_workers,
                 device=device, tensorboard=False, learning_rate=1e-4))
-            started = time.perf_counter()
             result = train(config, root / f"run-{name}", progress=False)
             seconds = result.history[-1]["seconds"]
-            print(f"| {name if name == 'written' else 'on the fly'} | "
-                  f"{iterations / seconds:.3f} |", flush=True)
+            print(f"| {label} | {iterations / seconds:.3f} |", flush=True)
 
 
 def main() -> None:

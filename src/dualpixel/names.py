@@ -6,8 +6,8 @@ from __future__ import annotations
 __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS",
            "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "MAX_SEQUENCES", "OVERSHOOT_MODES",
            "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RAW_VIEWS",
-           "RENAMED", "RENAMED_UNTIL", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES", "SYNTH_SOURCES",
-           "output_modes_suffix", "renamed_keys", "warn_renamed"]
+           "RENAMED", "RENAMED_UNTIL", "RENDER_ON", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES",
+           "SYNTH_SOURCES", "output_modes_suffix", "renamed_keys", "warn_renamed"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -28,6 +28,8 @@ SYNTH_SETTINGS_NAMES: tuple[str, ...] = ("shipped", "paper")
 #: Where a synth step's frames come from: written once (``synth``), or rendered as training
 #: draws them (:mod:`dualpixel.synthesis.on_the_fly`; validation stays on written frames).
 SYNTH_SOURCES: tuple[str, ...] = ("written", "on-the-fly")
+#: Where on-the-fly frames are rendered in training: the loader's processes or the device.
+RENDER_ON: tuple[str, ...] = ("loader", "device")
 #: Layouts of the procedural scenes (:mod:`dualpixel.synthesis.scenes`): "photographic" covers
 #: the frame with real photographs (``scenes --photos DIR``).
 SCENE_LAYOUTS: tuple[str, ...] = ("leaves", "photo", "photographic")

@@ -191,3 +191,28 @@ def test_synth_command_writes_a_source_and_names_bad_depth(scenes, tmp_path):
                                  "--source", "on-the-fly"])
     assert result.exit_code == 1 and depth.name in result.output
     assert "negative" in result.output and "Traceback" not in result.output
+
+
+def test_rendering_on_the_device_gives_the_loaders_items(source, scenes, tmp_path):
+    """render_items (the training process, all frames of a batch at once; here on CPU tensors)
+    gives the items the loader makes one by one: the same draws, crops and flips; the frames
+    equal to a level of rounding (the batched renderer is the default one to 100 dB)."""
+    dataset = OnTheFlyDataset(source, PatchConfig(patch_size=64, min_sharpness=0.01))
+    keys = [(3, 11), (0, 5), (9, 77), (3, 12)]
+    together = dataset.render_items(keys, "cpu")
+    for key, item in zip(keys, together):
+        alone = dataset[key]
+        assert set(item) == set(alone)
+        for name in item:
+            difference = (item[name] - alone[name]).abs()
+            assert float(difference.max()) <= 1 / 255 + 1e-6, (key, name)
+            assert float(difference.mean()) < 1e-4, (key, name)
+    validation = tmp_path / "val"
+    synthesize_dataset(scenes, "rgbd", validation, SynthConfig(**SETTINGS), workers=1,
+                       progress=False)
+    runs = [train(_config(source, validation, render_on="device", epochs=1),
+                  tmp_path / f"device{k}", progress=False) for k in range(2)]
+    assert runs[0].step == 2 and runs[0].history == [
+        {**r, "seconds": s["seconds"]} for r, s in zip(runs[1].history, runs[0].history)]
+    with pytest.raises(ParameterError, match="render_on"):
+        _config(source, validation, render_on="gpu")

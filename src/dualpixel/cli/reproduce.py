@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath
+from dualpixel.names import RENDER_ON
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -34,11 +35,14 @@ from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath
 @click.option("--frame-store", type=OutputPath(file_okay=False, path_type=Path), default=None,
               help="A folder of decoded frames shared by loader processes, epochs and runs "
                    "(made on first use).")
+@click.option("--render-on", type=click.Choice(RENDER_ON), default=None,
+              help="Where on-the-fly training frames are rendered: the loader processes, or "
+                   "the training device, many at once (a GPU) [default: loader].")
 @click.option("--progress/--no-progress", default=True, help="Show progress bars.")
 def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | None,
               dry_run: bool, workers: int, loader_workers: int | None, threads: int | None,
               device: str | None, cache: bool | None, frame_store: Path | None,
-              progress: bool) -> None:
+              render_on: str | None, progress: bool) -> None:
     """Make a model from its recipe: data, every training phase, export and evaluation.
 
     The recipe says what the model is; how this machine runs it (loader processes, threads,
@@ -59,7 +63,8 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
         click.echo("plan checked: every data step, phase and start resolves")
         return
     machine = {"workers": loader_workers, "threads": threads, "device": device, "cache": cache,
-               "frame_store": None if frame_store is None else str(frame_store)}
+               "frame_store": None if frame_store is None else str(frame_store),
+               "render_on": render_on}
     shipped = run_recipe(recipe, output, until=until, start=start, workers=workers,
                          progress=progress, log=click.echo,
                          machine={k: v for k, v in machine.items() if v is not None})

@@ -26,7 +26,7 @@ from dualpixel.errors import ParameterError
 from dualpixel.filters import gradient_magnitude, sharpness
 
 __all__ = ["ConcatPatches", "DPPatchDataset", "PatchConfig", "flip_horizontal",
-           "gradient_magnitude", "sharpness"]
+           "gradient_magnitude", "items_of", "sharpness"]
 
 
 @dataclass(frozen=True)
@@ -152,10 +152,34 @@ class ConcatPatches(Dataset):
     def __len__(self) -> int:
         return int(self.starts[-1])
 
+    def _part(self, index: int) -> int:
+        return int(np.searchsorted(self.starts, index, side="right")) - 1
+
     def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
         index, seed = key if isinstance(key, tuple) else (key, index_seed(key))
-        part = int(np.searchsorted(self.starts, index, side="right")) - 1
+        part = self._part(index)
         return self.parts[part][(index - int(self.starts[part]), seed)]
+
+    def render_items(self, keys: list[tuple[int, int]], device) -> list[dict[str, torch.Tensor]]:
+        """The items of ``keys`` in order: each part's through its ``render_items`` where it has
+        one (frames rendered on ``device``), else read."""
+        items: list[dict[str, torch.Tensor] | None] = [None] * len(keys)
+        for part, dataset in enumerate(self.parts):
+            mine = [k for k, (index, _) in enumerate(keys) if self._part(index) == part]
+            local = [(keys[k][0] - int(self.starts[part]), keys[k][1]) for k in mine]
+            for k, item in zip(mine, items_of(dataset, local, device)):
+                items[k] = item
+        return items
+
+
+def items_of(dataset: Dataset, keys: list[tuple[int, int]], device
+             ) -> list[dict[str, torch.Tensor]]:
+    """``dataset[key]`` for every key, rendered together on ``device`` where the dataset renders
+    (``render_items``: on-the-fly sources), else read one by one."""
+    if not keys:
+        return []
+    render = getattr(dataset, "render_items", None)
+    return render(keys, device) if render is not None else [dataset[key] for key in keys]
 
 
 def index_seed(index: int) -> int:

@@ -83,7 +83,7 @@ from dualpixel.synthesis.inputs import (
 from dualpixel.synthesis.layers import check_render_mode
 
 __all__ = ["SYNTH_SETTINGS", "SynthConfig", "merge_shards", "plan_jobs", "read_manifest",
-           "render_job", "synthesis_settings", "synthesize_dataset"]
+           "render_job", "render_jobs", "synthesis_settings", "synthesize_dataset"]
 
 @dataclass(frozen=True)
 class SynthConfig:
@@ -334,6 +334,24 @@ def render_job(job: FrameJob, fmt: InputFormat, config: SynthConfig, device: str
     rgb, depth = load_frame(job.frame, fmt, max_depth=config.max_depth,
                             depth_scale=config.depth_scale)
     result = synthesize_frame(rgb, depth, job.draw, noise_seed=job.noise_seed, device=device)
+    return _stored(result, job, config)
+
+
+def render_jobs(jobs: list[FrameJob], fmt: InputFormat, config: SynthConfig,
+                device: str = "cpu") -> list[dict[str, np.ndarray]]:
+    """:func:`render_job` for many frames at once, rendered together on ``device``
+    (:func:`~dualpixel.synthesis.frame.synthesize_frames`: for accelerators)."""
+    from dualpixel.synthesis.frame import synthesize_frames
+
+    frames = [load_frame(job.frame, fmt, max_depth=config.max_depth,
+                         depth_scale=config.depth_scale) for job in jobs]
+    results = synthesize_frames(frames, [job.draw for job in jobs],
+                                [job.noise_seed for job in jobs], device=device)
+    return [_stored(result, job, config) for result, job in zip(results, jobs)]
+
+
+def _stored(result, job: FrameJob, config: SynthConfig) -> dict[str, np.ndarray]:
+    """A rendered frame (:class:`~dualpixel.synthesis.frame.DPFrame`) as the dataset stores it."""
     left = _quantise(result.left, config.bit_depth)
     right = _quantise(result.right, config.bit_depth)
     if job.draw.light == "linear":  # the views' light summed, then encoded

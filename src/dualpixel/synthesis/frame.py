@@ -40,7 +40,8 @@ from dualpixel.synthesis.renderer import render_dp_views
 if TYPE_CHECKING:
     from dualpixel.optics.camera import DPCamera
 
-__all__ = ["DPFrame", "SequenceDraw", "camera_settings", "draw_sequence", "synthesize_frame"]
+__all__ = ["DPFrame", "SequenceDraw", "camera_settings", "draw_sequence", "synthesize_frame",
+           "synthesize_frames"]
 
 
 @dataclass(frozen=True)
@@ -233,6 +234,50 @@ def synthesize_frame(
     Returns:
         A :class:`DPFrame` on ``device``.
     """
+    image, scene, coc = _prepared(rgb, depth, draw, device)
+    left, right = render_dp_views(
+        scene, coc, draw.psf, model=draw.psf_model, max_layers=draw.max_layers,
+        mode=draw.render_mode,
+    )
+    return _finished(image, scene, coc, left, right, draw, noise_seed)
+
+
+def synthesize_frames(
+    frames: list[tuple[np.ndarray | torch.Tensor, np.ndarray | torch.Tensor]],
+    draws: list[SequenceDraw],
+    noise_seeds: list[int],
+    *,
+    device: str | torch.device = "cpu",
+) -> list[DPFrame]:
+    """:func:`synthesize_frame` for many frames at once: the frames of one size are rendered
+    together by :func:`~dualpixel.synthesis.batched_renderer.render_batch` (the default
+    renderer's layers and compositing, for accelerators), the rest of the formation per frame.
+    The draws' render mode must be "fast"; each frame keeps its own camera, PSF and noise."""
+    from dualpixel.synthesis.batched_renderer import render_batch
+
+    if not len(frames) == len(draws) == len(noise_seeds):
+        raise ParameterError("frames, draws and noise_seeds need one entry per frame")
+    prepared = [_prepared(rgb, depth, draw, device) for (rgb, depth), draw in zip(frames, draws)]
+    views: list[tuple[torch.Tensor, torch.Tensor] | None] = [None] * len(frames)
+    groups: dict[tuple, list[int]] = {}
+    for k, ((_, scene, _), draw) in enumerate(zip(prepared, draws)):
+        if draw.render_mode != "fast":
+            raise ParameterError("synthesize_frames renders the default (fast) layering")
+        groups.setdefault((tuple(scene.shape), draw.max_layers), []).append(k)
+    for (_, max_layers), members in groups.items():
+        left, right = render_batch(
+            torch.stack([prepared[k][1] for k in members]),
+            torch.stack([prepared[k][2] for k in members]),
+            [draws[k].psf for k in members], model=[draws[k].psf_model for k in members],
+            max_layers=max_layers)
+        for i, k in enumerate(members):
+            views[k] = (left[i], right[i])
+    return [_finished(image, scene, coc, *pair, draw, seed)
+            for (image, scene, coc), pair, draw, seed in zip(prepared, views, draws, noise_seeds)]
+
+
+def _prepared(rgb, depth, draw: SequenceDraw, device) -> tuple[torch.Tensor, ...]:
+    """``(image (3, H, W), scene (3, H, W) in the light the lens blurs, coc (H, W) px)``."""
     image = torch.as_tensor(rgb, dtype=torch.float32, device=device)
     if isinstance(rgb, np.ndarray):
         image = image.permute(2, 0, 1)
@@ -243,12 +288,15 @@ def synthesize_frame(
             f"{tuple(depth_t.shape)}"
         )
     coc = coc_radius(depth_t, draw.camera)
+    scene = srgb_to_linear(image) if draw.light == "linear" else image
+    return image, scene, coc
+
+
+def _finished(image: torch.Tensor, scene: torch.Tensor, coc: torch.Tensor, left: torch.Tensor,
+              right: torch.Tensor, draw: SequenceDraw, noise_seed: int) -> DPFrame:
+    """The rendered views through the rest of the formation: crosstalk, distortion, tone or raw
+    storage, noise, clipping and the combined image."""
     linear = draw.light == "linear"
-    scene = srgb_to_linear(image) if linear else image
-    left, right = render_dp_views(
-        scene, coc, draw.psf, model=draw.psf_model, max_layers=draw.max_layers,
-        mode=draw.render_mode,
-    )
     if draw.disparity_ratio is not None:
         left, right = apply_crosstalk(left, right, draw.disparity_ratio)
     target, defocus = scene, coc

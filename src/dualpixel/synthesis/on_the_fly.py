@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from dualpixel.data.dataset import DPPatchDataset, PatchConfig
 from dualpixel.errors import InputFileError, ParameterError
@@ -151,8 +152,37 @@ class OnTheFlyDataset(DPPatchDataset):
     def _frames(self, index: int, start: int, rng: np.random.Generator
                 ) -> list[dict[str, np.ndarray]]:
         seed = int(rng.integers(2**62))
-        return [self._frames_of_job(self.job(index, seed, k))
-                for k in range(start, start + self.config.frames)]
+        frames = range(start, start + self.config.frames)
+        if self._rendered is not None:  # rendered beforehand, all at once (render_items)
+            return [self._rendered[index, seed, k] for k in frames]
+        return [self._frames_of_job(self.job(index, seed, k)) for k in frames]
+
+    _rendered: dict | None = None
+
+    def render_items(self, keys: list[tuple[int, int]], device) -> list[dict[str, torch.Tensor]]:
+        """The items of ``keys`` (``(index, seed)``), as ``dataset[key]`` gives them, their frames
+        rendered together on ``device`` (:func:`~dualpixel.synthesis.dataset.render_jobs`):
+        training renders on its GPU so. The same crops, draws and flips as in the loader; the
+        noise is drawn by ``device``'s generator."""
+        from dualpixel.synthesis.dataset import render_jobs
+
+        needed = {}
+        for index, seed in keys:  # the draws __getitem__ makes, in its order
+            rng = np.random.default_rng(seed)
+            sequence = self.sequences[index]
+            start = int(rng.integers(len(sequence.frames) - self.config.frames + 1))
+            sample = int(rng.integers(2**62))
+            for k in range(start, start + self.config.frames):
+                needed[index, sample, k] = self.job(index, sample, k)
+        stored = render_jobs(list(needed.values()), self.source.fmt, self.source.config, device)
+        bits = self.source.config.bit_depth
+        self._rendered = {key: {role: _as_read(frame[role], bits)
+                                for role in ("left", "right", "target")}
+                          for key, frame in zip(needed, stored)}
+        try:
+            return [self[key] for key in keys]
+        finally:
+            self._rendered = None
 
     def _frames_of_job(self, job) -> dict[str, np.ndarray]:
         """One job's frame as :func:`~dualpixel.data.layout.read_frame` reads it from the files

@@ -19,7 +19,7 @@ from dualpixel.errors import ParameterError, check_range, check_seed
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.paths import check_plain_name
 from dualpixel.models.registry import model_spec
-from dualpixel.names import RAW_VIEWS
+from dualpixel.names import RAW_VIEWS, RENDER_ON
 from dualpixel.training.losses import LOSS_REDUCTIONS
 
 __all__ = ["LR_SCHEDULES", "TrainConfig", "load_config", "save_config"]
@@ -29,7 +29,7 @@ LR_SCHEDULES = ("step", "cosine")
 
 #: Settings that say how a machine runs training, not what it makes (every draw is seeded per
 #: item, whatever the loader): a resume may change them, and recipes leave them to the command.
-MACHINE_KEYS = ("workers", "threads", "device", "cache", "frame_store")
+MACHINE_KEYS = ("workers", "threads", "device", "cache", "frame_store", "render_on")
 
 
 @dataclass
@@ -87,6 +87,10 @@ class TrainConfig:
     # A folder of decoded frames, memory-mapped and shared by all loader processes
     # (dualpixel.data.frame_store; ours): PNGs are decoded once, across epochs and runs.
     frame_store: str | None = None
+    # Where on-the-fly training frames (dualpixel.synthesis.on_the_fly) are rendered: "loader"
+    # (the loader's worker processes, CPU) or "device" (in the training process on its device,
+    # many frames at once: dualpixel.synthesis.batched_renderer, for GPUs).
+    render_on: str = "loader"
     # Optimisation.
     epochs: int = 140
     iterations_per_epoch: int | None = None  # default: one pass over the larger dataset
@@ -119,6 +123,9 @@ class TrainConfig:
             check_plain_name(getattr(self, key), key)
         if self.real_data is None and self.synthetic_data is None:
             raise ParameterError("give real_data, synthetic_data or both")
+        if self.render_on not in RENDER_ON:
+            raise ParameterError(f"render_on must be one of {', '.join(RENDER_ON)}, got "
+                                 f"{self.render_on!r}")
         if self.raw_views not in RAW_VIEWS:
             raise ParameterError(f"raw_views must be one of {', '.join(RAW_VIEWS)}, got "
                                  f"{self.raw_views!r}")

@@ -76,7 +76,8 @@ _DATA_KEYS = ("real_data", "synthetic_data", "val_data", "real_val_data")
 #: every draw are seeded per item, whatever the loader): given to :func:`reproduce`, never in
 #: a recipe. Values: the ``dualpixel reproduce`` option of each.
 MACHINE_SETTINGS = dict(zip(MACHINE_KEYS, ("--loader-workers", "--threads", "--device",
-                                           "--cache", "--frame-store"), strict=True))
+                                           "--cache", "--frame-store", "--render-on"),
+                            strict=True))
 
 
 @dataclass(frozen=True)

@@ -134,6 +134,17 @@ def _synthetic_dataset(config: TrainConfig, patches: PatchConfig, stored: dict[s
     return ConcatPatches(parts)
 
 
+def _rendered_batches(dataset, batches: list[list[tuple[int, int]]], device: torch.device):
+    """Batches of ``dataset``'s items for ``batches`` of keys, each batch's on-the-fly frames
+    rendered together on ``device`` (:func:`~dualpixel.data.dataset.items_of`)."""
+    from torch.utils.data import default_collate
+
+    from dualpixel.data.dataset import items_of
+
+    for keys in batches:
+        yield default_collate(items_of(dataset, keys, device))
+
+
 def _epoch_batches(
     config: TrainConfig, kind_index: int, kind: DataKind, epoch: int, count: int,
     rank: int, world: int,
@@ -508,6 +519,10 @@ class Trainer:
         for index, kind in enumerate(kinds):
             count = len(range(index, self.iterations, len(kinds)))
             batches = _epoch_batches(config, index, kind, epoch, count, self.rank, self.world)
+            if config.render_on == "device" and kind.name == "synthetic":
+                # on-the-fly frames rendered here, all of a batch at once, on the device
+                loaders.append(_rendered_batches(kind.dataset, batches, device))
+                continue
             loaders.append(iter(DataLoader(
                 kind.dataset, batch_sampler=batches, num_workers=config.workers,
                 pin_memory=use_cuda, persistent_workers=False,
