@@ -35,7 +35,7 @@ from dualpixel.synthesis.fast_renderer import (
     _layer_kernels,
     downsample_factor,
 )
-from dualpixel.synthesis.layers import quantise_layers
+from dualpixel.synthesis.layers import bounding_boxes, quantise_layers
 
 __all__ = ["DIRECT_MAX_KERNEL", "crop_margin", "render_batch"]
 
@@ -54,6 +54,7 @@ class _Run:
     d: int
     layers: list[int]
     kernels: list[torch.Tensor]  # (2, S, S) per layer, at 1/d
+    boxes: list[list[int]]  # (row0, row1, col0, col1) inclusive per layer, full resolution
 
 
 def crop_margin(max_coc: float, model: PSFModel = "ours", kappa: float = 0.14) -> int:
@@ -75,9 +76,11 @@ def _runs(labels: torch.Tensor, layer_coc: torch.Tensor, frame: int, params: PSF
         if runs and runs[-1].d == d:
             runs[-1].layers.append(j)
         else:
-            runs.append(_Run(frame, d, [j], []))
+            runs.append(_Run(frame, d, [j], [], []))
+    boxes = bounding_boxes(labels, len(radii)).tolist()
     for run in runs:
         run.kernels = _layer_kernels([radii[j] for j in run.layers], run.d, params, model, like)
+        run.boxes = [boxes[j] for j in run.layers]
     return runs
 
 
@@ -116,26 +119,35 @@ def _padded(kernels: list[torch.Tensor], size: int) -> torch.Tensor:
 def _render_runs(runs: list[_Run], opaque: torch.Tensor, labels: torch.Tensor, d: int
                  ) -> list[torch.Tensor]:
     """Every run of factor ``d`` (all frames together): ``(2, C + 1, H/d, W/d)`` premultiplied
-    colour and coverage per run, composited back to front at 1/d."""
+    colour and coverage per run, composited back to front at 1/d. Layer k of every run is
+    convolved in one call, inside the union of their boxes grown by the kernels' reach."""
     planes_count, height, width = opaque.shape[1:]
     low = (-(-height // d), -(-width // d))
+    pad = (0, low[1] * d - width, 0, low[0] * d - height)
+    source = F.pad(opaque, pad) if d > 1 else opaque  # the d x d grid from the frame's origin
+    layer_map = F.pad(labels, pad, value=-1) if d > 1 else labels
     acc = opaque.new_zeros(len(runs), 2, planes_count, *low)
     frames = torch.tensor([run.frame for run in runs], device=opaque.device)
     for position in range(max(len(run.layers) for run in runs)):
         active = [k for k, run in enumerate(runs) if position < len(run.layers)]
+        index = torch.tensor(active, device=opaque.device)
         layer = torch.tensor([runs[k].layers[position] for k in active], device=opaque.device)
-        chosen = frames[torch.tensor(active, device=opaque.device)]
-        mask = (labels[chosen] == layer[:, None, None])[:, None]
-        planes = torch.where(mask, opaque[chosen], 0.0)  # [I m, m]
-        if d > 1:  # d x d block means over the grid from the frame's origin
-            planes = F.pad(planes, (0, low[1] * d - width, 0, low[0] * d - height))
-            planes = F.avg_pool2d(planes, d)
         kernels = [runs[k].kernels[position] for k in active]
         size = max(k.shape[-1] for k in kernels)
+        boxes = [runs[k].boxes[position] for k in active]  # inclusive, full resolution
+        half = size // 2
+        r0, c0 = (max(min(b[i] for b in boxes) // d - half, 0) for i in (0, 2))
+        r1 = min(max(b[1] for b in boxes) // d + 1 + half, low[0])
+        c1 = min(max(b[3] for b in boxes) // d + 1 + half, low[1])
+        rows, cols = slice(r0 * d, r1 * d), slice(c0 * d, c1 * d)
+        chosen = frames[index]
+        mask = (layer_map[chosen, rows, cols] == layer[:, None, None])[:, None]
+        planes = torch.where(mask, source[chosen, :, rows, cols], 0.0)  # [I m, m]
+        if d > 1:
+            planes = F.avg_pool2d(planes, d)
         blurred = _convolve(planes, _padded(kernels, size))  # (R, 2, C + 1, h, w)
-        index = torch.tensor(active, device=opaque.device)
-        previous = acc[index]
-        acc[index] = blurred + (1.0 - blurred[:, :, -1:]) * previous
+        previous = acc[index, :, :, r0:r1, c0:c1]
+        acc[index, :, :, r0:r1, c0:c1] = blurred + (1.0 - blurred[:, :, -1:]) * previous
     return list(acc)
 
 
