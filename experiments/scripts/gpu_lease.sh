@@ -21,10 +21,13 @@
 #                               profile of its default and fp32 passes) and bench_synthesis.py
 #                               (render only) on cuda, nvidia-smi (~5 minutes);
 #                               not while a run trains (they would share the GPU)
+#   synthesis                   issue #71's GPU figures into $OUT: the batched renderer against
+#                               exact and its frames per second, training iterations per second
+#                               on written and on-the-fly data (loader and device rendering)
 #
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, stop, collect, kit or figures}; shift
+command=${1:?start, wait, stop, collect, kit, figures or synthesis}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -115,8 +118,16 @@ figures)
   PYTHONPATH=src python3 benchmarks/bench_synthesis.py --device cuda --no-baseline 2>&1 \
     | tee "$OUT/bench_synthesis_cuda.txt"
   ;;
+synthesis)  # issue #71's GPU figures: the batched renderer and on-the-fly training (~6 minutes)
+  : "${OUT:?set OUT to the device tool output folder}"
+  nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1 || true
+  PYTHONPATH=src python3 benchmarks/bench_synthesis.py --batched --device cuda --batch 16 \
+    --repeat 3 2>&1 | tee "$OUT/bench_batched_cuda.txt"
+  PYTHONPATH=src python3 benchmarks/bench_synthesis.py --training --device cuda --iterations 40 \
+    --loader-workers 12 2>&1 | grep -v '^{' | tee "$OUT/bench_training_cuda.txt"
+  ;;
 *)
-  echo "unknown command: $command (start, wait, stop, collect, kit or figures)" >&2
+  echo "unknown command: $command (start, wait, stop, collect, kit, figures or synthesis)" >&2
   exit 2
   ;;
 esac
