@@ -40,11 +40,13 @@ def test_the_cli_names_the_fallback(native_bf16, tmp_path):
     native_bf16(False)
     view = tmp_path / "v.png"
     from PIL import Image
-    Image.fromarray(np.full((32, 32, 3), 100, np.uint8)).save(view)
-    result = CliRunner().invoke(cli, ["deblur", "--left", str(view), "--right", str(view), "-o",
+    other = tmp_path / "w.png"
+    for path in (view, other):
+        Image.fromarray(np.full((32, 32, 3), 100, np.uint8)).save(path)
+    result = CliRunner().invoke(cli, ["deblur", "--left", str(view), "--right", str(other), "-o",
                                       str(tmp_path / "o.png"), "--precision", "bf16"])
     assert result.exit_code == 2 and "no native bfloat16" in result.output, result.output
-    result = CliRunner().invoke(cli, ["deblur", "--left", str(view), "--right", str(view), "-o",
+    result = CliRunner().invoke(cli, ["deblur", "--left", str(view), "--right", str(other), "-o",
                                       str(tmp_path / "o.png"), "--precision", "auto"])
     assert result.exit_code == 0, result.output
 

@@ -345,9 +345,10 @@ def test_views_of_signed_or_float_samples_are_refused_by_name(tmp_path, dtype):
     import numpy as np
     import tifffile
 
-    view = tmp_path / "view.tif"
-    tifffile.imwrite(view, (np.random.default_rng(0).random((48, 64, 3)) * 100).astype(dtype))
-    result = CliRunner().invoke(cli, ["deblur", "--left", str(view), "--right", str(view), "-o",
+    view, other = tmp_path / "view.tif", tmp_path / "other.tif"
+    for path in (view, other):
+        tifffile.imwrite(path, (np.random.default_rng(0).random((48, 64, 3)) * 100).astype(dtype))
+    result = CliRunner().invoke(cli, ["deblur", "--left", str(view), "--right", str(other), "-o",
                                       str(tmp_path / "out.png")])
     assert result.exit_code == 1 and f"holds {dtype} samples" in result.output, result.output
     assert "Traceback" not in result.output

@@ -83,8 +83,9 @@ def test_a_checkpoint_with_one_nan_weight_is_refused(tmp_path):
     left = np.full((32, 32, 3), 128, np.uint8)
     from PIL import Image
     Image.fromarray(left).save(tmp_path / "l.png")
+    Image.fromarray(left).save(tmp_path / "r.png")
     result = CliRunner().invoke(cli, ["deblur", "--left", str(tmp_path / "l.png"), "--right",
-                                      str(tmp_path / "l.png"), "-o", str(tmp_path / "o.png"),
+                                      str(tmp_path / "r.png"), "-o", str(tmp_path / "o.png"),
                                       "--checkpoint", str(tmp_path / "bad.safetensors")])
     assert result.exit_code == 1 and "NaN" in result.output and "Traceback" not in result.output
     assert not (tmp_path / "o.png").exists()
