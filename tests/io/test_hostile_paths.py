@@ -415,3 +415,32 @@ def test_processes_writing_one_file_at_once_keep_each_others_temporary_files(tmp
     with atomic_path(path) as tmp:
         np.save(tmp, np.zeros(3))
     assert not held.exists()
+
+
+def test_a_killed_writers_file_goes_at_the_rerun_however_recent(tmp_path):
+    """A temporary file names its writer's process: once that process is gone (killed), the
+    next write of the same file removes it at once, without waiting for it to age; a live
+    writer's stays."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from dualpixel.io.atomic import PARTIAL_MARKER, atomic_path
+
+    code = ("import os, sys, time\nfrom dualpixel.io.atomic import atomic_path\n"
+            "with atomic_path(sys.argv[1]) as tmp:\n"
+            "    tmp.write_bytes(b'half')\n    print(tmp, flush=True)\n    time.sleep(60)\n")
+    writer = subprocess.Popen([sys.executable, "-c", code, str(tmp_path / "out.png")],
+                              stdout=subprocess.PIPE, text=True)
+    partial = Path(writer.stdout.readline().strip())
+    assert partial.is_file() and PARTIAL_MARKER in partial.name and f"p{writer.pid}-" in \
+        partial.name
+    with atomic_path(tmp_path / "out.png") as tmp:  # the writer lives: its file stays
+        tmp.write_bytes(b"mine")
+    assert partial.is_file()
+    writer.kill()
+    writer.wait()
+    with atomic_path(tmp_path / "out.png") as tmp:  # killed seconds ago: removed
+        tmp.write_bytes(b"again")
+    assert not partial.exists() and (tmp_path / "out.png").read_bytes() == b"again"
+    assert not list(tmp_path.glob(f".*{PARTIAL_MARKER}*"))

@@ -6,6 +6,7 @@ import contextlib
 import errno
 import glob
 import os
+import re
 import stat
 import tempfile
 import time
@@ -19,8 +20,8 @@ __all__ = ["PARTIAL_GLOB", "PARTIAL_MARKER", "atomic_path", "check_writable", "o
            "remove_partials"]
 
 #: Marker in the names of :func:`atomic_path`'s temporary files: hidden, then
-#: ``.<stem>.dualpixel-partial-<random><suffix>``. Cleanup matches only this project's marker, so a
-#: user's own ``.notes.partial.txt`` is never taken for a leftover.
+#: ``.<stem>.dualpixel-partial-p<writer's pid>-<random><suffix>``. Cleanup matches only this
+#: project's marker, so a user's own ``.notes.partial.txt`` is never taken for a leftover.
 PARTIAL_MARKER = ".dualpixel-partial-"
 PARTIAL_GLOB = f".*{PARTIAL_MARKER}*"
 
@@ -33,13 +34,29 @@ os.umask(_UMASK)
 LEFTOVER_AGE = 3600.0
 
 
-def _is_leftover(path: Path) -> bool:
+def _is_leftover(path: Path, writer: int | None = None) -> bool:
     """Whether ``path``, a temporary file of :func:`atomic_path`, was left by a killed write:
-    not modified for :data:`LEFTOVER_AGE` seconds."""
+    its writer's process (``writer``, from the name) is gone, or it was not modified for
+    :data:`LEFTOVER_AGE` seconds (a name without a writer, or a process id reused since)."""
     try:
-        return path.is_file() and time.time() - path.stat().st_mtime > LEFTOVER_AGE
+        if not path.is_file():
+            return False
+        if writer is not None and writer != os.getpid() and not _alive(writer):
+            return True
+        return time.time() - path.stat().st_mtime > LEFTOVER_AGE
     except OSError:
         return False  # gone already
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (one of another user counts as alive)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return True
+    return True
 
 
 @contextlib.contextmanager
@@ -47,20 +64,27 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it over ``path``, else delete it.
 
     The temporary name keeps the suffix, so writers that infer the format from it still work.
-    A temporary file of the same ``path`` that an earlier, killed write left (untouched for
-    :data:`LEFTOVER_AGE`) is removed first; a newer one is left alone, so that processes writing
-    the same file at once (loader workers filling the frame store) do not delete each other's.
+    A temporary file of the same ``path`` that an earlier, killed write left (its writer's
+    process gone, or untouched for :data:`LEFTOVER_AGE`) is removed first; a live writer's is left
+    alone, so that processes writing the same file at once (loader workers filling the frame
+    store) do not delete each other's.
     """
     target = Path(path)
     check_writable(target)
-    # the stem shortened where the temporary name would exceed the longest name (mkstemp adds 8)
-    room = _name_max(target.parent) - len(PARTIAL_MARKER) - len(target.suffix) - 10
-    prefix = f".{target.stem[:max(room, 1)]}{PARTIAL_MARKER}"
-    for leftover in target.parent.glob(f"{glob.escape(prefix)}*{glob.escape(target.suffix)}"):
-        if (len(leftover.name) == len(prefix) + 8 + len(target.suffix)
-                and _is_leftover(leftover)):
+    # the name says which process writes it ("p<pid>-"), so a rerun removes a killed writer's
+    # file at once; the stem is shortened where the name would exceed the longest (mkstemp
+    # adds 8)
+    writer = f"p{os.getpid()}-"
+    room = _name_max(target.parent) - len(PARTIAL_MARKER) - len(target.suffix) - len(writer) - 10
+    base = f".{target.stem[:max(room, 1)]}{PARTIAL_MARKER}"
+    pattern = re.compile(rf"{re.escape(base)}(?:p(\d+)-)?[A-Za-z0-9_]{{8}}"
+                         rf"{re.escape(target.suffix)}")
+    for leftover in target.parent.glob(f"{glob.escape(base)}*{glob.escape(target.suffix)}"):
+        match = pattern.fullmatch(leftover.name)
+        if match and _is_leftover(leftover, int(match[1]) if match[1] else None):
             leftover.unlink(missing_ok=True)  # this file's earlier write, killed mid-way
-    fd, tmp_name = tempfile.mkstemp(prefix=prefix, suffix=target.suffix, dir=target.parent)
+    fd, tmp_name = tempfile.mkstemp(prefix=base + writer, suffix=target.suffix,
+                                    dir=target.parent)
     os.close(fd)
     tmp = Path(tmp_name)
     try:
