@@ -83,7 +83,9 @@ class _Source:
         return discover_sequences(self.input, self.fmt, split=self.config.split)
 
     def check(self) -> None:
-        """Every scene's depth read and checked, and its size matched to its RGB."""
+        """Every scene's depth read (:func:`~dualpixel.synthesis.inputs.load_depth` refuses
+        NaN, infinite and non-positive depth, naming the file) and its size matched to its
+        RGB's header."""
         from dualpixel.io.images import image_size
         from dualpixel.synthesis.inputs import load_depth
 
@@ -91,8 +93,6 @@ class _Source:
             for frame in sequence.frames:
                 depth = load_depth(frame, self.fmt, max_depth=self.config.max_depth,
                                    depth_scale=self.config.depth_scale)
-                if not np.isfinite(depth).all() or (depth <= 0).any():
-                    raise InputFileError(frame.depth, "depth must be finite and > 0 everywhere")
                 if image_size(frame.rgb) != depth.shape:
                     raise InputFileError(frame.depth, f"depth is {depth.shape[1]}x"
                                                       f"{depth.shape[0]}, unlike {frame.rgb}")
@@ -197,8 +197,9 @@ class OnTheFlyDataset(DPPatchDataset):
 def _as_read(image: np.ndarray, bit_depth: int) -> np.ndarray:
     """Stored integers as :func:`~dualpixel.io.images.read_rgb` returns the file written from
     them: float32 ``(H, W, 3)`` in [0, 1], grey copied to the three channels."""
-    scale = 65535.0 if bit_depth == 16 else 255.0
-    values = image.astype(np.float32) / scale
+    from dualpixel.io.images import max_level
+
+    values = image.astype(np.float32) / max_level(bit_depth)
     if values.ndim == 2:
         values = np.repeat(values[:, :, None], 3, axis=2)
     return values
@@ -208,6 +209,7 @@ def write_samples(dataset: OnTheFlyDataset, output: str | Path, count: int, *,
                   seed: int = 0) -> Path:
     """``count`` whole frames of ``dataset``, each with its own draw, written in the DPDD layout
     (split ``train``) for ``dualpixel stats``: what the source trains on, made visible."""
+    from dualpixel.io.dpdd import frame_paths
     from dualpixel.io.images import write_png
     from dualpixel.synthesis.dataset import render_job
 
@@ -218,8 +220,7 @@ def write_samples(dataset: OnTheFlyDataset, output: str | Path, count: int, *,
         index = int(rng.integers(len(dataset)))
         job = dataset.job(index, int(rng.integers(2**62)), 0)
         stored = render_job(job, dataset.source.fmt, dataset.source.config)
-        for role, folder in (("left", "train_l/source"), ("right", "train_r/source"),
-                             ("combined", "train_c/source"), ("target", "train_c/target")):
-            write_png(root / folder / f"seq_{n:03d}" / "frame_0000.png", stored[role],
-                      bit_depth=bits)
+        paths = frame_paths(root, "train", f"seq_{n:03d}", "frame_0000")
+        for role in ("left", "right", "combined", "target"):
+            write_png(paths[role], stored[role], bit_depth=bits)
     return root

@@ -368,7 +368,7 @@ def render_scene(
         if config.layout == "photo":
             background, back_depth, leaves, focus = _photo_world(rng, config, margin)
         else:
-            library = shipped_library(photo_side(config)) if photos is None else photos
+            library = photo_library(config, None) if photos is None else photos
             background, back_depth, leaves, focus = _photographic_world(rng, config, margin,
                                                                         library)
         parallax_depth = float(np.median(back_depth))
@@ -504,11 +504,11 @@ def write_scene_folder(
 
     check_range("workers", workers, low=1)
     check_seed("seed", seed)
-    if photos is not None and config.layout != "photographic":
+    if photos is None:  # the layout's default: the package's photographs, or none
+        photos = photo_library(config, None)
+    elif config.layout != "photographic":
         raise ParameterError(f"photographs are for the photographic layout, not "
                              f"{config.layout!r}")
-    if config.layout == "photographic" and photos is None:
-        photos = shipped_library(photo_side(config))
     sequences = check_sequence_count(sequences)
     root = Path(output)
     folders = [root / f"seq_{k:03d}" for k in range(sequences)]

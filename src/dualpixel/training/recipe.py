@@ -630,11 +630,11 @@ def run_data(recipe: Recipe, output: Path, *, workers: int = 1, progress: bool =
             config, sequences, seed, photos = scene_config(step)
             write_scene_folder(folder, sequences, config, seed=seed, workers=workers,
                                progress=progress, photos=photos)
-        elif step.args.get("source") == "on-the-fly":  # the recipe of its frames, no frames
-            config, source, fmt = synth_config(recipe, step, output)
+            continue
+        config, source, fmt = synth_config(recipe, step, output)
+        if step.args.get("source") == "on-the-fly":  # the recipe of its frames, no frames
             write_on_the_fly(folder, source, fmt, config)
         else:
-            config, source, fmt = synth_config(recipe, step, output)
             summary = synthesize_dataset(source, fmt, folder, config, workers=workers,
                                          device="cpu", progress=progress)
             if summary["status"] != "complete":
