@@ -38,12 +38,14 @@ def load_model(name_or_path: str | Path = DEFAULT_CHECKPOINT, *, device: str = "
     ``device`` (``auto``: the GPU when there is one, as every command)."""
     from dualpixel.device import resolve_device
     from dualpixel.models import load_model as load_checkpoint
-    from dualpixel.weights import resolve_checkpoint
+    from dualpixel.weights import output_settings, resolve_checkpoint
 
     if not isinstance(name_or_path, (str, Path)):
         raise ParameterError("load_model takes a model name (list_models()) or a checkpoint "
                              f"path, got {type(name_or_path).__name__}")
-    return load_checkpoint(resolve_checkpoint(name_or_path), device=resolve_device(device))
+    net = load_checkpoint(resolve_checkpoint(name_or_path), device=resolve_device(device))
+    net.output_settings = output_settings(name_or_path)  # a name: its registry row's
+    return net
 
 
 def check_views(left: Any, right: Any, combined: Any = None) -> list:
@@ -82,9 +84,10 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
     brightness (DPDD), or ``views_sum=True`` for views that sum to it (a raw A/B split; they
     are doubled). :func:`check_views` tells the usual mistakes. ``model``: a name, a checkpoint
-    path or a loaded network. ``flips``, ``brightness``, ``overshoot``: None takes a shipped
-    model's own setting (:func:`dualpixel.weights.run_settings`; ``list_models`` shows them),
-    else as the network gives it. ``flips``:
+    path or a loaded network. ``flips``, ``brightness``, ``overshoot``: None takes the
+    model's own setting, which travels with it (a name, its file, or the network
+    :func:`load_model` gave: :func:`dualpixel.weights.run_settings`; ``list_models`` shows
+    them), else as the network gives it. ``flips``:
     average over the flips that keep DP geometry (self-ensemble, 4x the time; ``Deblurrer``).
     ``multiscale``: fuse with a pass at half resolution (at most 1.25x the time;
     :mod:`dualpixel.inference.multiscale`). ``precision``: ``auto`` (bf16 where the device
@@ -158,8 +161,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     lefts, rights_in = to_model(lefts, lefts if rights is None else rights, view_encoding,
                                 scale=scale, views_sum=views_sum)
     rights = None if rights is None else rights_in
-    settings = run_settings(model if isinstance(model, (str, Path)) else None,
-                            brightness=brightness, overshoot=overshoot, flips=flips)
+    settings = run_settings(net, brightness=brightness, overshoot=overshoot, flips=flips)
     deblurrer = Deblurrer(net, device=resolved, tile=tile, multiscale=multiscale,
                           precision=precision, backend=backend, **settings)
     outputs = []

@@ -16,6 +16,7 @@ __all__ = [
     "InputFileError",
     "OutputFileError",
     "ParameterError",
+    "check_integer",
     "check_range",
     "check_seed",
     "is_integer",
@@ -71,10 +72,15 @@ def check_range(
     >>> check_range("beta", 0.2, 0.0, 1.0, low_inclusive=False)
     0.2
     """
+    if isinstance(value, bool):  # float(True) is 1.0: a flag is not a number
+        raise ParameterError(f"{name} must be a number, got {value!r}")
     try:
         number = float(value)
     except (TypeError, ValueError):
         raise ParameterError(f"{name} must be a number, got {value!r}") from None
+    except OverflowError:
+        raise ParameterError(f"{name} must be a number of at most 308 digits, got one of "
+                             f"{len(str(value))}") from None
     if not math.isfinite(number):
         raise ParameterError(f"{name} must be finite, got {value!r}")
     above = number >= low if low_inclusive else number > low
@@ -93,6 +99,21 @@ def is_integer(value: object) -> bool:
     (True, False, False)
     """
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def check_integer(name: str, value: object, low: int = 0, high: int = 2**63 - 1) -> int:
+    """Return ``value`` as an int if it is an integer (a ``bool`` or a float is not) in
+    [``low``, ``high``], else raise :class:`ParameterError` naming ``name``.
+
+    >>> check_integer("width", 840, 1, 65536)
+    840
+    """
+    if not is_integer(value):
+        raise ParameterError(f"{name} must be an integer, got {value!r}")
+    if not low <= int(value) <= high:
+        shown = value if len(str(value)) <= 40 else f"an integer of {len(str(value))} digits"
+        raise ParameterError(f"{name} must be in [{low}, {high}], got {shown}")
+    return int(value)
 
 
 #: The largest seed any command or function takes (a non-negative 63-bit integer, what NumPy's

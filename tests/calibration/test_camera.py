@@ -67,8 +67,12 @@ def test_crosstalk_refuses_bad_ratios():
     views = torch.zeros(3, 4, 4)
     with pytest.raises(ParameterError, match="one value per channel"):
         apply_crosstalk(views, views, (1.0, 1.0))
-    with pytest.raises(ParameterError, match=r"\[0, 1.5\]"):
+    with pytest.raises(ParameterError, match=r"disparity_ratio\[1\] must be finite"):
         apply_crosstalk(views, views, (1.0, float("nan"), 1.0))
+    with pytest.raises(ParameterError, match=r"\[0, 1.5\]"):
+        apply_crosstalk(views, views, (1.0, 1.6, 1.0))
+    with pytest.raises(ParameterError, match=r"disparity_ratio\[2\] must be a number, got True"):
+        apply_crosstalk(views, views, (1.0, 1.0, True))
 
 
 def test_calibration_recovers_known_ratios_and_psf_shape():

@@ -138,5 +138,5 @@ def test_bad_datasets_are_named(tmp_path):
         discover_dp_dataset(empty, "test")
     small = tmp_path / "small"
     write_dpdd_pairs(small, "train", ["c"], size=(40, 48))
-    with pytest.raises(ParameterError, match=r"patch size 64 exceeds c \(48x40\)"):
+    with pytest.raises(ParameterError, match=r"patch_size 64 exceeds .*c.* \(48x40\)"):
         DPPatchDataset(discover_dp_dataset(small, "train"), PatchConfig(patch_size=64))

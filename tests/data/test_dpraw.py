@@ -114,7 +114,8 @@ SRGB_FROM_XYZ = np.linalg.inv([[0.412453, 0.357580, 0.180423], [0.212671, 0.7151
                                [0.019334, 0.119193, 0.950227]])
 
 
-def _two_frame_dng(path, raw: DualPixelRaw, colour_matrix, orientation: int = 1) -> None:
+def _two_frame_dng(path, raw: DualPixelRaw, colour_matrix, orientation: int = 1,
+                   white: float = WHITE) -> None:
     """A DNG holding a Dual Pixel RAW's two frames as LibRaw reads two frames of a DNG: one CFA
     image of two samples per pixel (A+B, then A; the layout of Fuji's two-frame DNGs), whose
     ``shot_select=1`` is the second. ``colour_matrix`` (XYZ -> camera, 3x3) and the white
@@ -132,7 +133,7 @@ def _two_frame_dng(path, raw: DualPixelRaw, colour_matrix, orientation: int = 1)
                    planarconfig="contig", extrasamples=[0], subfiletype=0, metadata=None,
                    extratags=[(33421, "H", 2, (2, 2), True), (33422, "B", 4, (0, 1, 1, 2), True),
                               (50714, "H", 1, int(BLACK), True),
-                              (50717, "H", 1, int(WHITE), True)])
+                              (50717, "H", 1, int(white), True)])
     with tifffile.TiffFile(path, mode="r+b") as tiff:
         tiff.filehandle.seek(tiff.pages[0].tags["SubIFDs"].value[0])
         tifffile.TiffPage(tiff, index=1).tags["PhotometricInterpretation"].overwrite(32803)
@@ -155,6 +156,17 @@ def test_two_frame_dng_through_the_import_path(scene, tmp_path):
     [(_, views)] = dpraw.import_dual_pixel_raws([tmp_path / "IMG_0001.dng"], tmp_path / "dp")
     assert views.a_view == "left"
     assert _psnr(views.left, scene["left"]) > 30 and _psnr(views.right, scene["right"]) > 30
+
+
+def test_a_dng_whose_white_level_is_below_its_black_level_is_named(scene, tmp_path):
+    """Issue #72: damaged levels are the file's fault, and the message says which file."""
+    pytest.importorskip("rawpy")
+    stored = _raw_of(scene["left"], scene["right"])
+    _two_frame_dng(tmp_path / "IMG_0002.dng", stored, SRGB_FROM_XYZ, white=300)
+    result = CliRunner().invoke(cli, ["import-dpraw", str(tmp_path / "IMG_0002.dng"),
+                                      "--output", str(tmp_path / "dp")])
+    assert result.exit_code == 1, result.output
+    assert "IMG_0002.dng: its white level 300 is not above its black level 512" in result.output
 
 
 def test_import_dpraw_develops_a_real_file_as_libraw_flags_clipping_and_scales(tmp_path):
@@ -314,3 +326,26 @@ def test_colour_matrix_develops_as_libraw(tmp_path):
                                                                np.zeros((1, 3)))))
     np.testing.assert_allclose(camera_colour_matrix(xyz_only), matrix, atol=1e-4)
     assert camera_colour_matrix(types.SimpleNamespace()) is None  # none given: none applied
+
+
+def test_a_frame_brighter_than_the_sum_is_measured_and_warned(scene, tmp_path, monkeypatch):
+    """Issue #72: frames stored the other way round (A+B second) give B = 0 wherever A is
+    brighter: the import says so, naming the file; a true pair has no such site."""
+    import dualpixel.data.dpraw as dpraw
+
+    raw = _raw_of(scene["left"], scene["right"])
+    assert develop_views(raw, a_view="left").inverted == 0.0
+    swapped = DualPixelRaw(**{**vars(raw), "combined": raw.a_only, "a_only": raw.combined})
+    views = develop_views(swapped, a_view="left")
+    assert views.inverted > 0.3
+    assert float(np.mean(views.right == 0.0)) > 0.3  # what the user would otherwise get
+    monkeypatch.setattr(dpraw, "read_dual_pixel_raw", lambda path: swapped)
+    with pytest.warns(UserWarning, match=r"two\.CR2: .* % of the frame has the A frame brighter "
+                                         r"than the A\+B frame"):
+        dpraw.import_dual_pixel_raws([tmp_path / "two.CR2"], tmp_path / "dp", a_view="left")
+    monkeypatch.setattr(dpraw, "read_dual_pixel_raw", lambda path: raw)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dpraw.import_dual_pixel_raws([tmp_path / "one.CR2"], tmp_path / "dp1", a_view="left")

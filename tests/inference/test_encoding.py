@@ -153,7 +153,20 @@ def test_cli_bad_phone_inputs_are_clear_errors(raw_pair, tiny_checkpoint, tmp_pa
     no_black = CliRunner().invoke(cli, [*base, "--right", str(left), "--encoding", "linear",
                                         "--white-level", "16383"])
     assert no_black.exit_code != 0 and "--black-level" in no_black.output
-    for result in (mixed, no_black):
+    # Issue #72: a flat field of another size names the views' file and the option; a flat field
+    # that is black names the flat field's file
+    linear = ["--right", str(tmp_path / "right_grey.png"), "--encoding", "linear",
+              "--black-level", str(BLACK), "--white-level", str(WHITE)]
+    write_grey16(tmp_path / "right_grey.png", raw_pair[1])
+    small = write_grey16(tmp_path / "flat_small.png", np.full((16, 24), 5000, np.uint16))
+    other_size = CliRunner().invoke(cli, [*base, *linear, "--flat-field", str(small), str(small)])
+    assert other_size.exit_code == 1, other_size.output
+    assert "left.png: the right view's gain map (a flat field, --flat-field) is 24x16" in \
+        other_size.output
+    dark = write_grey16(tmp_path / "flat_dark.png", np.full_like(raw_pair[0], BLACK))
+    black = CliRunner().invoke(cli, [*base, *linear, "--flat-field", str(dark), str(dark)])
+    assert black.exit_code == 1 and "flat_dark.png: as a flat field: " in black.output
+    for result in (mixed, no_black, other_size, black):
         assert "Traceback" not in result.output
 
 

@@ -3,6 +3,7 @@ the file named, never a traceback (a binary --config, a list or truncated datase
 
 from __future__ import annotations
 
+import json
 import shutil
 
 import pytest
@@ -68,3 +69,94 @@ def test_manifest_lines_that_are_not_frame_records_are_refused(tmp_path, line):
         read_manifest(manifest)
     manifest.write_text(f"{good}\n" + '{"key": "tr')
     assert list(read_manifest(manifest)) == ["train/seq_000/frame_0000"]
+
+
+# Issue #72: numbers without bounds. Every document is read by one reader that refuses
+# non-finite numbers and integers beyond 63 bits (naming the key), and the readers of typed keys
+# refuse a flag where a number belongs.
+
+@pytest.mark.parametrize("text, problem", [
+    ('{"psf": {"alpha": Infinity}}', r"psf\.alpha is an infinity; numbers must be finite"),
+    ('{"ratios": [0.5, NaN]}', r"ratios\[1\] is NaN"),
+    ('{"width": 1' + "0" * 400 + "}", "width is an integer of 401 digits"),
+    ('{"width": -1e999}', "width is an infinity"),
+])
+def test_documents_refuse_numbers_without_bounds(tmp_path, text, problem):
+    path = tmp_path / "camera.json"
+    path.write_text(text)
+    with pytest.raises(InputFileError, match=rf"camera\.json: {problem}"):
+        read_mapping(path, "camera file")
+
+
+def test_yaml_infinities_are_refused_like_json_ones(tmp_path):
+    path = tmp_path / "config.yaml"
+    path.write_text("learning_rate: .inf\nepochs: 3\n")
+    with pytest.raises(InputFileError, match="learning_rate is an infinity"):
+        read_mapping(path, "training config", syntax="yaml")
+    path.write_text("learning_rate: 1.0e-4\nseed: 9223372036854775807\n")  # the largest seed
+    assert read_mapping(path, "training config", syntax="yaml")["seed"] == 2**63 - 1
+
+
+@pytest.mark.parametrize("field, value, problem", [
+    ("width", True, "width must be an integer, got True"),
+    ("width", 840.0, "width must be an integer, got 840.0"),
+    ("width", 0, r"width must be in \[1, 65536\]"),
+    ("blocks", "many", "blocks must be an integer"),
+    ("noise_std", False, "noise_std must be a number, got False"),
+    ("noise_std", 2.0, r"noise_std must be in \[0, 1\]"),
+    ("psf", {"n": True, "alpha": 0.45, "beta": 0.2, "kappa": 0.21},
+     "psf.n must be a number, got True"),
+    ("disparity_ratio", [0.7, True, 1.0], r"disparity_ratio\[1\] must be a number"),
+    ("coc_percentiles", {"p50": "x"}, r"coc_percentiles\.p50 must be a number"),
+])
+def test_camera_files_refuse_flags_and_out_of_range_numbers(tmp_path, field, value, problem):
+    from dualpixel.optics.camera import load_camera
+
+    data = json.loads(shipped_camera_text("canon-840"))
+    data[field] = value
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputFileError, match=rf"camera\.json: bad camera field: {problem}"):
+        load_camera(path)
+
+
+def shipped_camera_text(name: str) -> str:
+    from dualpixel.cameras import shipped_camera
+
+    return shipped_camera(name).read_text()
+
+
+@pytest.fixture(scope="module")
+def photo_scene(tmp_path_factory):
+    """One 64x48 "photo" layout scene (it writes a focus distance)."""
+    scenes = tmp_path_factory.mktemp("scenes") / "scenes"
+    result = CliRunner().invoke(cli, ["scenes", "-o", str(scenes), "--sequences", "1",
+                                      "--frames", "1", "--size", "64x48", "--layout", "photo"])
+    assert result.exit_code == 0, result.output
+    return scenes
+
+
+def test_synth_names_a_bad_camera_file(tmp_path, photo_scene):
+    data = json.loads(shipped_camera_text("canon-840"))
+    data["width"] = True
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(data))
+    result = CliRunner().invoke(cli, ["synth", "--input", str(photo_scene), "-o",
+                                      str(tmp_path / "dp"), "--camera", str(path)])
+    assert result.exit_code == 1, result.output
+    assert "camera.json: bad camera field: width must be an integer" in result.output
+    assert not (tmp_path / "dp").exists() or not any((tmp_path / "dp").iterdir())
+
+
+@pytest.mark.parametrize("value, problem", [
+    ("true", "must be a number, got True"),
+    ("-2.0", "must be in"),
+    ("NaN", "is NaN"),
+])
+def test_a_scene_files_bad_focus_distance_names_the_file(tmp_path, photo_scene, value, problem):
+    scenes = tmp_path / "scenes"
+    shutil.copytree(photo_scene, scenes)
+    (scenes / "seq_000" / "scene.json").write_text(f'{{"focus_distance": {value}}}')
+    result = CliRunner().invoke(cli, ["synth", "--input", str(scenes), "-o", str(tmp_path / "dp")])
+    assert result.exit_code == 1, result.output
+    assert "scene.json: " in result.output and problem in result.output, result.output

@@ -31,6 +31,7 @@ def test_cleanup_removes_only_this_projects_leftovers(tmp_path):
 def test_scenes_holds_its_folder(tmp_path):
     out = tmp_path / "scenes"
     config = SceneConfig(frames=1, width=32, height=24)
+    out.mkdir()  # (a folder the holder made and left empty goes with its lock)
     with folder_lock(out, "synth"):
         with pytest.raises(OutputFileError, match="being written by pid"):
             write_scene_folder(out, 1, config, progress=False)
@@ -56,3 +57,27 @@ def test_file_errors_cross_process_boundaries_whole():
         again = pickle.loads(pickle.dumps(error))
         assert type(again) is type(error)
         assert (again.path, again.problem, str(again)) == (error.path, error.problem, str(error))
+
+
+def test_a_released_lock_leaves_no_holder_and_no_empty_folder(tmp_path, tiny_synthetic_dataset):
+    """Issue #72 / #73: a finished folder's lock file no longer names its writer (so two runs'
+    folders are byte-identical), and a run refused before writing leaves no folder behind."""
+    made = tmp_path / "new" / "run"
+    with folder_lock(made, "train") as lock:
+        assert "pid" in lock.read_text()
+    assert not (tmp_path / "new").exists()
+    kept = tmp_path / "kept"
+    with folder_lock(kept, "synth") as lock:
+        (kept / "frame.png").write_bytes(b"data")
+    assert lock.read_text() == "" and (kept / "frame.png").read_bytes() == b"data"
+    existing = tmp_path / "existing"
+    existing.mkdir()
+    with folder_lock(existing, "synth"):
+        pass
+    assert existing.is_dir()  # the user's folder stays, with an empty lock
+    result = CliRunner().invoke(cli, ["train", "--output", str(tmp_path / "refused"),
+                                      "--set", f"synthetic_data={tiny_synthetic_dataset}",
+                                      "--set", "synthetic_as_frames=true",
+                                      "--set", "patch_size=4096"])
+    assert result.exit_code != 0 and "patch_size 4096 exceeds" in result.output, result.output
+    assert not (tmp_path / "refused").exists()

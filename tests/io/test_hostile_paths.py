@@ -444,3 +444,56 @@ def test_a_killed_writers_file_goes_at_the_rerun_however_recent(tmp_path):
         tmp.write_bytes(b"again")
     assert not partial.exists() and (tmp_path / "out.png").read_bytes() == b"again"
     assert not list(tmp_path.glob(f".*{PARTIAL_MARKER}*"))
+
+
+def _write_pair(folder, size=(64, 96)):
+    import cv2
+
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(0)
+    for name in ("left.png", "right.png", "target.png"):
+        cv2.imwrite(str(folder / name), rng.integers(0, 255, (*size, 3), dtype=np.uint8))
+
+
+@pytest.mark.parametrize("kind", ["loop", "dangling"])
+def test_links_that_lead_nowhere_are_named_as_such(tmp_path, kind):
+    """Issue #72: a view that is a looping or dangling link is said to be one, by name, in an
+    option and inside a folder of pairs (not "missing", not "does not exist")."""
+    scene = tmp_path / "pairs" / "a"
+    _write_pair(scene)
+    (scene / "right.png").unlink()
+    if kind == "loop":
+        os.symlink(scene / "back", scene / "right.png")
+        os.symlink(scene / "right.png", scene / "back")
+        said = "right.png: is a symbolic link that loops"
+    else:
+        os.symlink(scene / "gone.png", scene / "right.png")
+        said = "right.png: is a symbolic link to "
+    runner = CliRunner()
+    option = runner.invoke(cli, ["deblur", "--left", str(scene / "left.png"), "--right",
+                                 str(scene / "right.png"), "-o", str(tmp_path / "out.png")])
+    assert option.exit_code == 2 and said in option.output, option.output
+    folder = runner.invoke(cli, ["check-model", "--input", str(tmp_path / "pairs"), "-o",
+                                 str(tmp_path / "report")])
+    assert folder.exit_code == 1 and said in folder.output, folder.output
+    for result in (option, folder):
+        assert "Traceback" not in result.output
+
+
+def test_images_too_small_for_a_metric_or_a_check_name_the_file(tmp_path):
+    """Issue #72: 6x6 images are refused by NIQE, SSIM and the target-free checks, each naming
+    the file it could not score."""
+    scene = tmp_path / "scenes" / "tiny"
+    _write_pair(scene, size=(6, 6))
+    runner = CliRunner()
+    niqe = runner.invoke(cli, ["eval", "--dataset", str(tmp_path / "scenes"), "-o",
+                               str(tmp_path / "e1")])
+    assert niqe.exit_code == 1 and "left.png: NIQE needs images of at least" in niqe.output
+    ssim = runner.invoke(cli, ["eval", "--dataset", str(tmp_path / "scenes"), "-o",
+                               str(tmp_path / "e2"), "--no-niqe"])
+    assert ssim.exit_code == 1 and "left.png: SSIM needs images of at least" in ssim.output
+    check = runner.invoke(cli, ["check-model", "--input", str(tmp_path / "scenes"), "-o",
+                                str(tmp_path / "c")])
+    assert check.exit_code == 1, check.output
+    assert "left.png: images must be at least 128x64 px for the target-free checks" in \
+        check.output

@@ -214,3 +214,38 @@ def test_equal_weights_make_equal_files(tmp_path):
     loaded = load_model(path)
     for key, value in model.state_dict().items():
         assert torch.equal(loaded.state_dict()[key], value)
+
+
+@pytest.mark.parametrize("key, text, problem", [
+    ("peepholes", '"yes"', "peepholes must be JSON bool"),
+    ("residual", "1", "residual must be JSON bool"),
+    ("refiner", "[8, true]", "refiner must list integer widths"),
+    ("refiner", '{"a": 1}', "refiner must be JSON list"),
+    ("extra", "[1, 2]", "extra must be JSON dict"),
+    ("temporal", "null", "temporal must be JSON bool"),
+    ("width", "nan", "width must be finite"),
+    ("width", "1e999", "width must be finite"),
+    ("peepholes", "{", "Expecting property name"),
+])
+def test_checkpoint_metadata_of_the_wrong_json_type_is_refused(tmp_path, key, text, problem):
+    """Issue #72: each header value is JSON of one type; another type (or no JSON) is a clear
+    error naming the file and the key, before any network is built."""
+    from safetensors.torch import load_file, save_file
+
+    from dualpixel.errors import InputFileError
+    from dualpixel.models import build_model, load_model, save_model
+    from dualpixel.models.checkpoint import read_metadata
+
+    path = tmp_path / "m.safetensors"
+    save_model(path, build_model("rdpd", width=0.125))
+    from safetensors import safe_open
+
+    with safe_open(str(path), framework="pt") as handle:
+        metadata = dict(handle.metadata())
+    metadata[key] = text
+    save_file(load_file(str(path)), str(path), metadata=metadata)
+    with pytest.raises(InputFileError, match=rf"m\.safetensors: checkpoint metadata is "
+                                             rf"malformed \(.*{problem}"):
+        read_metadata(path)
+    with pytest.raises(InputFileError, match=r"m\.safetensors"):
+        load_model(path)

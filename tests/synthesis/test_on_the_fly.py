@@ -166,7 +166,7 @@ def test_bad_sources_are_named_before_any_work(scenes, tmp_path):
     assert not (tmp_path / "s1" / ON_THE_FLY_FILE).exists()
     good = tmp_path / "good"
     write_on_the_fly(good, scenes, "rgbd", SynthConfig(**SETTINGS))
-    with pytest.raises(ParameterError, match="patch size 256 exceeds"):
+    with pytest.raises(ParameterError, match="patch_size 256 exceeds"):
         OnTheFlyDataset(good, PatchConfig(patch_size=256))
 
 

@@ -1,6 +1,6 @@
-"""`synth` killed (SIGKILL, workers included) mid-run, then rerun, gives a dataset byte-identical
-to an uninterrupted run, manifest included. Both use 2 workers (one torch thread
-each): a different thread count may round a pixel differently."""
+"""`synth` stopped (Ctrl-C, SIGTERM or SIGKILL, workers included) mid-run, then rerun, gives a
+dataset byte-identical to an uninterrupted run, manifest and lock file included. Both use 2
+workers (one torch thread each): a different thread count may round a pixel differently."""
 
 import json
 import os
@@ -16,7 +16,6 @@ import pytest
 
 from dualpixel.data import discover_dp_dataset
 from dualpixel.errors import InputFileError
-from dualpixel.io.lock import LOCK_NAME
 from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 
@@ -33,7 +32,7 @@ _CHILD = textwrap.dedent("""
 
 def every_file(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
-            if p.is_file() and p.name != LOCK_NAME}  # the lock names its holder's pid
+            if p.is_file()}
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +43,8 @@ def scenes(tmp_path_factory) -> Path:
     return root
 
 
-def test_killed_synth_resumes_byte_identical(scenes, tmp_path):
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+def test_killed_synth_resumes_byte_identical(scenes, tmp_path, stop):
     reference = tmp_path / "reference"
     synthesize_dataset(scenes, "rgbd", reference, SynthConfig(**CONFIG), workers=2,
                        progress=False)
@@ -58,10 +58,10 @@ def test_killed_synth_resumes_byte_identical(scenes, tmp_path):
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and child.poll() is None:
         if manifest.is_file() and manifest.read_text().count("\n") >= 2:
-            os.killpg(child.pid, signal.SIGKILL)  # the parent and its worker processes
+            os.killpg(child.pid, stop)  # the parent and its worker processes, as Ctrl-C does
             break
         time.sleep(0.01)
-    assert child.wait(timeout=60) == -signal.SIGKILL, "the run finished before it was killed"
+    assert child.wait(timeout=60) == -stop, "the run finished before it was stopped"
     assert json.loads((killed / "dataset.json").read_text())["status"] == "incomplete"
     with pytest.raises(InputFileError, match="unfinished"):
         discover_dp_dataset(killed, "train")

@@ -130,9 +130,19 @@ def _epoch_text(state):
     return state
 
 
+def _emptied(state):
+    return {}
+
+
+def _negative_step(state):
+    state["step"] = -3
+    return state
+
+
 @pytest.mark.parametrize("spoil, says", [
     (_non_mapping, "not a mapping"), (_no_optimizer, "no 'optimizer' entry"),
     (_wrong_shape, "does not fit"), (_epoch_text, "'epoch' is a str"),
+    (_emptied, "no 'model' entry"), (_negative_step, "a negative epoch or step"),
 ])
 def test_a_hostile_state_is_refused_by_name_on_resume(tiny_synthetic_dataset, tmp_path,
                                                        spoil, says):

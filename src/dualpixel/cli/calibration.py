@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, OutputPath, parse_size
+from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, InputPath, OutputPath, parse_size
 from dualpixel.names import PSF_BANK_NAMES
 
 
@@ -47,10 +47,10 @@ def calibrate() -> None:
 
 
 @calibrate.command("estimate-psf", context_settings=CONTEXT)
-@click.option("--left", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--left", type=InputPath(dir_okay=False, path_type=Path), required=True,
               help="Left-view capture of the disk pattern.")
-@click.option("--right", type=click.Path(dir_okay=False, path_type=Path), required=True)
-@click.option("--combined", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--right", type=InputPath(dir_okay=False, path_type=Path), required=True)
+@click.option("--combined", type=InputPath(dir_okay=False, path_type=Path), default=None,
               help="Combined capture (default: left + right).")
 @click.option("--radius", type=float, required=True,
               help="Sharp disk radius in capture pixels (radius fraction x spacing in pixels).")
@@ -75,9 +75,9 @@ def estimate_psf(left: Path, right: Path, combined: Path | None, radius: float, 
 
 
 @calibrate.command("fit-psf", context_settings=CONTEXT)
-@click.option("--left", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--left", type=InputPath(dir_okay=False, path_type=Path), required=True,
               help="Measured left PSFs: .npy (N, S, S), or the .npz of estimate-psf.")
-@click.option("--right", type=click.Path(dir_okay=False, path_type=Path), required=True)
+@click.option("--right", type=InputPath(dir_okay=False, path_type=Path), required=True)
 @click.option("--output", "-o", "--report", "report",
               type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="Folder for fits.csv, summary.json/.md and figure.png (--report: old name).")
@@ -135,9 +135,9 @@ def fit_psf(left: Path, right: Path, report: Path, limit: int | None, grid: str,
 
 
 @calibrate.command("fit-distortion", context_settings=CONTEXT)
-@click.option("--capture", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--capture", type=InputPath(dir_okay=False, path_type=Path), required=True,
               help="In-focus capture of the square pattern, centred and cropped to it.")
-@click.option("--pattern", "pattern_path", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--pattern", "pattern_path", type=InputPath(dir_okay=False, path_type=Path),
               required=True, help="The pattern image that was displayed.")
 @click.option("--working-width", type=click.IntRange(16, 4096), default=480,
               help="Search resolution (width).")
@@ -154,7 +154,7 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
 
 
 @calibrate.command("camera", context_settings=CONTEXT)
-@click.option("--input", "inputs", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--input", "inputs", type=InputPath(file_okay=False, path_type=Path),
               required=True, multiple=True,
               help="Real DP pairs with sharp targets: a DPDD-layout folder or a folder of scene "
                    "folders (view0/view1/target.png); repeat for more.")

@@ -22,7 +22,7 @@ from pathlib import Path
 import click
 
 from dualpixel.errors import SEED_MAX, DualPixelError, ParameterError
-from dualpixel.io.paths import check_outputs_apart
+from dualpixel.io.paths import broken_link, check_outputs_apart
 
 __all__ = ["CONTEXT", "MAX_SIDE", "SEED", "DPCommand", "DPGroup", "OutputPath", "float_list",
            "parse_size"]
@@ -53,6 +53,17 @@ def _report(error: BaseException, ctx: click.Context) -> click.ClickException:
         )
     assert isinstance(error, OSError)
     return click.ClickException(_os_error_message(error))
+
+
+class InputPath(click.Path):
+    """An existing file or folder option: a symbolic link that loops or leads nowhere is said
+    to be one (click would call it missing)."""
+
+    def convert(self, value, param, ctx):
+        problem = broken_link(value) if isinstance(value, (str, Path)) else None
+        if problem:
+            self.fail(f"{value}: {problem}", param, ctx)
+        return super().convert(value, param, ctx)
 
 
 class OutputPath(click.Path):

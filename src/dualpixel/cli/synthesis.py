@@ -10,6 +10,7 @@ from dualpixel.cli.common import (
     CONTEXT,
     SEED,
     DPCommand,
+    InputPath,
     OutputPath,
     float_list,
     parse_size,
@@ -73,7 +74,7 @@ def psf(output: Path, radii: list[float], order: float, alpha: float, beta: floa
                    "background and occluders, with richer textures (writes the focus distance); "
                    "photographic: that layout on real photographs (--photos, else the package's "
                    "own few) [default: photographic with --photos, else leaves].")
-@click.option("--photos", type=click.Path(path_type=Path), default=None,
+@click.option("--photos", type=InputPath(path_type=Path), default=None,
               help="Folder of photographs for the photographic layout (JPEG, PNG, TIFF, ...; "
                    "never enlarged, so each needs a side of at least half the frame's shorter "
                    "side).")
@@ -107,7 +108,7 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.option("--input", "input_dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--input", "input_dir", type=InputPath(file_okay=False, path_type=Path),
               required=True, help="SYNTHIA-SF root or RGB-D folder.")
 @click.option("--format", "fmt", type=click.Choice(["synthia", "rgbd"]), default="rgbd",
               help="Input layout.")
@@ -255,7 +256,7 @@ def _shard(param, value: str | None) -> tuple[int, int] | None:
 
 @click.command("merge-shards", cls=DPCommand, context_settings=CONTEXT)
 @click.argument("shards", nargs=-1, required=True,
-                type=click.Path(file_okay=False, exists=True, path_type=Path))
+                type=InputPath(file_okay=False, exists=True, path_type=Path))
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="New dataset folder: the same files as one `synth` run without --shard.")
 def merge_shards_command(shards: tuple[Path, ...], output: Path) -> None:
@@ -268,7 +269,7 @@ def merge_shards_command(shards: tuple[Path, ...], output: Path) -> None:
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--input", "--dataset", "dataset",
-              type=click.Path(file_okay=False, path_type=Path), required=True,
+              type=InputPath(file_okay=False, path_type=Path), required=True,
               help="Dataset folder written by `dualpixel synth`.")
 @click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path),
               default=Path("preview.png"), help="PNG contact sheet to write.")
@@ -286,7 +287,7 @@ def preview(dataset: Path, output: Path, rows: int) -> None:
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.argument("datasets", nargs=-1, required=True,
-                type=click.Path(file_okay=False, path_type=Path))
+                type=InputPath(file_okay=False, path_type=Path))
 @click.option("--split", default=None,
               help="Split of DPDD-layout folders [default: test, else train]; scene folders "
                    "(scene/view0.png ...) need none.")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, OutputPath
+from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -56,7 +56,7 @@ def _overrides(_ctx, _param, values: tuple[str, ...]) -> dict[str, str]:
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.option("--config", "config_path", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--config", "config_path", type=InputPath(dir_okay=False, path_type=Path),
               default=None, help="YAML/JSON config (keys of dualpixel.training.TrainConfig).")
 @click.option("--set", "overrides", multiple=True, callback=_overrides, metavar="KEY=VALUE",
               help="Override a config key (repeatable), e.g. --set epochs=10.")

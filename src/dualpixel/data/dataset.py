@@ -70,13 +70,16 @@ class DPPatchDataset(Dataset):
         self.config = config
         self.sequences = [s for s in sequences if len(s.frames) >= config.frames]
         if not self.sequences:
-            raise ParameterError(f"no sequence has {config.frames} frames")
+            longest = max(len(s.frames) for s in sequences)
+            raise ParameterError(f"sequence_frames is {config.frames} but no sequence has that "
+                                 f"many frames (the longest, {longest}); lower sequence_frames or "
+                                 "train on frames (synthetic_as_frames: true)")
         if config.patch_size is not None:
             small = [s for s in self.sequences if min(s.height, s.width) < config.patch_size]
             if small:
                 raise ParameterError(
-                    f"patch size {config.patch_size} exceeds {small[0].name} "
-                    f"({small[0].width}x{small[0].height})"
+                    f"patch_size {config.patch_size} exceeds sequence {small[0].name} "
+                    f"({small[0].width}x{small[0].height}); lower patch_size"
                 )
         self._cache: dict[DPFramePaths, dict[str, np.ndarray]] | None = {} if cache else None
         self._store = FrameStore(store) if store is not None else None

@@ -103,6 +103,9 @@ class DualPixelViews:
     a_view: str  # "left" or "right": which view the A sub-pixels gave
     evidence: str  # how a_view was decided
     clipped: float = 0.0  # share of the frame where A+B clipped and A did not (B estimated)
+    #: share of the frame where A is brighter than A+B beyond noise (B is zero there): frames
+    #: swapped, or not a DPRAW pair
+    inverted: float = 0.0
 
 
 def _rawpy():
@@ -163,6 +166,9 @@ def read_dual_pixel_raw(path: str | Path) -> DualPixelRaw:
     if indices.shape != (2, 2) or len(colors) < 3:
         raise InputFileError(path, f"colour filter layout {indices.tolist()} ({colors}) is not "
                                    "a 2x2 Bayer pattern")
+    if not np.isfinite(white) or not np.all(black[indices] < white):
+        raise InputFileError(path, f"its white level {white:g} is not above its black level "
+                                   f"{black.max():g}: the file's levels are damaged")
     pattern = "".join(colors[i] for i in indices.ravel())
     green = balance[1] if balance[1] > 0 else 1.0
     white_balance = tuple(v / green if v > 0 else 1.0 for v in balance[:3])
@@ -195,6 +201,18 @@ def _split(raw: DualPixelRaw, clipped: np.ndarray
     b_only[clipped] = a_only[clipped]  # the sum clipped: B from A, not from the clipped sum
     return (2.0 * a_only).astype(np.float32), (2.0 * b_only).astype(np.float32), \
         combined.astype(np.float32)
+
+
+#: A counts as brighter than A+B where it exceeds it by this share of the white level (noise
+#: keeps A below A+B by half a view's light; photon noise alone does not reach this).
+INVERTED_MARGIN = 0.02
+
+
+def _inverted_share(raw: DualPixelRaw, clipped: np.ndarray) -> float:
+    """Share of the sites where A exceeds A+B by :data:`INVERTED_MARGIN` of the white level
+    (sites where A+B clipped left out): B = (A+B) - A is clipped to zero there."""
+    excess = raw.a_only.astype(np.float64) - raw.combined.astype(np.float64)
+    return float(((excess > INVERTED_MARGIN * raw.white_level) & ~clipped).mean())
 
 
 def _clipped_sites(raw: DualPixelRaw) -> np.ndarray:
@@ -247,7 +265,8 @@ def develop_views(raw: DualPixelRaw, *, a_view: str = "auto", scale: float = 1.0
     else:
         evidence = f"A as the {a_view} view, as asked"
     left, right = (a_image, b_image) if a_view == "left" else (b_image, a_image)
-    return DualPixelViews(left, right, combined, a_view, evidence, float(clipped.mean()))
+    return DualPixelViews(left, right, combined, a_view, evidence, float(clipped.mean()),
+                          _inverted_share(raw, clipped))
 
 
 def _check_scale(scale: float) -> None:
@@ -271,8 +290,9 @@ def import_dual_pixel_raws(
     ``{split}_c/source``; 16-bit, the file's orientation in EXIF), ready for ``dualpixel deblur
     --input``. Each file's three images are written atomically once it is developed; a bad file
     stops the import with an error naming it. Warns, naming the file, when over 0.1 % of a frame
-    had clipped highlights (B estimated there) and when a frame is wider than twice
-    :data:`MODEL_WIDTH` at ``scale`` 1. Returns each source with its views."""
+    had clipped highlights (B estimated there) or A brighter than A+B (B black there), and when
+    a frame is wider than twice :data:`MODEL_WIDTH` at ``scale`` 1. Returns each source with
+    its views."""
     import warnings
 
     from dualpixel.io.atomic import check_writable
@@ -306,6 +326,11 @@ def import_dual_pixel_raws(
                 warnings.warn(f"{path}: {100 * views.clipped:.1f} % of the frame is clipped in "
                               "the combined exposure but not in A; the B view is estimated "
                               "from A there", stacklevel=2)
+            if views.inverted > 0.001:
+                warnings.warn(f"{path}: {100 * views.inverted:.1f} % of the frame has the A frame "
+                              "brighter than the A+B frame, so the B view is black there: the "
+                              "frames look swapped, or this is not a Dual Pixel RAW pair",
+                              stacklevel=2)
             metadata = ImageMetadata.from_orientation(raw.orientation)
             for role, image in (("l", views.left), ("r", views.right), ("c", views.combined)):
                 write_png(folders[role] / f"{Path(path).stem}{suffix}", image, bit_depth=16,

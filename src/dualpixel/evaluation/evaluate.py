@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dualpixel.data.layout import DPSequence
-from dualpixel.errors import InputFileError
+from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.evaluation.alignment import AlignmentError, align_to_target
 from dualpixel.evaluation.blur_breakdown import BlurBreakdown, read_defocus
 from dualpixel.evaluation.metrics import mae, psnr, ssim
@@ -124,9 +124,12 @@ def _score(method: str, name: str, category: str, output: np.ndarray, target: np
     if output.shape != target.shape:
         raise InputFileError(source, f"size {output.shape[1]}x{output.shape[0]} differs from the "
                                      f"target ({target.shape[1]}x{target.shape[0]})")
-    score = niqe(output, niqe_model) if niqe_model is not None else None
-    result = ImageResult(name, method, category, psnr(output, target), ssim(output, target),
-                         mae(output, target), score, seconds)
+    try:  # a metric that cannot score images this small names the file
+        score = niqe(output, niqe_model) if niqe_model is not None else None
+        result = ImageResult(name, method, category, psnr(output, target), ssim(output, target),
+                             mae(output, target), score, seconds)
+    except ParameterError as error:
+        raise InputFileError(source, str(error)) from None
     if align is not None:
         try:
             pair = align_to_target(output, target, align)

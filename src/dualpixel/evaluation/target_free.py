@@ -166,6 +166,12 @@ def _check_frame(images: dict[str, np.ndarray], noise_sigma: float) -> int:
         raise ParameterError(f"noise_sigma must be in [0, 8] px, got {noise_sigma}")
     _check_images(images)
     height, width = next(iter(images.values())).shape[:2]
+    return _checked_size(width, height)
+
+
+def _checked_size(width: int, height: int) -> int:
+    """The block side (px) for images ``width`` x ``height``; a :class:`ParameterError` when
+    they are too small for two rows of four blocks."""
     patch = block_size(width)
     if height < 2 * patch or width < 4 * patch:
         raise ParameterError(f"images must be at least {4 * patch}x{2 * patch} px for the "
@@ -368,11 +374,13 @@ def read_pairs(root: str | Path, split: str | None = None,
     for sequence in discover_any(root, split, require_target=False):
         frame = sequence.frames[0]
         left, right, (bits, _) = read_views(frame.left, frame.right)
-        if encoding is not None and encoding.linear:
-            try:
+        try:
+            _checked_size(left.shape[1], left.shape[0])
+            if encoding is not None and encoding.linear:  # levels that must fit this file
                 encoding.check_levels(left, right, scale=max_level(bits))
-            except ParameterError as error:  # levels that do not fit this file
-                raise InputFileError(frame.left, str(error)) from None
+        except ParameterError as error:
+            raise InputFileError(frame.left, str(error)) from None
+        if encoding is not None and encoding.linear:
             left, right = linear_light(left, right, encoding, scale=max_level(bits))
         pairs.append((sequence.name, left, right))
     return pairs

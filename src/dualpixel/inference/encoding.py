@@ -25,7 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dualpixel.errors import ParameterError
+from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.inference.view_checks import ViewFinding, views_from_sum
 from dualpixel.names import ENCODINGS
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
@@ -109,11 +109,18 @@ class ViewEncoding:
     def check_levels(self, left: np.ndarray, right: np.ndarray, *, scale: float = 1.0) -> None:
         """Refuse levels that do not fit views ``(..., H, W, C)`` read as fractions of
         ``scale`` (the full scale of their own units: 255 or 65535 for 8- or 16-bit data, 1 for
-        floats): a white level beyond that full scale (levels of another bit depth), or a black
-        level at or above every value (the image would be black). A :class:`ParameterError`
+        floats): a white level beyond that full scale (levels of another bit depth), a black
+        level at or above every value (the image would be black), or a right-gain map of
+        another size. A :class:`ParameterError`
         saying what was given and what the views hold."""
         if not self.linear:
             return
+        gain = np.asarray(self.right_gain)
+        if gain.ndim and gain.shape[:2] != left.shape[-3:-1]:
+            raise ParameterError(f"the right view's gain map (a flat field, --flat-field) is "
+                                 f"{gain.shape[1]}x{gain.shape[0]} but the views are "
+                                 f"{left.shape[-2]}x{left.shape[-3]}: capture the flat field at "
+                                 "the views' size")
         black, white = float(self.black_level), float(self.white_level)
         unit = "" if scale == 1.0 else f" of {scale:g}"
         if white > scale * (1 + 1e-9):
@@ -274,7 +281,10 @@ def view_encoding_from_files(encoding: str, black_level: float | None, white_lev
     if right_gain != 1.0:
         raise ParameterError("give --flat-field or --right-gain, not both")
     left, right, (bits, _) = read_views(*flat_field)
-    gain = flat_field_gain(left, right, black_level=black_level / max_level(bits))
+    try:
+        gain = flat_field_gain(left, right, black_level=black_level / max_level(bits))
+    except ParameterError as error:
+        raise InputFileError(flat_field[0], f"as a flat field: {error}") from None
     return ViewEncoding(encoding, black_level, white_level, gain, auto_exposure=auto_exposure)
 
 

@@ -20,6 +20,7 @@ import functools
 import hashlib
 import json
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -148,6 +149,7 @@ def load_onnx_checkpoint(path: str | Path) -> DeblurNet:
     from dualpixel.errors import InputFileError
     from dualpixel.inference.onnx_export import graph_metadata
     from dualpixel.models import build_model
+    from dualpixel.weights import carried_settings
 
     check_backend("onnxruntime")
     meta = graph_metadata(path)
@@ -161,6 +163,11 @@ def load_onnx_checkpoint(path: str | Path) -> DeblurNet:
     except (KeyError, TypeError, ValueError, ParameterError) as error:
         raise InputFileError(path, f"describes no network this version builds ({error})") from None
     model.temporal = bool(meta.get("temporal", False)) and bool(meta.get("step", False))
+    model.output_settings = carried_settings(meta.get("output") or {})
+    if "output" not in meta:
+        warnings.warn(f"{path} carries no output settings (exported by an older version): it "
+                      "runs with the network's output as it gives it; export it again to run "
+                      "it as its checkpoint does", stacklevel=2)
     return model.eval()
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from dualpixel.errors import InputFileError
 from dualpixel.io.images import IMAGE_SUFFIXES
-from dualpixel.io.paths import check_plain_name
+from dualpixel.io.paths import broken_link, check_plain_name
 
 __all__ = ["ROLES", "frame_paths", "list_files", "read_manifest", "role_folder"]
 
@@ -52,11 +52,17 @@ def frame_paths(root: str | Path, split: str, sequence: str | None, name: str,
 
 def list_files(folder: str | Path, suffixes: tuple[str, ...] = IMAGE_SUFFIXES) -> dict[str, Path]:
     """Files directly in ``folder`` with one of ``suffixes``, by stem, in name order (hidden and
-    partial files skipped)."""
-    return {
-        p.stem: p for p in sorted(Path(folder).iterdir())
-        if p.is_file() and p.suffix.lower() in suffixes and not p.name.startswith(".")
-    }
+    partial files skipped); a link among them that leads nowhere is an error naming it."""
+    files = {}
+    for path in sorted(Path(folder).iterdir()):
+        if path.suffix.lower() not in suffixes or path.name.startswith("."):
+            continue
+        problem = broken_link(path)
+        if problem:
+            raise InputFileError(path, problem)
+        if path.is_file():
+            files[path.stem] = path
+    return files
 
 
 def read_manifest(path: str | Path) -> dict[str, dict]:

@@ -5,6 +5,9 @@
 A second writer gets an error naming the holder. The kernel releases the lock when its process
 ends, however it ends, so a lock left by a killed process is simply taken over. The lock file is
 never opened through a symbolic link (a planted link would have us write to what it points to).
+On release the holder's line is cleared (a finished folder's files do not depend on who wrote
+them), and a folder this call made that holds nothing else (a run refused before it wrote
+anything) is removed with its lock file.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ def _holder(path: Path) -> str:
 def folder_lock(folder: str | Path, command: str) -> Iterator[Path]:
     """Hold the lock of ``folder`` (created if needed) while the block runs."""
     folder = Path(folder)
+    made = [f for f in (folder, *folder.parents) if not f.exists()]
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / LOCK_NAME
     _check_plain_file(path)
@@ -68,4 +72,18 @@ def folder_lock(folder: str | Path, command: str) -> Iterator[Path]:
             handle.write(f"pid {os.getpid()} ({command}: {' '.join(sys.argv)[:200]})\n")
         yield path
     finally:
+        _clear(path, made)
         lock.release()
+
+
+def _clear(path: Path, made: list[Path]) -> None:
+    """Clear the holder's line, or, where the folders in ``made`` (deepest first) hold nothing
+    but the lock, remove it and them; done while the lock is still held."""
+    with contextlib.suppress(OSError):
+        if made and [p.name for p in path.parent.iterdir()] == [LOCK_NAME]:
+            path.unlink()
+            for folder in made:
+                folder.rmdir()  # stops (OSError) at the first that holds something
+            return
+        descriptor = os.open(path, os.O_WRONLY | os.O_TRUNC | _OPEN_FLAGS)
+        os.close(descriptor)

@@ -3,12 +3,14 @@
 
 from __future__ import annotations
 
+import errno
+import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError
 
-__all__ = ["check_outputs_apart", "check_plain_name", "contained"]
+__all__ = ["broken_link", "check_outputs_apart", "check_plain_name", "contained"]
 
 
 def contained(root: str | Path, relative: str | Path, source: str | Path) -> Path:
@@ -19,6 +21,21 @@ def contained(root: str | Path, relative: str | Path, source: str | Path) -> Pat
     if candidate.is_absolute() or not (root / candidate).resolve().is_relative_to(root.resolve()):
         raise InputFileError(source, f"path {str(relative)!r} leads outside {root}")
     return root / candidate
+
+
+def broken_link(path: str | Path) -> str | None:
+    """What is wrong with ``path`` when it is a symbolic link that leads nowhere (it loops, or
+    its target does not exist), else None: said instead of "missing"."""
+    path = Path(path)
+    if not path.is_symlink():
+        return None
+    try:
+        os.stat(path)
+    except OSError as error:
+        if error.errno == errno.ELOOP:
+            return "is a symbolic link that loops (following it leads back to a link on the way)"
+        return f"is a symbolic link to {os.readlink(path)}, which does not exist"
+    return None
 
 
 def check_plain_name(name: str, option: str) -> str:

@@ -17,7 +17,7 @@ import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save
 
-from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.errors import InputFileError, ParameterError, check_range
 from dualpixel.io.atomic import atomic_path
 from dualpixel.models.registry import build_model, model_spec
 from dualpixel.models.unet import DeblurNet
@@ -111,24 +111,36 @@ MAX_REFINER_WIDTH = 4096
 
 
 def _parse_metadata(metadata: dict[str, str]) -> dict[str, Any]:
+    refiner = _json_value(metadata, "refiner", "[]", list)
+    if not all(isinstance(w, int) and not isinstance(w, bool) for w in refiner):
+        raise ValueError(f"refiner must list integer widths, got {refiner!r}")
     return {
         "model": metadata["model"],
-        "width": float(metadata["width"]),
-        "peepholes": json.loads(metadata["peepholes"]),
-        "residual": json.loads(metadata.get("residual", "false")),
-        "refiner": tuple(int(w) for w in json.loads(metadata.get("refiner", "[]"))),
+        "width": check_range("width", float(metadata["width"])),
+        "peepholes": _json_value(metadata, "peepholes", None, bool),
+        "residual": _json_value(metadata, "residual", "false", bool),
+        "refiner": tuple(refiner),
         "temporal": _temporal(metadata),
-        "extra": json.loads(metadata.get("extra", "{}")),
+        "extra": _json_value(metadata, "extra", "{}", dict),
     }
+
+
+def _json_value(metadata: dict[str, str], key: str, default: str | None, kind: type) -> Any:
+    """Metadata entry ``key`` parsed as JSON and checked to be a ``kind``; a ``ValueError``
+    naming the key otherwise (the header's values are strings of JSON)."""
+    value = json.loads(metadata[key] if default is None else metadata.get(key, default))
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        raise ValueError(f"{key} must be JSON {kind.__name__}, got {value!r}")
+    return value
 
 
 def _temporal(metadata: dict[str, str]) -> bool:
     """Whether the checkpoint's model carries state between frames (see ``DeblurNet.temporal``);
     for files written before the flag existed, from the training config they store."""
     if "temporal" in metadata:
-        return bool(json.loads(metadata["temporal"]))
-    config = json.loads(metadata.get("extra", "{}")).get("config") or {}
-    if config:
+        return _json_value(metadata, "temporal", None, bool)
+    config = _json_value(metadata, "extra", "{}", dict).get("config") or {}
+    if isinstance(config, dict) and config:
         return bool(config.get("synthetic_data")) and not config.get("synthetic_as_frames")
     return True
 
@@ -178,11 +190,15 @@ def load_weights(model: torch.nn.Module, path: str | Path, *,
 
 
 def load_model(path: str | Path, *, device: str | torch.device = "cpu") -> DeblurNet:
-    """Rebuild the network a checkpoint describes, load its weights, and put it in eval mode."""
+    """Rebuild the network a checkpoint describes, load its weights, and put it in eval mode,
+    with the output settings the file carries (``DeblurNet.output_settings``)."""
+    from dualpixel.weights import file_output_settings
+
     if not isinstance(path, (str, Path)):
         raise ParameterError(f"load_model takes a checkpoint path, got {type(path).__name__}")
     meta = read_metadata(path)
     model = build_from_metadata(meta)
     load_weights(model, path)
     model.temporal = model.temporal and meta["temporal"]
+    model.output_settings = file_output_settings(path)
     return model.to(device).eval()

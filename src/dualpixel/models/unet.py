@@ -114,6 +114,10 @@ class DeblurNet(nn.Module):
         #: trained on single frames only (sRDPD+ and real pairs): its state was always zero in
         #: training, so carrying one across frames would feed it inputs it never saw.
         self.temporal = shape.recurrent
+        #: How the weights are meant to run (``brightness``, ``overshoot``, ``flips``), carried
+        #: from the checkpoint or registry they were loaded from as torchvision's weights carry
+        #: their transforms; empty: as the network gives it (``dualpixel.weights.run_settings``).
+        self.output_settings: dict[str, object] = {}
         widths = shape.encoder
         self.encoders = nn.ModuleList()
         cin = shape.in_channels

@@ -10,7 +10,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from dualpixel.errors import InputFileError, ParameterError, check_range
+from dualpixel.errors import InputFileError, ParameterError, check_integer, check_range
 from dualpixel.io.documents import read_mapping
 from dualpixel.optics.crosstalk import check_disparity_ratio
 from dualpixel.optics.psf import PSFParams
@@ -89,12 +89,17 @@ class DPCamera:
             ratio = data["disparity_ratio"]
             if not isinstance(ratio, list):
                 raise ParameterError("disparity_ratio must be a list of 3 numbers")
-            return cls(name=str(data["name"]), width=int(data["width"]),
+            percentiles = data.get("coc_percentiles", {})
+            if not isinstance(percentiles, dict):
+                raise ParameterError("coc_percentiles must map p10 .. p90 to radii")
+            return cls(name=str(data["name"]),
+                       width=check_integer("width", data["width"], 1, 65536),
                        disparity_ratio=check_disparity_ratio(ratio),  # type: ignore[arg-type]
-                       psf=PSFParams(**{k: float(v) for k, v in psf.items()}),
-                       noise_std=float(data.get("noise_std", 0.0)),
-                       coc_percentiles=dict(data.get("coc_percentiles", {})),
-                       blocks=int(data.get("blocks", 0)),
+                       psf=PSFParams(**{k: check_range(f"psf.{k}", v) for k, v in psf.items()}),
+                       noise_std=check_range("noise_std", data.get("noise_std", 0.0), 0.0, 1.0),
+                       coc_percentiles={str(k): check_range(f"coc_percentiles.{k}", v, 0.0)
+                                        for k, v in percentiles.items()},
+                       blocks=check_integer("blocks", data.get("blocks", 0)),
                        light=str(data.get("light", "encoded")))
         except (ParameterError, TypeError, ValueError) as error:
             raise InputFileError(source, f"bad camera field: {error}") from None

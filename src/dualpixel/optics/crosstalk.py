@@ -19,14 +19,14 @@ from collections.abc import Sequence
 
 import torch
 
-from dualpixel.errors import ParameterError
+from dualpixel.errors import ParameterError, check_range
 
 __all__ = ["apply_crosstalk", "check_disparity_ratio"]
 
 
 def check_disparity_ratio(ratio: Sequence[float], channels: int = 3) -> tuple[float, ...]:
     """The ratios as a tuple of ``channels`` finite floats in [0, 1.5], or a clear error."""
-    values = tuple(float(v) for v in ratio)
+    values = tuple(check_range(f"disparity_ratio[{i}]", v) for i, v in enumerate(ratio))
     if len(values) != channels:
         raise ParameterError(f"disparity_ratio needs one value per channel ({channels}), "
                              f"got {len(values)}")

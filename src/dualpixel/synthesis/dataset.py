@@ -269,12 +269,14 @@ def _profile_camera(
     scene_file = first.rgb.parent.parent / "scene.json"
     focus = None
     if scene_file.is_file():
+        description = read_mapping(scene_file, "scene description")
+        if "focus_distance" not in description:
+            raise InputFileError(scene_file, "expected JSON with a number 'focus_distance'")
         try:
-            focus = float(read_mapping(scene_file, "scene description")["focus_distance"])
-        except (KeyError, TypeError, ValueError):
-            raise InputFileError(
-                scene_file, "expected JSON with a number 'focus_distance'"
-            ) from None
+            focus = check_range("focus_distance", description["focus_distance"], 0.0,
+                                low_inclusive=False)
+        except ParameterError as error:
+            raise InputFileError(scene_file, str(error)) from None
     if focus is None:
         focus = focus_from_depth(depth, rng.uniform(10, 50))
     return profile.camera(rng, focus, depth.shape[1])

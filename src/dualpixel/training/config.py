@@ -177,6 +177,9 @@ class TrainConfig:
             raise ParameterError(f"coarsest_lr_scale must be > 0, got {self.coarsest_lr_scale}")
         if self.learning_rate <= 0:
             raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
+        if not self.edge_sizes and (self.lambda_x or self.lambda_y):
+            raise ParameterError("edge_sizes is empty but lambda_x / lambda_y weigh an edge loss: "
+                                 "list its kernel sizes (e.g. [3, 7, 11]) or set both to 0")
         if any(s % 2 == 0 or s < 3 for s in self.edge_sizes):
             raise ParameterError(f"edge_sizes must be odd and >= 3, got {self.edge_sizes}")
 

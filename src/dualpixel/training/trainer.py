@@ -453,7 +453,7 @@ class Trainer:
             reason = str(error).splitlines()[0][:200]
             raise InputFileError(path, f"not a training state this version can read safely "
                                        f"({reason}); start anew or remove it") from None
-        if isinstance(state, dict) and "model" not in state:
+        if isinstance(state, dict) and "epoch" in state and "model" not in state:
             raise InputFileError(path, "written by an older version without the weights; start "
                                        "anew")
         problem = _state_problem(state)

@@ -24,11 +24,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.errors import DualPixelError, InputFileError, ParameterError
 
 __all__ = [
-    "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "WEIGHTS", "Weights", "file_sha256",
-    "list_models", "model_card", "model_info", "output_settings", "phase_weights",
+    "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "OUTPUT_KEY", "WEIGHTS", "Weights",
+    "carried_settings", "file_output_settings", "file_sha256", "list_models", "model_card",
+    "model_info", "output_settings", "phase_weights",
     "resolve_checkpoint", "resolve_tag", "run_settings", "weights_folder",
 ]
 
@@ -127,24 +128,65 @@ def resolve_tag(tag: str) -> Path:
     return path
 
 
-def output_settings(name: str | Path) -> dict[str, Any]:
-    """The output settings (``brightness``, ``overshoot``, ``flips``) a shipped model runs with
-    by default; empty for a file path (it runs as the network gives it)."""
-    tag = ALIASES.get(str(name), str(name))
-    return dict(WEIGHTS[tag].output) if tag in WEIGHTS else {}
+#: The metadata key (in a checkpoint's ``extra``, and in an exported graph's description) of
+#: the output settings the weights run with.
+OUTPUT_KEY = "output"
 
 
-def run_settings(name: str | Path | None, *, brightness: str | None = None,
+def output_settings(source: Any) -> dict[str, Any]:
+    """The output settings (``brightness``, ``overshoot``, ``flips``) a model runs with by
+    default, from wherever it came: a shipped name; a checkpoint file (those it carries in its
+    metadata, else a shipped file's by its sha256, so a copy of one runs as it does); a loaded
+    network (what it was loaded with, ``DeblurNet.output_settings``: also an exported graph's).
+    Empty: the network's output as it gives it."""
+    if hasattr(source, "output_settings") and not isinstance(source, (str, Path)):
+        return dict(source.output_settings)
+    if source is None:
+        return {}
+    tag = ALIASES.get(str(source), str(source))
+    if tag in WEIGHTS:
+        return dict(WEIGHTS[tag].output)
+    return file_output_settings(source) if Path(source).is_file() else {}
+
+
+def file_output_settings(path: str | Path) -> dict[str, Any]:
+    """The output settings a checkpoint file carries (see :func:`output_settings`); unreadable
+    files give none (their loader names the problem). An exported graph's come with the network
+    :func:`~dualpixel.inference.onnx_runtime.load_onnx_checkpoint` describes."""
+    from safetensors import SafetensorError, safe_open
+
+    path = Path(path)
+    if path.suffix.lower() == ".onnx":  # read by its loader (the inference layer)
+        return {}
+    try:
+        with safe_open(str(path), framework="numpy") as handle:
+            extra = json.loads((handle.metadata() or {}).get("extra", "{}"))
+        carried = extra.get(OUTPUT_KEY) if isinstance(extra, dict) else None
+    except (OSError, ValueError, DualPixelError, SafetensorError):
+        return {}
+    if isinstance(carried, dict):
+        return carried_settings(carried)
+    digest = file_sha256(path)
+    shipped = [w for w in WEIGHTS.values() if w.sha256 == digest]
+    return dict(shipped[0].output) if shipped else {}
+
+
+def carried_settings(values: dict[str, Any]) -> dict[str, Any]:
+    """The output settings among ``values`` (other keys, from a newer version, left out)."""
+    return {key: values[key] for key in ("brightness", "overshoot", "flips") if key in values}
+
+
+def run_settings(source: Any, *, brightness: str | None = None,
                  overshoot: str | None = None, flips: bool | None = None) -> dict[str, Any]:
-    """The output settings a model runs with: each one given, else the shipped model's own
-    (:func:`output_settings`), else as the network gives it.
+    """The output settings a model runs with: each one given, else the model's own
+    (:func:`output_settings`: a name, a file or a loaded network), else as the network gives it.
 
     >>> run_settings("some/file.safetensors", overshoot="limited")
     {'brightness': 'model', 'overshoot': 'limited', 'flips': False}
     """
     from dualpixel.names import DEFAULT_BRIGHTNESS, DEFAULT_OVERSHOOT
 
-    own = output_settings(name) if name is not None else {}
+    own = output_settings(source)
     return {"brightness": brightness or own.get("brightness", DEFAULT_BRIGHTNESS),
             "overshoot": overshoot or own.get("overshoot", DEFAULT_OVERSHOOT),
             "flips": bool(own.get("flips", False)) if flips is None else bool(flips)}
