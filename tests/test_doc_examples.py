@@ -119,7 +119,7 @@ def _shared(root: Path) -> None:
 def _bring(folder: Path, dataset: str) -> None:
     """What a reader brings to the examples: views, captures, weights files, configs (their
     own training config: the sample on ``dataset``)."""
-    sample = (ROOT / "docs" / "examples" / "finetune.yaml").read_text()
+    sample = (ROOT / "src" / "dualpixel" / "examples" / "finetune.yaml").read_text()
     (folder / "my.yaml").write_text(re.sub(r"(synthetic_data|val_data): data\b",
                                            rf"\1: {dataset}", sample))
 

@@ -77,7 +77,8 @@ def test_cli_modules_hold_no_image_processing():
 #: The package's layers, bottom to top: a module imports only from its own layer or below
 #: (module level and function level alike). ``cameras`` and ``weights`` hold data files.
 LAYERS = (
-    ("names", "errors", "device", "memory", "progress", "filters", "parallel", "cameras"),
+    ("names", "errors", "device", "memory", "progress", "filters", "parallel", "cameras",
+     "examples"),
     ("io",),
     ("optics",),
     ("data",),

@@ -41,7 +41,8 @@ def test_wheel_contents(wheel):
     for needed in ("dualpixel/py.typed", "dualpixel/weights/registry.json",
                    "dualpixel/weights/MODEL_CARD.md", "dualpixel/evaluation/niqe_builtin.npz",
                    "dualpixel/demo_data/canon_scene_01/LICENSE.md",
-                   "dualpixel/cameras/pixel4.json", "dualpixel/cameras/canon-840-linear.json"):
+                   "dualpixel/cameras/pixel4.json", "dualpixel/cameras/canon-840-linear.json",
+                   "dualpixel/examples/finetune.yaml"):  # the guide's `--config finetune`
         assert needed in names, needed
     from dualpixel.synthesis.textures import PHOTOGRAPH_NAMES
 

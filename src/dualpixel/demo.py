@@ -138,7 +138,8 @@ def run_demo(
     model = load_model(checkpoint_path, device=device)
     mode = "pair" if left is not None else "rgbd" if rgb is not None else "procedural"
     count = 1 if mode != "procedural" else frames
-    bar = progress_bar(total=2 * count + 3, desc="demo", unit="step", enabled=progress)
+    # each frame made and deblurred, then the figures and the report
+    bar = progress_bar(total=2 * count + 2, desc="demo", unit="step", enabled=progress)
     draw = None
     if mode == "pair":
         left_image, right_image = read_rgb(left), read_rgb(right)
@@ -159,7 +160,7 @@ def run_demo(
         sequence, draw = _synthetic_frames(rgbd, lens_set, seed, bar, focus)
 
     deblurrer = Deblurrer(model, device=device, tile=tile,
-                          **run_settings(checkpoint))  # as the model ships to run
+                          **run_settings(model))  # as the model's weights run
     timings = []
     for index, frame in enumerate(sequence):
         tick = time.perf_counter()

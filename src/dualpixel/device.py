@@ -30,7 +30,7 @@ def resolve_device(name: str | torch.device = "auto") -> torch.device:
     if device.type == "cuda":
         if not torch.cuda.is_available():
             raise ParameterError(f"device {name!r}: CUDA is not available on this machine "
-                                 "(use --device cpu or auto)")
+                                 "(use \"cpu\" or \"auto\")")
         if device.index is not None and device.index >= torch.cuda.device_count():
             raise ParameterError(f"device {name!r}: only {torch.cuda.device_count()} CUDA "
                                  "device(s) present")

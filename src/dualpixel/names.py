@@ -7,7 +7,8 @@ __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNE
            "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "MAX_SEQUENCES", "OVERSHOOT_MODES",
            "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RAW_VIEWS",
            "RENAMED", "RENAMED_UNTIL", "RENDER_ON", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES",
-           "SYNTH_SOURCES", "output_modes_suffix", "renamed_keys", "warn_renamed"]
+           "SYNTH_SOURCES", "checkpoint_label", "output_modes_suffix", "renamed_keys",
+           "warn_renamed"]
 
 #: Registrations of an output to its target before scoring
 #: (:mod:`dualpixel.evaluation.alignment`; ``dualpixel eval --align``).
@@ -57,6 +58,27 @@ ENCODINGS: tuple[str, ...] = ("srgb", "linear")
 #: How training reads synthetic frames stored as raw values (:mod:`dualpixel.training.raw_views`):
 #: as stored, or as ``deblur --encoding linear`` feeds raw views to the model.
 RAW_VIEWS: tuple[str, ...] = ("stored", "model")
+
+
+#: File names a training run gives its checkpoints: alone they would not tell runs apart.
+RUN_CHECKPOINT_STEMS = ("best", "last", "model", "checkpoint")
+
+
+def checkpoint_label(checkpoint: str) -> str:
+    """The name of a checkpoint in tables: a shipped name as it is, a file by its stem, and a run's
+    ``best`` / ``last`` by its folder too.
+
+    >>> checkpoint_label("rdpd-light"), checkpoint_label("runs/x/best.safetensors")
+    ('rdpd-light', 'x-best')
+    """
+    from pathlib import PurePath
+
+    path = PurePath(checkpoint)
+    if path.suffix not in (".safetensors", ".onnx") and len(path.parts) == 1:
+        return str(checkpoint)
+    if path.stem in RUN_CHECKPOINT_STEMS and path.parent.name:
+        return f"{path.parent.name}-{path.stem}"
+    return path.stem
 
 
 def output_modes_suffix(brightness: str, overshoot: str, *, flips: bool = False,

@@ -243,3 +243,29 @@ def test_deblur_never_overwrites_its_inputs(checkpoint, tiny_synthetic_dataset, 
     assert sorted(str(p.relative_to(tmp_path / "out")) for p in
                   (tmp_path / "out").rglob("*.png")) == ["seq_001/frame_0000.png",
                                                          "seq_002/frame_0000.png"]
+
+
+def test_eval_names_a_runs_best_checkpoint_by_its_run(checkpoint, tiny_synthetic_dataset,
+                                                      tmp_path):
+    """Issue #73: `eval --checkpoint runs/x/best.safetensors` named its row "best"."""
+    import shutil
+
+    best = tmp_path / "runs" / "photo-run" / "best.safetensors"
+    best.parent.mkdir(parents=True)
+    shutil.copy(checkpoint, best)
+    result = run("eval", "--dataset", tiny_synthetic_dataset, "--split", "train", "--checkpoint",
+                 best, "--output", tmp_path / "r", "--no-niqe")
+    assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())["summary"]
+    assert set(summary) == {"input", "photo-run-best"}
+
+
+def test_synth_help_says_what_the_shipped_settings_are():
+    """Issue #73: `synth --help` named the Pixel 4 PSF shapes where dataset.json records the
+    broad bank."""
+    from dualpixel.synthesis.dataset import SYNTH_SETTINGS
+
+    shipped = SYNTH_SETTINGS["shipped"]
+    text = " ".join(run("synth", "--help").output.split())
+    assert f"the {shipped['psf_bank']} PSF bank" in text and "Pixel 4 PSF shapes" not in text
+    assert all(profile in text for profile in shipped["lens_sets"])

@@ -2,6 +2,7 @@ import json
 import re
 import shutil
 import subprocess
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -36,10 +37,31 @@ def test_shipped_checkpoint_loads_and_improves_on_a_new_synthetic_sequence():
     assert np.mean(after) > np.mean(before)
 
 
-def test_demo_writes_a_complete_report(tmp_path):
+class _CountingBar:
+    """A progress bar that counts its steps (issue #73: the demo's bar ended at 8/9)."""
+
+    made: ClassVar[list] = []
+
+    def __init__(self, *args, total=None, **kwargs):
+        self.total, self.n = total, 0
+        _CountingBar.made.append(self)
+
+    def update(self, steps=1):
+        self.n += steps
+
+    def close(self):
+        pass
+
+
+def test_demo_writes_a_complete_report(tmp_path, monkeypatch):
+    import dualpixel.demo
+
+    monkeypatch.setattr(dualpixel.demo, "progress_bar", _CountingBar)
     out = tmp_path / "demo"
     result = CliRunner().invoke(cli, ["demo", "--output", str(out), "--frames", "2"])
     assert result.exit_code == 0, result.output
+    [bar] = _CountingBar.made
+    assert bar.n == bar.total == 6  # two frames made, two deblurred, figures, report
     assert "report:" in result.output and "PSNR input" in result.output
     page = (out / "index.html").read_text()
     images = re.findall(r'<img src="([^"]+)"', page)

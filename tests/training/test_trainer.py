@@ -482,3 +482,11 @@ def test_a_runs_thread_count_does_not_outlive_it(tiny_synthetic_dataset, tmp_pat
     train(tiny_config(tiny_synthetic_dataset, epochs=1, threads=other), tmp_path / "run",
           progress=False)
     assert torch.get_num_threads() == before
+
+
+def test_the_progress_bar_shows_a_log_loss_in_decibels():
+    """Issue #73: with loss_reduction "log" the bar showed ``loss=-20.22``, a negative error."""
+    from dualpixel.training.trainer import _shown_loss
+
+    assert _shown_loss(-20.2187, "log") == "-20.22 dB"
+    assert _shown_loss(0.012345, "mean") == "0.01235"

@@ -17,6 +17,7 @@ from dualpixel.names import (
     ENCODINGS,
     OVERSHOOT_MODES,
     PRECISIONS,
+    checkpoint_label,
     output_modes_suffix,
 )
 from dualpixel.weights import DEFAULT_CHECKPOINT
@@ -278,8 +279,7 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         settings = run_settings(model, brightness=brightness, overshoot=overshoot, flips=flips)
         deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
                               precision=precision, multiscale=multiscale, **runtime, **settings)
-        is_path = Path(checkpoint).suffix in (".safetensors", ".onnx") or "/" in str(checkpoint)
-        method = (Path(checkpoint).stem if is_path else str(checkpoint)) + output_modes_suffix(
+        method = checkpoint_label(str(checkpoint)) + output_modes_suffix(
             settings["brightness"], settings["overshoot"], flips=settings["flips"],
             multiscale=multiscale)
         meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, **settings,

@@ -117,8 +117,9 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--settings", "settings_name", type=click.Choice(SYNTH_SETTINGS_NAMES),
               default="shipped", show_default=True,
               help="Where the options below start: what the shipped default model was trained "
-                   "on (blur profiles dslr-840 and dslr-840-mild, Pixel 4 PSF shapes, a real "
-                   "camera's Poisson-Gaussian noise 0.006-0.025), or the paper's Sec. 3 (camera "
+                   "on (blur profiles dslr-840 and dslr-840-mild, the broad PSF bank, blur in "
+                   "linear light, a real camera's Poisson-Gaussian noise 0.006-0.025), or the "
+                   "paper's Sec. 3 (camera "
                    "sets set0..set4, its 48 PSF shapes, multiplicative noise 0.05-0.5).")
 @click.option("--lens-sets", default=None,
               help="What blurs the frames: the paper's camera parameter sets set0..set4 (focal "

@@ -249,8 +249,11 @@ def load_config(
     old key names (:data:`RENAMED_KEYS`) are read as their new ones."""
     values: dict[str, Any] = {}
     if path is not None:
+        from dualpixel.examples import example_config
         from dualpixel.io.documents import read_mapping
 
+        if not Path(path).exists() and example_config(str(path)) is not None:
+            path = example_config(str(path))  # a shipped example by name: `--config finetune`
         path = Path(path)  # JSON is YAML too
         values.update(_renamed(read_mapping(path, "training config", syntax="yaml"),
                                f" {path}"))

@@ -548,7 +548,8 @@ class Trainer:
             values = {"loss": float(loss.detach()), **{k: float(v) for k, v in parts.items()}}
             for key, value in values.items():
                 totals[key] = totals.get(key, 0.0) + value
-            bar.set_postfix(loss=f"{values['loss']:.4g}", kind=kind.name)
+            bar.set_postfix(loss=_shown_loss(values["loss"], self.config.loss_reduction),
+                            kind=kind.name)
             if self.writer is not None:
                 for key, value in values.items():
                     self.writer.add_scalar(f"train/{key}", value, self.step)
@@ -672,6 +673,13 @@ def _ema_update(decay: float):
 
 def _cpu_state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
     return {k: v.detach().cpu().clone() for k, v in module.state_dict().items()}
+
+
+def _shown_loss(loss: float, reduction: str) -> str:
+    """The loss as the progress bar shows it: with ``loss_reduction: log`` it is the mean of
+    ``10 log10`` of each patch's loss, a level in dB (-20.2 dB: a patch error of about 1 %),
+    not a negative error."""
+    return f"{loss:.2f} dB" if reduction == "log" else f"{loss:.4g}"
 
 
 #: What ``last_state.pt`` holds: each entry and its type (:func:`_save_state`).
