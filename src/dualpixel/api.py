@@ -36,16 +36,14 @@ def list_models() -> dict[str, dict[str, Any]]:
 def load_model(name_or_path: str | Path = DEFAULT_CHECKPOINT, *, device: str = "auto"):
     """A shipped model by name (see :func:`list_models`) or a checkpoint file, in eval mode, on
     ``device`` (``auto``: the GPU when there is one, as every command)."""
-    from dualpixel.device import resolve_device
-    from dualpixel.models import load_model as load_checkpoint
-    from dualpixel.weights import output_settings, resolve_checkpoint
+    from dualpixel.inference.pipeline import is_graph, load_network
 
-    if not isinstance(name_or_path, (str, Path)):
-        raise ParameterError("load_model takes a model name (list_models()) or a checkpoint "
-                             f"path, got {type(name_or_path).__name__}")
-    net = load_checkpoint(resolve_checkpoint(name_or_path), device=resolve_device(device))
-    net.output_settings = output_settings(name_or_path)  # a name: its registry row's
-    return net
+    if not isinstance(name_or_path, (str, Path)) or is_graph(name_or_path):
+        raise ParameterError("load_model takes a model name (list_models()) or a .safetensors "
+                             f"checkpoint path, got {name_or_path!r:.80}" + (
+                                 "; an exported graph runs as deblur(..., model=PATH)"
+                                 if is_graph(name_or_path) else ""))
+    return load_network(name_or_path, device=device).net
 
 
 def check_views(left: Any, right: Any, combined: Any = None) -> list:
@@ -116,16 +114,13 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     """
     import warnings
 
-    from dualpixel.inference import Deblurrer
+    from dualpixel.inference import build_deblurrer, load_network
     from dualpixel.inference.encoding import (
         ViewEncoding,
         encoding_findings,
         from_model,
         to_model,
     )
-    from dualpixel.inference.onnx_runtime import backend_device
-    from dualpixel.models.unet import DeblurNet
-    from dualpixel.weights import run_settings
 
     view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain,
                                  auto_exposure=auto_exposure)
@@ -144,11 +139,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         if full_scale(right) != scale:
             raise ParameterError("left and right differ in type (bit depth or float): give "
                                  "both views as read from one capture")
-    resolved = backend_device(backend, device)
-    net = load_model(model, device=str(resolved)) if isinstance(model, (str, Path)) else model
-    if not isinstance(net, DeblurNet):
-        raise ParameterError("model must be a name (dualpixel models), a checkpoint path or a "
-                             f"network from load_model, got {type(model).__name__}")
+    loaded = load_network(model, device=device, backend=backend)
+    net = loaded.net
     if right is None and net.spec.views == 2:
         raise ParameterError(f"this model ({net.spec.name}) needs both views; give right")
     if views_sum and rights is None:
@@ -161,9 +153,9 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     lefts, rights_in = to_model(lefts, lefts if rights is None else rights, view_encoding,
                                 scale=scale, views_sum=views_sum)
     rights = None if rights is None else rights_in
-    settings = run_settings(net, brightness=brightness, overshoot=overshoot, flips=flips)
-    deblurrer = Deblurrer(net, device=resolved, tile=tile, multiscale=multiscale,
-                          precision=precision, backend=backend, **settings)
+    deblurrer = build_deblurrer(loaded, brightness=brightness, overshoot=overshoot,
+                                flips=flips, tile=tile, multiscale=multiscale,
+                                precision=precision)
     outputs = []
     for index in range(len(lefts)):
         deblurrer.reset()  # a batch holds independent pairs

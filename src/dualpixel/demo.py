@@ -22,16 +22,15 @@ from tqdm import tqdm
 
 from dualpixel.errors import ParameterError, check_seed
 from dualpixel.evaluation.metrics import mae, psnr, ssim
-from dualpixel.inference import Deblurrer
+from dualpixel.inference import Deblurrer, build_deblurrer, load_network
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import read_depth, read_rgb, write_png
-from dualpixel.models import load_model
 from dualpixel.names import warn_renamed
 from dualpixel.progress import progress_bar
 from dualpixel.viz.comparison import render_comparison
 from dualpixel.viz.html_report import Figure, Report, write_html_report
 from dualpixel.viz.maps import render_colour_map, write_views_gif
-from dualpixel.weights import DEFAULT_CHECKPOINT, resolve_checkpoint, run_settings
+from dualpixel.weights import DEFAULT_CHECKPOINT, resolve_checkpoint
 
 __all__ = ["DemoFrame", "DemoResult", "run_demo"]
 
@@ -129,13 +128,13 @@ def run_demo(
         raise ParameterError("give --left with --right, and --rgb with --depth")
     if left is not None and rgb is not None:
         raise ParameterError("give either a left/right pair or an RGB-D frame, not both")
-    checkpoint_path = resolve_checkpoint(checkpoint)
+    resolve_checkpoint(checkpoint)  # a bad name is refused before any work
     from dualpixel.device import resolve_device
     from dualpixel.io.atomic import check_writable
 
     device = str(resolve_device(device))
     check_writable(Path(output) / "index.html")  # before any work
-    model = load_model(checkpoint_path, device=device)
+    network = load_network(checkpoint, device=device)  # with the settings its weights run
     mode = "pair" if left is not None else "rgbd" if rgb is not None else "procedural"
     count = 1 if mode != "procedural" else frames
     # each frame made and deblurred, then the figures and the report
@@ -159,8 +158,7 @@ def run_demo(
             rgbd, focus = render_scene(seed, config)
         sequence, draw = _synthetic_frames(rgbd, lens_set, seed, bar, focus)
 
-    deblurrer = Deblurrer(model, device=device, tile=tile,
-                          **run_settings(model))  # as the model's weights run
+    deblurrer = build_deblurrer(network, tile=tile)  # as its weights run
     timings = []
     for index, frame in enumerate(sequence):
         tick = time.perf_counter()

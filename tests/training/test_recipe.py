@@ -340,8 +340,8 @@ def test_an_evaluation_of_raw_views_reaches_eval_with_their_encoding(tmp_path, m
     monkeypatch.setattr(run, "run_evaluation", fake_evaluation)
     monkeypatch.setattr(recipes, "_data_folder",
                         lambda recipe, output, name: output / "data" / name)
-    monkeypatch.setattr("dualpixel.models.checkpoint.load_model", lambda path: None)
-    monkeypatch.setattr("dualpixel.inference.deblur.Deblurrer", lambda model, **settings: None)
+    monkeypatch.setattr("dualpixel.inference.pipeline.build_deblurrer",
+                        lambda weights, **settings: None)
     recipes.evaluate_shipped(recipe, tmp_path / "w.safetensors", tmp_path / "run",
                              log=lambda line: None)
     assert seen["raw"].linear and (seen["raw"].black_level, seen["raw"].white_level) == (16, 255)

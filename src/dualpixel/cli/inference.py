@@ -70,39 +70,18 @@ _MULTISCALE_OPTION = click.option(
          "1.25x the time).")
 
 
-def _is_graph(checkpoint: str) -> bool:
-    """Whether ``--checkpoint`` names an exported ONNX graph (run by ONNX Runtime)."""
-    return str(checkpoint).lower().endswith(".onnx")
-
-
 def _network_name(checkpoint: str) -> str:
     """The network a checkpoint or exported graph holds (its header only; nothing is built)."""
+    from dualpixel.inference.pipeline import is_graph
     from dualpixel.models import read_metadata
     from dualpixel.weights import resolve_checkpoint
 
     path = resolve_checkpoint(checkpoint)
-    if _is_graph(checkpoint):
+    if is_graph(checkpoint):
         from dualpixel.inference.onnx_export import graph_metadata
 
         return str(graph_metadata(path)["model"])
     return read_metadata(path)["model"]
-
-
-def _load(checkpoint: str, device: str, backend: str = "torch"):
-    """``(network, device, settings)``: the network (for an ``.onnx`` graph, the network it
-    describes), the device it runs on, and what ``Deblurrer`` needs besides (the graph and the
-    onnxruntime backend for a graph)."""
-    from dualpixel.api import load_model
-    from dualpixel.inference.onnx_runtime import backend_device, load_onnx_checkpoint
-    from dualpixel.weights import resolve_checkpoint
-
-    if _is_graph(checkpoint):
-        path = resolve_checkpoint(checkpoint)
-        resolved = backend_device("onnxruntime", device)
-        return load_onnx_checkpoint(path), resolved, {"backend": "onnxruntime", "graph": path}
-    resolved = backend_device(backend, device)  # names a missing extra before any loading
-    model = load_model(checkpoint, device=str(resolved))  # with the settings it runs with
-    return model, resolved, {"backend": backend}
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -170,12 +149,11 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     """
     from tqdm import tqdm
 
-    from dualpixel.inference import Deblurrer
+    from dualpixel.inference import build_deblurrer
     from dualpixel.inference.encoding import view_encoding_from_files
     from dualpixel.inference.jobs import plan_deblur_jobs, run_deblur_jobs
     from dualpixel.models import model_spec
     from dualpixel.progress import progress_bar
-    from dualpixel.weights import run_settings
 
     view_encoding = view_encoding_from_files(encoding, black_level, white_level, right_gain,
                                              flat_field, auto_exposure=auto_exposure)
@@ -183,11 +161,10 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     # the inputs and outputs are checked before the model loads
     jobs = plan_deblur_jobs(output, left=left, right=right, dataset=dataset, split=split,
                             needs_right=views == 2, combined=combined)
-    model, resolved, runtime = _load(checkpoint, device, backend)
-    settings = run_settings(model, brightness=brightness, overshoot=overshoot, flips=flips)
-    deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
-                          precision="fp16" if half else precision, multiscale=multiscale,
-                          **runtime, **settings)
+    deblurrer = build_deblurrer(checkpoint, device=device, backend=backend,
+                                brightness=brightness, overshoot=overshoot, flips=flips,
+                                tile=tile, overlap=overlap,
+                                precision="fp16" if half else precision, multiscale=multiscale)
     total = sum(len(sequence) for sequence in jobs)
 
     def report(path: Path, finding) -> None:
@@ -272,18 +249,19 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         encoding=ViewEncoding(encoding, black_level, white_level, auto_exposure=auto_exposure))
     deblurrer, method, meta = None, "model", {}
     if not no_model and pred is None and target is None:
-        from dualpixel.inference import Deblurrer
-        from dualpixel.weights import run_settings
+        from dualpixel.inference import build_deblurrer
 
-        model, resolved, runtime = _load(checkpoint, device, backend)
-        settings = run_settings(model, brightness=brightness, overshoot=overshoot, flips=flips)
-        deblurrer = Deblurrer(model, device=resolved, tile=tile, overlap=overlap,
-                              precision=precision, multiscale=multiscale, **runtime, **settings)
+        deblurrer = build_deblurrer(checkpoint, device=device, backend=backend,
+                                    brightness=brightness, overshoot=overshoot, flips=flips,
+                                    tile=tile, overlap=overlap, precision=precision,
+                                    multiscale=multiscale)
+        settings = {"brightness": deblurrer.brightness, "overshoot": deblurrer.overshoot,
+                    "flips": deblurrer.flips}
         method = checkpoint_label(str(checkpoint)) + output_modes_suffix(
             settings["brightness"], settings["overshoot"], flips=settings["flips"],
             multiscale=multiscale)
         meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, **settings,
-                "precision": deblurrer.numerics.name, "backend": runtime["backend"]}
+                "precision": deblurrer.numerics.name, "backend": deblurrer.backend}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())
     click.echo(f"reports in {output}")
@@ -339,6 +317,7 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
     import torch
 
     from dualpixel.inference.onnx_export import check_export_packages, export_onnx
+    from dualpixel.inference.pipeline import is_graph, load_network
     from dualpixel.models import read_metadata, save_model
     from dualpixel.weights import resolve_checkpoint
 
@@ -349,10 +328,10 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
     width, height = parse_size(None, None, size)
     if fmt == "onnx":
         check_export_packages()  # before loading anything
-    if _is_graph(checkpoint):
+    if is_graph(checkpoint):
         raise click.BadParameter(f"{checkpoint} is already an exported graph; give the "
                                  ".safetensors checkpoint", param_hint="--checkpoint")
-    model, _, _ = _load(checkpoint, "cpu")
+    model = load_network(checkpoint, device="cpu").net
     if fmt == "safetensors-fp16":
         extra = read_metadata(resolve_checkpoint(checkpoint))["extra"]
         save_model(output, model, dtype=torch.float16,

@@ -450,24 +450,21 @@ def model_methods(checkpoints: Iterable[str], *, device: str = "auto",
     (:mod:`dualpixel.inference.brightness`). Each pair is deblurred afresh, in the views' own
     encoding and channels (:func:`~dualpixel.inference.encoding.deblur_encoded`); the output
     modes of one checkpoint and flips setting share its network's output."""
-    from dualpixel.device import resolve_device
-    from dualpixel.inference import Deblurrer
+    from dualpixel.inference import build_deblurrer, load_network
     from dualpixel.inference.encoding import deblur_encoded
-    from dualpixel.models import load_model
-    from dualpixel.weights import resolve_checkpoint
 
-    resolved = resolve_device(device)
     models: dict[str, Any] = {}
     passes: dict[tuple[str, bool], _LastOutput] = {}
     methods: dict[str, Method] = {}
     for name, (checkpoint, settings) in method_settings(
             checkpoints, brightness=brightness, overshoot=overshoot, flips=flips).items():
         if checkpoint not in models:
-            models[checkpoint] = load_model(resolve_checkpoint(checkpoint), device=resolved)
+            models[checkpoint] = load_network(checkpoint, device=device)
         key = (checkpoint, settings["flips"])
         if key not in passes:
-            passes[key] = _LastOutput(Deblurrer(models[checkpoint], device=resolved, tile=tile,
-                                                precision=precision, flips=settings["flips"]))
+            passes[key] = _LastOutput(build_deblurrer(models[checkpoint], tile=tile,
+                                                      precision=precision,
+                                                      flips=settings["flips"]))
         last = passes[key]
 
         def finished(left: np.ndarray, right: np.ndarray, last=last,

@@ -702,8 +702,7 @@ def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) 
     """Score the shipped weights, run with the recipe's output settings, on each ``evaluate``
     entry; returns ``{name: metrics}``."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
-    from dualpixel.inference.deblur import Deblurrer
-    from dualpixel.models.checkpoint import load_model
+    from dualpixel.inference.pipeline import build_deblurrer
 
     results = {}
     for entry in recipe.evaluate:
@@ -712,7 +711,7 @@ def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) 
             log(f"evaluate {entry['name']}: {dataset} not found, skipped")
             continue
         folder = output / "eval" / entry["name"]
-        deblurrer = Deblurrer(load_model(weights), **recipe.output_settings)
+        deblurrer = build_deblurrer(weights, device="cpu", **recipe.output_settings)
         run_evaluation(EvaluationRequest(output=folder, dataset=dataset,
                                          split=entry.get("split", "test"), niqe=False,
                                          figures=1, encoding=_view_encoding(entry)),
