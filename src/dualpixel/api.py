@@ -115,12 +115,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     import warnings
 
     from dualpixel.inference import build_deblurrer, load_network
-    from dualpixel.inference.encoding import (
-        ViewEncoding,
-        encoding_findings,
-        from_model,
-        to_model,
-    )
+    from dualpixel.inference.encoding import ViewEncoding, deblur_encoded, encoding_findings
 
     view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain,
                                  auto_exposure=auto_exposure)
@@ -148,20 +143,16 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     for finding in encoding_findings(lefts[0], (rights if rights is not None else lefts)[0],
                                      encoding):
         warnings.warn(finding.message, stacklevel=2)
-    view_encoding = view_encoding.exposed(lefts, lefts if rights is None else rights,
-                                          scale=scale, views_sum=views_sum)
-    lefts, rights_in = to_model(lefts, lefts if rights is None else rights, view_encoding,
-                                scale=scale, views_sum=views_sum)
-    rights = None if rights is None else rights_in
     deblurrer = build_deblurrer(loaded, brightness=brightness, overshoot=overshoot,
                                 flips=flips, tile=tile, multiscale=multiscale,
                                 precision=precision)
     outputs = []
     for index in range(len(lefts)):
-        deblurrer.reset()  # a batch holds independent pairs
-        outputs.append(deblurrer(lefts[index], None if rights is None else rights[index]))
-    result = restore_layout(from_model(np.stack(outputs), view_encoding, channels, scale=scale),
-                            layout, like=left)
+        deblurrer.reset()  # a batch holds independent pairs, each of its own exposure
+        outputs.append(deblur_encoded(deblurrer, lefts[index][..., :channels],
+                                      None if rights is None else rights[index][..., :channels],
+                                      view_encoding, scale=scale, views_sum=views_sum))
+    result = restore_layout(np.stack(outputs), layout, like=left)
     if not type(left).__module__.startswith("PIL.") and np.ndim(left) == 2:  # (H, W) in
         return result[0] if layout == "torch" else result[..., 0]
     return result

@@ -289,10 +289,27 @@ def view_encoding_from_files(encoding: str, black_level: float | None, white_lev
 
 
 def deblur_encoded(deblurrer: Callable[[np.ndarray, np.ndarray | None], np.ndarray],
-                   left: np.ndarray, right: np.ndarray, encoding: ViewEncoding | None = None, *,
-                   scale: float = 1.0, views_sum: bool = False) -> np.ndarray:
+                   left: np.ndarray, right: np.ndarray | None,
+                   encoding: ViewEncoding | None = None, *, scale: float = 1.0,
+                   views_sum: bool = False, exposed: ViewEncoding | None = None,
+                   inspect: Callable[[np.ndarray, np.ndarray], None] | None = None
+                   ) -> np.ndarray:
     """One pair ``(H, W, C)`` in its own encoding through ``deblurrer`` (a
-    :class:`~dualpixel.inference.Deblurrer`): the output in the same encoding and channels."""
-    encoding = (encoding or ViewEncoding()).exposed(left, right, scale=scale, views_sum=views_sum)
-    model_left, model_right = to_model(left, right, encoding, scale=scale, views_sum=views_sum)
-    return from_model(deblurrer(model_left, model_right), encoding, left.shape[-1], scale=scale)
+    :class:`~dualpixel.inference.Deblurrer`): the output in the same encoding and channels.
+
+    The one place views go to the network's values and back (``dualpixel deblur``, the API and
+    the target-free checks). ``right`` None: a single-view model. ``exposed``: the encoding with
+    its exposure already found (a sequence keeps its first pair's; :meth:`ViewEncoding.exposed`),
+    else found here from ``encoding``. ``inspect(left, right)`` sees the views as the network
+    will (checks of a sequence's first pair)."""
+    views_sum = views_sum and right is not None
+    other = left if right is None else right
+    if exposed is None:
+        exposed = (encoding or ViewEncoding()).exposed(left, other, scale=scale,
+                                                       views_sum=views_sum)
+    model_left, model_right = to_model(left, other, exposed, scale=scale, views_sum=views_sum)
+    if right is None:
+        model_right = None
+    elif inspect is not None:
+        inspect(model_left, model_right)
+    return from_model(deblurrer(model_left, model_right), exposed, left.shape[-1], scale=scale)

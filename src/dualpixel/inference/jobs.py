@@ -17,7 +17,7 @@ import numpy as np
 from dualpixel.data.layout import discover_dp_dataset, image_files
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError
 from dualpixel.inference.deblur import Deblurrer
-from dualpixel.inference.encoding import ViewEncoding, encoding_findings, from_model, to_model
+from dualpixel.inference.encoding import ViewEncoding, deblur_encoded, encoding_findings
 from dualpixel.inference.view_checks import ViewFinding, check_views
 from dualpixel.io.atomic import check_writable
 from dualpixel.io.images import (
@@ -200,14 +200,12 @@ def run_deblur_jobs(
                                                views_sum=views_sum and right is not None)
                 except ParameterError as error:  # levels that do not fit this file
                     raise InputFileError(job.left, str(error)) from None
-            if right is None:
-                left = to_model(left, left, exposed, scale=scale)[0]
-            else:
-                left, right = to_model(left, right, exposed, scale=scale, views_sum=views_sum)
-                if index == 0:
-                    _check_first_frame(job, left, right, (bits, right_bits), strict=strict,
-                                       report=report, raw=raw)
-            output = from_model(deblurrer(left, right), exposed, channels, scale=scale)
+            def inspect(model_left, model_right, job=job, raw=raw, bits=(bits, right_bits)):
+                _check_first_frame(job, model_left, model_right, bits, strict=strict,
+                                   report=report, raw=raw)
+
+            output = deblur_encoded(deblurrer, left, right, exposed=exposed, scale=scale,
+                                    views_sum=views_sum, inspect=inspect if index == 0 else None)
             write_png(job.output, output[..., 0] if channels == 1 else output, bit_depth=bits,
                       metadata=read_metadata(job.left))
             yield job.output
