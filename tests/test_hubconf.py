@@ -25,3 +25,30 @@ def test_the_default_loads_through_torch_hub():
     model = torch.hub.load(str(ROOT), entry, source="local", device="cpu")
     assert not model.training
     assert count_parameters(model) == WEIGHTS[ALIASES[DEFAULT_CHECKPOINT]].num_params
+
+
+def test_hubconf_imports_nothing_before_torch_checks_its_dependencies():
+    """Issue #73: torch.hub imports hubconf.py, then checks ``dependencies``; a module-level
+    import of the package (and so NumPy) gave a bare ``ModuleNotFoundError: numpy`` where
+    torch.hub would have named the missing dependency. Module level holds the standard library
+    only, and the entry points load the clone's package, not another installed one."""
+    import ast
+
+    tree = ast.parse((ROOT / "hubconf.py").read_text())
+    top = set()
+    for node in tree.body:  # module level only: the entry points import inside themselves
+        if isinstance(node, ast.Import):
+            top |= {alias.name.split(".")[0] for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            top.add(str(node.module).split(".")[0])
+    assert top <= {"json", "sys", "pathlib"}, top
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("hubconf_probe", ROOT / "hubconf.py")
+    hubconf = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hubconf)
+    model = hubconf.rdpd_light(device="cpu")
+    import dualpixel
+
+    assert Path(dualpixel.__file__).is_relative_to(ROOT / "src")
+    assert model.output_settings == {"brightness": "tied"}

@@ -13,7 +13,9 @@ Needs the ``onnx`` extra (``onnx``, ``onnxscript``; ``onnxruntime`` to verify).
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -100,7 +102,7 @@ def export_onnx(
         dynamic_shapes = ({"x": spatial, "hidden": spatial, "cell": spatial} if step
                           else {"x": spatial})
     path = Path(path)
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, _quiet_exporter():
         torch.onnx.export(
             wrapper, args, str(tmp), input_names=names_in, output_names=names_out,
             opset_version=opset, dynamo=True, external_data=False, verbose=False,
@@ -108,6 +110,19 @@ def export_onnx(
         )
         _describe(tmp, model, step=step, dynamic=dynamic)
     return path
+
+
+@contextlib.contextmanager
+def _quiet_exporter():
+    """The exporter's notes that concern other packages (``torchvision is not installed.
+    Skipping torchvision::nms`` and three more) kept off the console; its errors still show."""
+    logger = logging.getLogger("torch.onnx")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def _describe(path: Path, model: DeblurNet, *, step: bool, dynamic: bool) -> None:
