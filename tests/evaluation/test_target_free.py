@@ -340,3 +340,34 @@ def test_a_reference_is_a_method_or_a_checkpoint_checked_one_way():
         reference_method(several, "rdpd-light")
     with pytest.raises(ParameterError, match="not one of the checked models"):
         reference_method(named, "rdpd-plus")
+
+
+def test_the_output_modes_on_a_known_over_sharpening_darkening_model(frame, tiny_checkpoint):
+    """Issue #76: the untrained checkpoint is the identity, where limited and plain overshoot
+    are equal; here the network's output is a known one (an unsharp mask of the combined image,
+    its light then scaled by 0.9: over-sharpened and, by its overshoot, 24 % brighter) through
+    the deblurrer's own output modes: the limit must take most of the overshoot and halos away,
+    the tie the brightness change, and neither may touch an output that is already within range
+    and at the input's brightness (the identity)."""
+    from dualpixel.inference import Deblurrer
+    from dualpixel.models import load_model
+
+    left, right = frame["left"], frame["right"]
+    image = identity(frame)
+    known = np.clip(image + 3.0 * (image - cv2.GaussianBlur(image, (0, 0), 3.0)), 0, 1)
+    known = encoded(0.9 * linear(known)).astype(np.float32)
+    deblurrer = Deblurrer(load_model(tiny_checkpoint), precision="fp32")
+    report = {(tie, limit): check_deblurred(left, right, deblurrer.finish(
+        known, left, right, brightness=tie, overshoot=limit))
+        for tie in ("model", "tied") for limit in ("model", "limited")}
+    plain, limited = report["model", "model"], report["model", "limited"]
+    assert plain.overshoot > 10.0 and limited.overshoot < 0.3 * plain.overshoot  # 21.1, 3.0
+    assert limited.halo_share < 0.6 * plain.halo_share  # 0.70 -> 0.32
+    assert plain.brightness_change > 0.1  # +0.24
+    assert abs(report["tied", "model"].brightness_change) < 0.005
+    assert abs(report["tied", "limited"].brightness_change) < 0.005
+    assert report["tied", "model"].local_brightness < 0.1 * plain.local_brightness
+    for tie in ("model", "tied"):
+        for limit in ("model", "limited"):
+            kept = deblurrer.finish(image, left, right, brightness=tie, overshoot=limit)
+            assert np.abs(kept - image).max() < 3 / 255, (tie, limit)

@@ -27,10 +27,24 @@ def canon_views(shared_dir):
     return read_rgb(folder / "view0.png"), read_rgb(folder / "view1.png")
 
 
+@pytest.fixture(scope="module")
+def made_views():
+    """400x600 views the project makes itself (procedural photo scene, linear-light blur), so
+    tiling is checked without ../shared too (issue #76)."""
+    import dualpixel
+    from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
+
+    rgb, depth = render_scene_sequence(7, SceneConfig(width=600, height=400, frames=1,
+                                                      layout="photo"))[0]
+    frame = dualpixel.synthesize(rgb, depth, seed=7)
+    return np.asarray(frame["left"], np.float32), np.asarray(frame["right"], np.float32)
+
+
+@pytest.mark.parametrize("views", ["made_views", "canon_views"])
 @pytest.mark.parametrize("name", ["tiny_model", "refined_model"])
-def test_tiled_inference_matches_whole_image(name, canon_views, request):
+def test_tiled_inference_matches_whole_image(name, views, request):
     tiny_model = request.getfixturevalue(name)
-    left, right = (v[:400, :600] for v in canon_views)
+    left, right = (v[:400, :600] for v in request.getfixturevalue(views))
     whole = Deblurrer(tiny_model, precision="fp32")
     tiled = Deblurrer(tiny_model, precision="fp32", tile=384, overlap=192)
     for _ in range(2):  # second frame: per-tile recurrent states
