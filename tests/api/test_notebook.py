@@ -29,8 +29,12 @@ def test_synthesise_deblur_and_score_with_numpy():
     sharp = dualpixel.deblur(frame["left"], frame["right"], model=model, device="cpu")
     assert sharp.shape == rgb.shape and sharp.dtype == np.float32
     assert 0 <= sharp.min() and sharp.max() <= 1
-    for metric in (dualpixel.psnr, dualpixel.ssim, dualpixel.mae):
-        assert np.isfinite(metric(sharp, frame["target"]))
+    error = sharp.astype(np.float64) - frame["target"]  # the metrics' known answers
+    assert dualpixel.psnr(sharp, frame["target"]) == pytest.approx(
+        10 * np.log10(1 / np.mean(error**2)), abs=1e-4)
+    assert dualpixel.mae(sharp, frame["target"]) == pytest.approx(np.mean(np.abs(error)), abs=1e-6)
+    assert dualpixel.ssim(frame["target"], frame["target"]) == pytest.approx(1.0)
+    assert dualpixel.ssim(sharp, frame["target"]) < 1.0
     # integer images by their range: the same result as the float ones
     as_uint8 = [np.rint(frame[k] * 255).astype(np.uint8) for k in ("left", "right")]
     from_uint8 = dualpixel.deblur(*as_uint8, model=model, device="cpu")

@@ -97,7 +97,15 @@ def test_release_writes_the_file_header_row_deprecation_and_results(finished_run
     with open(tmp_path / "results" / f"{TAG}.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
     assert rows and {r["evaluation"] for r in rows} == {"synth"}
-    assert all(float(r["psnr"]) > 0 and float(r["input_psnr"]) > 0 for r in rows)
+    # the run's own evaluation, image by image (not merely positive numbers)
+    with open(finished_run / "eval" / "synth" / "per_image.csv", newline="") as handle:
+        measured = list(csv.DictReader(handle))
+    by_image = {(r["name"], r["method"]): float(r["psnr"]) for r in measured}
+    assert len(rows) == len({name for name, _ in by_image})
+    for row in rows:
+        assert float(row["psnr"]) == pytest.approx(by_image[row["image"], "model"], abs=1e-3)
+        assert float(row["input_psnr"]) == pytest.approx(by_image[row["image"], "input"],
+                                                         abs=1e-3)
     assert load_model(shipped).width == 0.5
 
 
