@@ -120,9 +120,43 @@ def plan_deblur_jobs(
         if mean is not None and not mean.is_file():
             raise InputFileError(mean, f"combined frame for {path.name} is missing")
         sequence.append(DeblurJob(path, other, output / path.name, mean))
+    check_sequence_frames([job.left for job in sequence])
+    if right is not None:
+        check_sequence_frames([job.right for job in sequence], gaps=False)
     _refuse_overwriting_inputs([sequence], output)
     _output_folder(output)
     return [sequence]
+
+
+def check_sequence_frames(frames: list[Path], *, gaps: bool = True) -> None:
+    """Refuse, before any work and naming the first offending frame, a folder of frames that
+    changes size, channels (grey / colour) or bit depth mid-sequence; warn, naming the frame
+    after it, where numbered frames skip a number (a recurrent model's state would bridge the
+    gap; ``gaps`` False: not looked for). Read from the files' headers only."""
+    import re
+    import warnings
+
+    from dualpixel.io.images import image_layout
+
+    facts = {"size": lambda x: f"{x[1]}x{x[0]}", "channels": lambda x: f"{x[2]} channel(s)",
+             "bit depth": lambda x: f"{x[3]}-bit"}
+    first = image_layout(frames[0])
+    for path in frames[1:]:
+        layout = image_layout(path)
+        for what, shown in facts.items():
+            if shown(layout) != shown(first):
+                raise InputFileError(path, f"{what} {shown(layout)} differs from the "
+                                           f"sequence's first frame {frames[0].name} "
+                                           f"({shown(first)}): one sequence is one capture")
+    numbers = [re.search(r"(\d+)$", path.stem) for path in frames]
+    prefixes = {path.stem[: m.start()] for path, m in zip(frames, numbers) if m}
+    if gaps and all(numbers) and len(prefixes) == 1:
+        values = [int(m.group(1)) for m in numbers]
+        for before, (after, path) in zip(values, zip(values[1:], frames[1:])):
+            if after != before + 1:
+                warnings.warn(f"{path}: the frames skip from number {before} to {after}; a "
+                              "recurrent model carries its state across the gap", stacklevel=3)
+                break
 
 
 def _refuse_overwriting_inputs(jobs: list[list[DeblurJob]], output: Path) -> None:

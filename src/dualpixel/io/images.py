@@ -67,6 +67,32 @@ def image_size(path: str | Path) -> tuple[int, int]:
     return height, width
 
 
+def image_layout(path: str | Path) -> tuple[int, int, int, int]:
+    """``(H, W, channels, bits)`` of an image file from its header, as :func:`read_view` would
+    read it (channels 1 or 3, alpha not counted; bits 8 or 16), without decoding its pixels:
+    PNG from its IHDR chunk, TIFF from its first page's tags, other formats 8-bit."""
+    path = Path(path)
+    height, width = image_size(path)
+    suffix = path.suffix.lower()
+    if suffix == ".png":
+        with open(path, "rb") as handle:
+            header = handle.read(26)
+        bits, colour = header[24], header[25]  # IHDR: bit depth, colour type
+        channels = 1 if colour in (0, 4) else 3  # grey (+ alpha) or RGB / palette (+ alpha)
+        return height, width, channels, 16 if bits == 16 else 8
+    if suffix in (".tif", ".tiff"):
+        import tifffile
+
+        with tifffile.TiffFile(path) as tiff:
+            page = tiff.pages[0]
+            samples = int(page.samplesperpixel) - len(page.extrasamples or ())
+            return height, width, 1 if samples == 1 else 3, 16 if page.bitspersample > 8 else 8
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return height, width, 1 if image.mode in ("L", "LA", "I;16") else 3, 8
+
+
 #: How a complete file of each format ends (PNG: the IEND chunk; JPEG: the EOI marker).
 _FILE_ENDINGS = {".png": b"IEND\xaeB`\x82", ".jpg": b"\xff\xd9", ".jpeg": b"\xff\xd9"}
 
