@@ -27,6 +27,7 @@ from dualpixel.evaluation.alignment import AlignmentError, align_to_target
 from dualpixel.evaluation.blur_breakdown import BlurBreakdown, read_defocus
 from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.evaluation.niqe import NIQEModel, niqe
+from dualpixel.evaluation.temporal import FlickerMeter
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.images import IMAGE_SUFFIXES, max_level, read_rgb, read_views
 from dualpixel.progress import progress_bar
@@ -169,13 +170,16 @@ def evaluate(
     breakdown: BlurBreakdown | None = None,
     align: str | None = None,
     encoding: ViewEncoding | None = None,
+    flicker: FlickerMeter | None = None,
 ) -> list[ImageResult]:
     """Score the input, the model (``deblur(left, right)``; ``reset()`` between sequences) and
     every other method of each example; pool errors by blur size into ``breakdown`` where the
     examples have defocus maps; ``align`` ("translation" or "affine") adds scores after
     registering each output to its target. ``encoding``: how the views and targets store light
     (linear raw ones, levels in the files' units, go to the model as ``deblur`` takes them and
-    come back raw; every score is taken in the files' own values)."""
+    come back raw; every score is taken in the files' own values). ``flicker`` pools the
+    frame-to-frame change of each method in static regions of sequences
+    (:mod:`dualpixel.evaluation.temporal`)."""
     results, current = [], None
     for example in progress_bar(examples, desc="evaluating", unit="image", enabled=progress):
         known = categories or {}
@@ -207,6 +211,8 @@ def evaluate(
                                   niqe_model, None, path, align))
         if breakdown is not None and example.defocus is not None:
             breakdown.add(read_defocus(example.defocus, target.shape[:2]), images, target)
+        if flicker is not None:
+            flicker.add(example.sequence, target, images)
     return results
 
 
@@ -256,9 +262,11 @@ def markdown_table(summary: dict[str, dict[str, dict[str, float]]]) -> str:
 
 
 def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict | None = None,
-                  breakdown: BlurBreakdown | None = None) -> dict:
+                  breakdown: BlurBreakdown | None = None,
+                  flicker: FlickerMeter | None = None) -> dict:
     """Write ``per_image.csv``, ``summary.json`` and ``summary.md`` atomically; return the
-    summary. A filled ``breakdown`` adds PSNR by blur size to both summaries."""
+    summary. A filled ``breakdown`` adds PSNR by blur size to both summaries, a ``flicker``
+    meter that saw consecutive frames the change in static regions."""
     output = Path(output)
     output.mkdir(parents=True, exist_ok=True)
     buffer = io.StringIO()
@@ -272,6 +280,10 @@ def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict 
         extra["by_blur"] = breakdown.table()
         table += "\nBy true |CoC| radius (errors pooled over all images):\n\n" + \
             breakdown.markdown()
+    if flicker is not None and flicker.table():
+        extra["flicker"] = flicker.table()
+        table += ("\nFrame-to-frame change in static regions (flicker; "
+                  f"{flicker.pairs} pairs of consecutive frames):\n\n" + flicker.markdown())
     files = {
         "per_image.csv": buffer.getvalue(),
         "summary.json": json.dumps({"summary": summary, **extra}, indent=2),

@@ -19,6 +19,7 @@ from dualpixel.evaluation.evaluate import (
     write_reports,
 )
 from dualpixel.evaluation.niqe import resolve_niqe_model
+from dualpixel.evaluation.temporal import FlickerMeter
 from dualpixel.io.atomic import check_writable
 from dualpixel.io.dpdd import role_folder
 from dualpixel.io.images import read_rgb, write_png
@@ -79,6 +80,7 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
                                  f"{'input' if name == 'input' else 'model'}'s row; choose "
                                  "another")
     breakdown: BlurBreakdown | None = None
+    flicker: FlickerMeter | None = None
     if request.pred is not None or request.target is not None:
         if request.pred is None or request.target is None or request.dataset is not None:
             raise ParameterError("give --pred and --target together, without --dataset")
@@ -96,6 +98,8 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
         examples = examples_from_sequences(sequences, others, request.compare or {})
         if any(example.defocus is not None for example in examples):
             breakdown = BlurBreakdown()
+        if any(len(sequence.frames) > 1 for sequence in sequences):
+            flicker = FlickerMeter()
         drawn: dict[str, object] = {}
 
         def keep(example, image):
@@ -108,9 +112,9 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
                            reset=deblurrer.reset if deblurrer else None, method=method,
                            niqe_model=niqe, categories=cats,
                            save_outputs=keep if deblurrer else None, breakdown=breakdown,
-                           align=request.align, encoding=request.encoding)
+                           align=request.align, encoding=request.encoding, flicker=flicker)
         draw_comparisons(examples[: request.figures], drawn, results, method, output)
-    write_reports(results, output, meta=meta, breakdown=breakdown)
+    write_reports(results, output, meta=meta, breakdown=breakdown, flicker=flicker)
     if breakdown is not None and breakdown.images:
         from dualpixel.evaluation.blur_breakdown_figure import render_blur_breakdown
 
