@@ -160,3 +160,24 @@ def test_a_scene_files_bad_focus_distance_names_the_file(tmp_path, photo_scene, 
     result = CliRunner().invoke(cli, ["synth", "--input", str(scenes), "-o", str(tmp_path / "dp")])
     assert result.exit_code == 1, result.output
     assert "scene.json: " in result.output and problem in result.output, result.output
+
+
+def test_line_based_files_that_are_binary_are_named(tmp_path, tiny_synthetic_dataset):
+    """Found probing (issue #72): a binary --categories file was a UnicodeDecodeError traceback;
+    category lists, frame manifests and run histories are read by one text reader."""
+    from dualpixel.io.documents import read_text_file
+    from dualpixel.io.dpdd import read_manifest
+
+    binary = tmp_path / "cats.csv"
+    binary.write_bytes(BINARY)
+    result = CliRunner().invoke(cli, ["eval", "--dataset", str(tiny_synthetic_dataset),
+                                      "--split", "train", "--no-model", "--categories",
+                                      str(binary), "-o", str(tmp_path / "r"), "--no-niqe"])
+    assert result.exit_code == 1, result.output
+    assert "cats.csv: is not a text file (expected a category list)" in result.output
+    manifest = tmp_path / "manifest.jsonl"
+    manifest.write_bytes(BINARY)
+    with pytest.raises(InputFileError, match=r"manifest\.jsonl: is not a text file"):
+        read_manifest(manifest)
+    with pytest.raises(InputFileError, match=r"nothing\.txt: training history not found"):
+        read_text_file(tmp_path / "nothing.txt", "training history")

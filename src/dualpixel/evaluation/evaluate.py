@@ -29,6 +29,7 @@ from dualpixel.evaluation.metrics import mae, psnr, ssim
 from dualpixel.evaluation.niqe import NIQEModel, niqe
 from dualpixel.evaluation.temporal import FlickerMeter
 from dualpixel.io.atomic import atomic_path
+from dualpixel.io.documents import read_text_file
 from dualpixel.io.images import IMAGE_SUFFIXES, max_level, read_rgb, read_views
 from dualpixel.progress import progress_bar
 
@@ -108,7 +109,7 @@ def read_categories(path: str | Path) -> dict[str, str]:
     if not path.is_file():
         raise InputFileError(path, "category list not found")
     categories = {}
-    for number, line in enumerate(path.read_text().splitlines(), 1):
+    for number, line in enumerate(read_text_file(path, "category list").splitlines(), 1):
         line = line.split("#", 1)[0].strip()
         if not line:
             continue

@@ -19,7 +19,7 @@ from typing import Any
 from dualpixel.errors import InputFileError
 
 __all__ = ["MAX_BYTES", "MAX_DEPTH", "MAX_NUMBER", "MAX_VALUES", "out_of_bounds",
-           "read_mapping"]
+           "read_mapping", "read_text_file"]
 
 #: Largest document read (bytes): configs, recipes and descriptions are a few kB.
 MAX_BYTES = 16 * 1024 * 1024
@@ -29,6 +29,24 @@ MAX_DEPTH = 64
 MAX_VALUES = 1_000_000
 #: Largest magnitude of a number in a document (a 63-bit integer: seeds are the largest).
 MAX_NUMBER = 2**63 - 1
+
+
+def read_text_file(path: str | Path, what: str) -> str:
+    """The UTF-8 text of ``path`` (at most :data:`MAX_BYTES`): a missing, binary or unreadable
+    file raises :class:`InputFileError` naming it and ``what`` it should be (category lists,
+    manifests, run histories: line-based files the readers parse themselves)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, f"{what} not found")
+    if path.stat().st_size > MAX_BYTES:
+        raise InputFileError(path, f"is {path.stat().st_size} bytes, more than a {what} can be "
+                                   f"({MAX_BYTES} at most)")
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputFileError(path, f"is not a text file (expected a {what})") from None
+    except OSError as error:
+        raise InputFileError(path, f"cannot be read ({error.strerror or error})") from None
 
 
 def read_mapping(path: str | Path, what: str, *, syntax: str = "json") -> dict[str, Any]:

@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 from dualpixel.errors import InputFileError
+from dualpixel.io.documents import read_text_file
 from dualpixel.io.images import IMAGE_SUFFIXES
 from dualpixel.io.paths import broken_link, check_plain_name
 
@@ -72,7 +73,8 @@ def read_manifest(path: str | Path) -> dict[str, dict]:
     records: dict[str, dict] = {}
     path = Path(path)
     if path.is_file():
-        for number, line in enumerate(path.read_text().splitlines(), start=1):
+        for number, line in enumerate(read_text_file(path, "frame manifest").splitlines(),
+                                      start=1):
             try:
                 record = json.loads(line)
             except json.JSONDecodeError:

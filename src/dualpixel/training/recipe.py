@@ -56,7 +56,7 @@ from pathlib import Path
 from typing import Any
 
 from dualpixel.errors import InputFileError, ParameterError, check_seed
-from dualpixel.io.documents import read_mapping
+from dualpixel.io.documents import read_mapping, read_text_file
 from dualpixel.io.paths import check_plain_name
 from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES, SYNTH_SOURCES, renamed_keys
 from dualpixel.training.config import MACHINE_KEYS
@@ -580,7 +580,8 @@ def phase_finished(recipe: Recipe, index: int, output: Path) -> bool:
 def _epochs_recorded(folder: Path) -> int:
     """Epochs a phase folder's history records (0 without one)."""
     history = folder / "history.jsonl"
-    return len(history.read_text().splitlines()) if history.is_file() else 0
+    return (len(read_text_file(history, "training history").splitlines())
+            if history.is_file() else 0)
 
 
 def _phase_state(folder: Path, epochs: int) -> str:

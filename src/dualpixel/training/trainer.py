@@ -275,7 +275,7 @@ def _moved_data_differs(output: Path, config: TrainConfig, saved: TrainConfig) -
     path = output / _PATHS_FILE
     if not spelt or not path.is_file():  # runs from before paths.json: compare as spelt
         return spelt
-    recorded = json.loads(path.read_text())
+    recorded = read_mapping(path, "run folder's data paths record")
     mine = _data_locations(config, output)
     return [key for key in spelt
             if len(mine.get(key, [])) != len(recorded.get(key, []))
