@@ -183,7 +183,7 @@ def test_export(files, tmp_path):
                         "safetensors-fp16", "--output", tmp_path / "x.onnx"), 2, "--output",
                  ".safetensors")
     assert_clear(invoke("export", "--checkpoint", files / "tiny.safetensors", "--output",
-                        tmp_path / "x.onnx", "--size", "0x0"), 2, "0x0")
+                        tmp_path / "x.onnx", "--size", "0x0"), 2, "0x0", "--size")
 
 
 def test_checkpoint_metadata_without_a_key(files, tmp_path):

@@ -306,13 +306,13 @@ def niqe_score(images: tuple[Path, ...], model: str | None) -> None:
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.option("--checkpoint", default=DEFAULT_CHECKPOINT, show_default=True, help=_CHECKPOINT_HELP)
 @click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True)
-@click.option("--size", default="512x512",
+@click.option("--size", default="512x512", callback=parse_size,
               help="Frame size WIDTHxHEIGHT the graph is traced at (it runs at any size).")
 @click.option("--step", is_flag=True, help="One recurrent step with the state as input/output.")
 @click.option("--format", "fmt", type=click.Choice(["onnx", "safetensors-fp16"]), default="onnx",
               help="onnx (needs: pip install 'dualpixel[onnx]'), or a half-precision copy of the "
               "checkpoint (how shipped models are stored).")
-def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> None:
+def export(checkpoint: str, output: Path, size: tuple[int, int], step: bool, fmt: str) -> None:
     """Export a checkpoint to ONNX, or as a half-precision safetensors checkpoint."""
     import torch
 
@@ -325,7 +325,7 @@ def export(checkpoint: str, output: Path, size: str, step: bool, fmt: str) -> No
     if output.suffix.lower() != suffix:
         raise click.BadParameter(f"a {fmt} export is written to a {suffix} file, got {output}",
                                  param_hint="--output")
-    width, height = parse_size(None, None, size)
+    width, height = size
     if fmt == "onnx":
         check_export_packages()  # before loading anything
     if is_graph(checkpoint):
