@@ -115,12 +115,7 @@ class ViewEncoding:
         saying what was given and what the views hold."""
         if not self.linear:
             return
-        gain = np.asarray(self.right_gain)
-        if gain.ndim and gain.shape[:2] != left.shape[-3:-1]:
-            raise ParameterError(f"the right view's gain map (a flat field, --flat-field) is "
-                                 f"{gain.shape[1]}x{gain.shape[0]} but the views are "
-                                 f"{left.shape[-2]}x{left.shape[-3]}: capture the flat field at "
-                                 "the views' size")
+        _check_gain_shape(np.asarray(self.right_gain), left.shape[-3:-1])
         black, white = float(self.black_level), float(self.white_level)
         unit = "" if scale == 1.0 else f" of {scale:g}"
         if white > scale * (1 + 1e-9):
@@ -149,8 +144,11 @@ class ViewEncoding:
 
 
 def _check_gain_shape(gain: np.ndarray, shape: tuple[int, int]) -> None:
+    """Refuse a right-gain map ``(H, W)`` of another size than views of ``shape`` ``(H, W)``."""
     if gain.ndim and gain.shape[:2] != shape:
-        raise ParameterError(f"right_gain map {gain.shape[:2]} and views {shape} differ in size")
+        raise ParameterError(f"the right view's gain map (a flat field, --flat-field) is "
+                             f"{gain.shape[1]}x{gain.shape[0]} but the views are "
+                             f"{shape[1]}x{shape[0]}: capture the flat field at the views' size")
 
 
 #: Linear views already in light units: black level 0, saturation 1 (what :func:`linear_light`

@@ -61,8 +61,9 @@ def load_network(source: Any, *, device: str | torch.device = "auto",
         return LoadedNetwork(load_onnx_checkpoint(path), resolved,
                              {"backend": "onnxruntime", "graph": path})
     resolved = backend_device(backend, str(device))  # names a missing extra before any loading
-    net = load_model(path, device=resolved)
-    net.output_settings = output_settings(source)  # a name: its registry row's; a file: its own
+    net = load_model(path, device=resolved)  # with the settings its file carries
+    if path != Path(source):  # a shipped name: its registry row's settings
+        net.output_settings = output_settings(source)
     return LoadedNetwork(net, resolved, {"backend": backend})
 
 

@@ -31,10 +31,11 @@ MAX_VALUES = 1_000_000
 MAX_NUMBER = 2**63 - 1
 
 
-def read_text_file(path: str | Path, what: str) -> str:
+def read_text_file(path: str | Path, what: str, *, syntax: str | None = None) -> str:
     """The UTF-8 text of ``path`` (at most :data:`MAX_BYTES`): a missing, binary or unreadable
-    file raises :class:`InputFileError` naming it and ``what`` it should be (category lists,
-    manifests, run histories: line-based files the readers parse themselves)."""
+    file raises :class:`InputFileError` naming it and ``what`` it should be (in ``syntax``, e.g.
+    ``"JSON"``, where one is expected): the text of :func:`read_mapping`'s documents and of the
+    line-based files (category lists, manifests, run histories) their readers parse."""
     path = Path(path)
     if not path.is_file():
         raise InputFileError(path, f"{what} not found")
@@ -44,7 +45,8 @@ def read_text_file(path: str | Path, what: str) -> str:
     try:
         return path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
-        raise InputFileError(path, f"is not a text file (expected a {what})") from None
+        expected = what if syntax is None else f"{what} in {syntax}"
+        raise InputFileError(path, f"is not a text file (expected a {expected})") from None
     except OSError as error:
         raise InputFileError(path, f"cannot be read ({error.strerror or error})") from None
 
@@ -56,18 +58,7 @@ def read_mapping(path: str | Path, what: str, *, syntax: str = "json") -> dict[s
     mapping raise :class:`InputFileError` naming the file and ``what`` it should be.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputFileError(path, f"{what} not found")
-    if path.stat().st_size > MAX_BYTES:
-        raise InputFileError(path, f"is {path.stat().st_size} bytes, more than a {what} can be "
-                                   f"({MAX_BYTES} at most)")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise InputFileError(path, f"is not a text file (expected a {what} in "
-                                   f"{syntax.upper()})") from None
-    except OSError as error:
-        raise InputFileError(path, f"cannot be read ({error.strerror or error})") from None
+    text = read_text_file(path, what, syntax=syntax.upper())
     try:
         data = _parse(text, syntax)
     except ValueError as error:

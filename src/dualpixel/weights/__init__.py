@@ -24,7 +24,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from dualpixel.errors import DualPixelError, InputFileError, ParameterError
+from dualpixel.errors import InputFileError, ParameterError
 
 __all__ = [
     "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "OUTPUT_KEY", "WEIGHTS", "Weights",
@@ -162,7 +162,7 @@ def file_output_settings(path: str | Path) -> dict[str, Any]:
         with safe_open(str(path), framework="numpy") as handle:
             extra = json.loads((handle.metadata() or {}).get("extra", "{}"))
         carried = extra.get(OUTPUT_KEY) if isinstance(extra, dict) else None
-    except (OSError, ValueError, DualPixelError, SafetensorError):
+    except (OSError, ValueError, SafetensorError):
         return {}
     if isinstance(carried, dict):
         return carried_settings(carried)
