@@ -274,7 +274,8 @@ def batched(sets: list[str], width: int, height: int, device: str, batch: int,
             print(f"peak GPU memory {torch.cuda.max_memory_allocated() / 2**30:.2f} GiB")
 
 
-def training(iterations: int, loader_workers: int, device: str) -> None:
+def training(iterations: int, loader_workers: int, device: str,
+             sources: tuple[str, ...] = ("written", "fly", "fly-device")) -> None:
     """Iterations per second of rdpd-light on written and on-the-fly data of one setting."""
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
     from dualpixel.synthesis.on_the_fly import write_on_the_fly
@@ -299,6 +300,8 @@ def training(iterations: int, loader_workers: int, device: str) -> None:
         labels = {"written": "written", "fly": "on the fly, rendered by the loader",
                   "fly-device": f"on the fly, rendered on {device} in training"}
         for name, label in labels.items():
+            if name not in sources:
+                continue
             config = load_config(None, dict(
                 model="rdpd", width=0.5, residual=True, refiner=[32, 64, 128],
                 render_on="device" if name == "fly-device" else "loader",
@@ -334,13 +337,17 @@ def main() -> None:
                         help="training iterations/s on written against on-the-fly data")
     parser.add_argument("--iterations", type=int, default=6, help="with --training")
     parser.add_argument("--loader-workers", type=int, default=0, help="with --training")
+    parser.add_argument("--data", default="written,fly,fly-device",
+                        help="with --training: which of written, fly (rendered by the loader) "
+                             "and fly-device (rendered in training) to time")
     args = parser.parse_args()
     if args.batched:
         batched(args.sets.split(","), args.width, args.height, args.device, args.batch,
                 args.repeat)
         return
     if args.training:
-        training(args.iterations, args.loader_workers, args.device)
+        training(args.iterations, args.loader_workers, args.device,
+                 tuple(args.data.split(",")))
         return
     if args.end_to_end:
         end_to_end(args.sets.split(","), args.width, args.height, args.repeat, args.authors_code,

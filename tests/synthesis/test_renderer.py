@@ -332,3 +332,46 @@ def test_the_old_names_of_a_sequence_draw_still_import_with_a_warning():
         assert synthesis.SequenceRecipe is synthesis.SequenceDraw
     with pytest.raises(AttributeError):
         synthesis.no_such_name  # noqa: B018
+
+
+@pytest.mark.parametrize(("camera", "settings", "atol"), [
+    ("set0", {}, 1e-4),  # distortion, noise: positions mapped in float64 against float32
+    ("set4", {}, 1e-4),  # large blur: layers at 1/2 .. 1/8 resolution
+    ("set2", {"light": "linear", "disparity_ratio": (0.7, 0.9, 0.95)}, 1e-4),
+    ("set1", {"light": "linear", "raw_black_level": 0.0625, "distortion": False}, 1e-6),
+    ("set3", {"distortion": False}, 1e-6),
+    # blur of 40 px, layers at 1/8: a margin without the reduced resolutions' reach is 7e-6 off
+    ("set4", {"distortion": False, "noise": False, "size": (384, 256)}, 1e-6),
+])
+def test_a_window_renders_as_that_region_of_the_whole_frame(camera, settings, atol):
+    """A window (a training crop on the fly) rendered alone, with the frame's layers and its
+    blur margin, equals the same region of the whole frame's render: views, combined image,
+    target, defocus and noise, at the frame's corners, inside it and off the reduced grid."""
+    from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
+
+    settings = dict(settings)
+    width, height = settings.pop("size", (256, 176))
+    rgb, depth = render_scene_sequence(3, SceneConfig(width=width, height=height, frames=1,
+                                                      leaves=12))[0]
+    draw = draw_sequence(7, camera, **settings)
+    whole = synthesize_frame(rgb, depth, draw, noise_seed=3)
+    for top, left, rows, cols in ((0, 0, 64, 64), (height - 64, width - 80, 64, 80),
+                                  (37, 101, 48, 64), (100, 150, 40, 40)):
+        part = synthesize_frame(rgb, depth, draw, noise_seed=3,
+                                window=(top, left, rows, cols))
+        for name in ("left", "right", "combined", "target", "defocus"):
+            expected = getattr(whole, name)[..., top : top + rows, left : left + cols]
+            torch.testing.assert_close(getattr(part, name), expected, rtol=0,
+                                       atol=atol if name != "defocus" else 2e-3,
+                                       msg=lambda m, n=name: f"{camera} {n}: {m}")
+
+
+def test_windows_outside_the_frame_or_in_exact_mode_are_refused():
+    image = np.zeros((32, 48, 3), np.float32)
+    depth = np.full((32, 48), 3.0, np.float32)
+    draw = draw_sequence(1, "set0")
+    with pytest.raises(ParameterError, match="does not lie inside the 48x32 frame"):
+        synthesize_frame(image, depth, draw, window=(0, 40, 16, 16))
+    exact = draw_sequence(1, "set0", render_mode="exact")
+    with pytest.raises(ParameterError, match="fast"):
+        synthesize_frame(image, depth, exact, window=(0, 0, 16, 16))

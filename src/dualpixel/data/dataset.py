@@ -106,6 +106,12 @@ class DPPatchDataset(Dataset):
         return [self._load(f) for f in self.sequences[index].frames[start:
                                                                     start + self.config.frames]]
 
+    def _cut(self, frame, top: int, left: int, height: int, width: int
+             ) -> dict[str, np.ndarray]:
+        """A frame's images (as :meth:`_frames` gives them) cut to the crop: float32."""
+        return {key: expand(frame[key][top : top + height, left : left + width])
+                for key in frame}
+
     def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
         index, seed = key if isinstance(key, tuple) else (key, index_seed(key))
         rng = np.random.default_rng(seed)
@@ -123,8 +129,7 @@ class DPPatchDataset(Dataset):
                 if self.config.min_sharpness <= 0 or sharpness(crop) >= self.config.min_sharpness:
                     break
         h, w = (size, size) if size is not None else (height, width)
-        crops = [{key: expand(f[key][top : top + h, left : left + w]) for key in f}
-                 for f in frames]
+        crops = [self._cut(frame, top, left, h, w) for frame in frames]
         if self.transform is not None:
             crops = [self.transform(sequence, crop) for crop in crops]
         item = {

@@ -29,7 +29,9 @@ __all__ = [
     "DivisionDistortion",
     "distort_image",
     "distort_points",
+    "distort_window",
     "undistort_points",
+    "window_sources",
 ]
 
 
@@ -112,7 +114,7 @@ def undistort_points(
     return centre + offset * scale
 
 
-@functools.lru_cache(maxsize=6)  # the five presets and one more
+@functools.lru_cache(maxsize=12)  # the five presets and one more, in two precisions
 def _sampling_grid(distortion: DivisionDistortion, width: int, height: int, dtype: torch.dtype,
                    device: torch.device) -> torch.Tensor:
     """``grid_sample``'s ``(H, W, 2)`` grid of the undistorted source of every output pixel, in
@@ -162,6 +164,57 @@ def distort_image(
     grid = grid[None].expand(batched.shape[0], -1, -1, -1)
     out = F.grid_sample(batched, grid, mode=mode, padding_mode=padding_mode, align_corners=True)
     return out if image.ndim == 4 else out[0]
+
+
+def window_sources(distortion: DivisionDistortion, frame_size: tuple[int, int],
+                   window: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """Half-open ``(row0, row1, col0, col1)`` of the undistorted frame (``frame_size``
+    ``(H, W)``) that :func:`distort_window` reads for ``window`` ``(top, left, height, width)``
+    of the distorted one: every source position with its bilinear neighbours, clipped to the
+    frame."""
+    height, width = frame_size
+    top, left, rows, cols = window
+    grid = _sampling_grid(distortion, width, height, torch.float64, torch.device("cpu"))
+    part = grid[top : top + rows, left : left + cols]
+    x = (part[..., 0] + 1.0) * (width - 1) / 2.0
+    y = (part[..., 1] + 1.0) * (height - 1) / 2.0
+    return (max(int(torch.floor(y.min())) - 1, 0), min(int(torch.ceil(y.max())) + 2, height),
+            max(int(torch.floor(x.min())) - 1, 0), min(int(torch.ceil(x.max())) + 2, width))
+
+
+def distort_window(
+    image: torch.Tensor,
+    distortion: DivisionDistortion,
+    frame_size: tuple[int, int],
+    origin: tuple[int, int],
+    window: tuple[int, int, int, int],
+    *,
+    padding_mode: str = "border",
+    mode: str = "bilinear",
+) -> torch.Tensor:
+    """``window`` ``(top, left, height, width)`` of :func:`distort_image` of a whole frame of
+    ``frame_size`` ``(H, W)``, from ``image`` ``(C, h, w)``: the region of the undistorted frame
+    whose top-left pixel is ``origin`` ``(row, col)`` and that holds :func:`window_sources`
+    (a training crop rendered on the fly). Equal to that window of the whole frame's warp to
+    float rounding (the positions are mapped in float64)."""
+    height, width = frame_size
+    top, left, rows, cols = window
+    row0, col0 = origin
+    region_h, region_w = image.shape[-2:]
+    need = window_sources(distortion, frame_size, window)
+    if need[0] < row0 or need[1] > row0 + region_h or need[2] < col0 or need[3] > col0 + region_w:
+        raise ParameterError(f"the region {region_w}x{region_h} from ({col0}, {row0}) does not "
+                             f"hold the window's sources (rows {need[0]}-{need[1]}, columns "
+                             f"{need[2]}-{need[3]})")
+    grid = _sampling_grid(distortion, width, height, torch.float64, image.device)
+    part = grid[top : top + rows, left : left + cols]
+    x = (part[..., 0] + 1.0) * (width - 1) / 2.0 - col0
+    y = (part[..., 1] + 1.0) * (height - 1) / 2.0 - row0
+    local = torch.stack((x * 2.0 / max(region_w - 1, 1) - 1.0,
+                         y * 2.0 / max(region_h - 1, 1) - 1.0), dim=-1)
+    out = F.grid_sample(image[None], local[None].to(image.dtype), mode=mode,
+                        padding_mode=padding_mode, align_corners=True)
+    return out[0]
 
 
 def _presets(sets: Sequence[tuple[float, float, float]]) -> dict[str, DivisionDistortion]:

@@ -47,6 +47,7 @@ def add_noise(
     generator: torch.Generator | None = None,
     model: NoiseModel = "multiplicative",
     read_noise: float = 0.0,
+    gaussian: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Add signal-dependent Gaussian noise to an image with values in [0, 1] (not clipped).
 
@@ -57,15 +58,21 @@ def add_noise(
         generator: torch generator for reproducible draws (use one per view: independent noise).
         model: "multiplicative" (the paper's formula) or "poisson-gaussian" (Foi et al. 2008).
         read_noise: for "poisson-gaussian", the signal-independent std, b = read_noise**2.
+        gaussian: the standard normal draws to use, ``image``'s shape (e.g. a crop's region of
+            its whole frame's draws); None draws them from ``generator``.
 
     Returns:
         The noisy image, same shape, dtype and device; clip it yourself if needed.
     """
     check_range("sigma", sigma, 0.0)
     check_range("read_noise", read_noise, 0.0)
-    gaussian = torch.randn(
-        image.shape, generator=generator, dtype=image.dtype, device=image.device
-    )
+    if gaussian is None:
+        gaussian = torch.randn(
+            image.shape, generator=generator, dtype=image.dtype, device=image.device
+        )
+    elif gaussian.shape != image.shape:
+        raise ParameterError(f"gaussian draws {tuple(gaussian.shape)} and image "
+                             f"{tuple(image.shape)} differ in shape")
     if model == "multiplicative":
         return image + image * (sigma * gaussian)
     if model == "poisson-gaussian":

@@ -29,12 +29,8 @@ import torch
 import torch.nn.functional as F
 
 from dualpixel.errors import ParameterError
-from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model, kernel_size
-from dualpixel.synthesis.fast_renderer import (
-    MAX_DOWNSAMPLE,
-    _layer_kernels,
-    downsample_factor,
-)
+from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
+from dualpixel.synthesis.fast_renderer import _groups, _layer_kernels, crop_margin
 from dualpixel.synthesis.layers import bounding_boxes, quantise_layers
 
 __all__ = ["DIRECT_MAX_KERNEL", "crop_margin", "render_batch"]
@@ -57,27 +53,13 @@ class _Run:
     boxes: list[list[int]]  # (row0, row1, col0, col1) inclusive per layer, full resolution
 
 
-def crop_margin(max_coc: float, model: PSFModel = "ours", kappa: float = 0.14) -> int:
-    """Pixels of context a crop needs on every side so that its render equals the same region of
-    the whole frame's: the largest kernel's reach plus the bicubic support of the coarsest
-    resolution, rounded up to the 16-px grid the reduced resolutions share."""
-    reach = kernel_size(max_coc, model, kappa) // 2 + 4 * MAX_DOWNSAMPLE
-    return -(-reach // MAX_DOWNSAMPLE) * MAX_DOWNSAMPLE
-
-
 def _runs(labels: torch.Tensor, layer_coc: torch.Tensor, frame: int, params: PSFParams,
-          model: PSFModel, like: torch.Tensor, present: list[int]) -> list[_Run]:
-    """The runs of one frame's ``present`` layers (far to near), with their kernels."""
+          model: PSFModel, like: torch.Tensor) -> list[_Run]:
+    """The runs of one frame's layers present in ``labels`` (far to near, grouped as the
+    default renderer groups them), with their kernels."""
     radii = layer_coc.tolist()
-    order = sorted(present, key=lambda j: -radii[j])  # far to near
-    runs: list[_Run] = []
-    for j in order:
-        d = downsample_factor(radii[j])
-        if runs and runs[-1].d == d:
-            runs[-1].layers.append(j)
-        else:
-            runs.append(_Run(frame, d, [j], [], []))
     boxes = bounding_boxes(labels, len(radii)).tolist()
+    runs = [_Run(frame, d, group, [], []) for d, group in _groups(radii, boxes)]
     for run in runs:
         run.kernels = _layer_kernels([radii[j] for j in run.layers], run.d, params, model, like)
         run.boxes = [boxes[j] for j in run.layers]
@@ -210,10 +192,8 @@ def render_batch(
                 raise ParameterError(f"frame {b}: layer labels {tuple(frame_labels.shape)} and "
                                      f"image {(height, width)} differ in size")
         labels[b] = frame_labels.to(coc.device)
-        present = torch.unique(labels[b])  # a crop holds some of its frame's layers
         runs.append(_runs(labels[b], layer_coc.to(images.dtype), b,
-                          per_frame_params[b] or PSFParams(), models[b], images,
-                          present.tolist()))
+                          per_frame_params[b] or PSFParams(), models[b], images))
     results: dict[tuple[int, int], torch.Tensor] = {}
     for d in sorted({run.d for frame in runs for run in frame}):
         same = [(b, k) for b, frame in enumerate(runs) for k, run in enumerate(frame)

@@ -83,7 +83,8 @@ from dualpixel.synthesis.inputs import (
 from dualpixel.synthesis.layers import check_render_mode
 
 __all__ = ["SYNTH_SETTINGS", "SynthConfig", "merge_shards", "plan_jobs", "read_manifest",
-           "render_job", "render_jobs", "synthesis_settings", "synthesize_dataset"]
+           "render_job", "render_jobs", "render_target", "synthesis_settings",
+           "synthesize_dataset"]
 
 @dataclass(frozen=True)
 class SynthConfig:
@@ -328,15 +329,30 @@ def _quantise(image: torch.Tensor, bit_depth: int) -> np.ndarray:
     return quantise(image.permute(1, 2, 0).cpu().numpy(), bit_depth)
 
 
-def render_job(job: FrameJob, fmt: InputFormat, config: SynthConfig, device: str = "cpu"
-               ) -> dict[str, np.ndarray]:
+def render_job(job: FrameJob, fmt: InputFormat, config: SynthConfig, device: str = "cpu",
+               window: tuple[int, int, int, int] | None = None,
+               scene: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """One frame as a dataset stores it: ``left``, ``right``, ``combined``, ``target`` as
     ``config.bit_depth`` integers ``(H, W, 3)`` (``(H, W)`` grey) and ``defocus`` float32
-    ``(H, W)`` px: what ``synth`` writes, and what on-the-fly training crops are cut from."""
-    rgb, depth = load_frame(job.frame, fmt, max_depth=config.max_depth,
-                            depth_scale=config.depth_scale)
-    result = synthesize_frame(rgb, depth, job.draw, noise_seed=job.noise_seed, device=device)
+    ``(H, W)`` px: what ``synth`` writes, and what on-the-fly training crops are cut from.
+    ``window`` ``(top, left, height, width)``: only that window, rendered with its blur margin
+    (:func:`~dualpixel.synthesis.frame.synthesize_frame`); ``scene``: the job's RGB and depth
+    (:func:`~dualpixel.synthesis.inputs.load_frame`) if already read."""
+    rgb, depth = scene or load_frame(job.frame, fmt, max_depth=config.max_depth,
+                                     depth_scale=config.depth_scale)
+    result = synthesize_frame(rgb, depth, job.draw, noise_seed=job.noise_seed, device=device,
+                              window=window)
     return _stored(result, job, config)
+
+
+def render_target(job: FrameJob, config: SynthConfig, scene: tuple[np.ndarray, np.ndarray]
+                  ) -> np.ndarray:
+    """The stored ``target`` of :func:`render_job` of ``scene`` (the job's RGB and depth), alone:
+    no views rendered."""
+    from dualpixel.synthesis.frame import sharp_target
+
+    target = _quantise(sharp_target(*scene, job.draw), config.bit_depth)
+    return target[..., 1] if config.grey else target
 
 
 def render_jobs(jobs: list[FrameJob], fmt: InputFormat, config: SynthConfig,

@@ -38,7 +38,7 @@ from dualpixel.synthesis.convolution import convolve_same
 from dualpixel.synthesis.layers import bounding_boxes, grown_box, quantise_layers, row_extents
 
 __all__ = ["CV_MAX_KERNEL", "MAX_DOWNSAMPLE", "R_LOW", "R_LOW_HALF", "STRIP_ROWS", "TRIM_MASS",
-           "downsample_factor", "render_fast"]
+           "crop_margin", "downsample_factor", "render_fast"]
 
 #: A layer is rendered at 1/d resolution (d a power of two) when its |r| is at least
 #: ``d * R_LOW`` px (``2 * R_LOW_HALF`` for d = 2), so its blur is still that large there.
@@ -181,29 +181,29 @@ def render_fast(
     *,
     model: PSFModel = "ours",
     max_layers: int = 500,
+    layers: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Left and right views ``(C, H, W)`` of ``image`` ``(C, H, W)`` blurred by the signed CoC
     map ``coc`` ``(H, W)`` in px; see the module docstring and
-    :func:`dualpixel.synthesis.render_dp_views`."""
+    :func:`dualpixel.synthesis.render_dp_views`.
+
+    ``layers``: ``(labels (H, W), layer_coc (L,))`` already cut, e.g. a window's region of its
+    whole frame's :func:`~dualpixel.synthesis.layers.quantise_layers`; a window from an origin
+    on the :data:`MAX_DOWNSAMPLE` grid with :func:`crop_margin` of context on every side renders
+    inside that margin as the same region of the whole frame does (training crops rendered on
+    the fly). None: the frame's own layers."""
     channels, height, width = image.shape
     image_hwc = image.permute(1, 2, 0)
     opaque = torch.cat((image_hwc, torch.ones_like(image_hwc[..., :1])), dim=-1)  # [I, 1]
-    labels, layer_coc = quantise_layers(coc, max_layers, mode="fast")
+    labels, layer_coc = (quantise_layers(coc, max_layers, mode="fast") if layers is None
+                         else layers)
     extents = row_extents(labels, layer_coc.numel())
     boxes = bounding_boxes(labels, layer_coc.numel(), extents).tolist()
     strips = _strip_extents(extents, width)
     radii = layer_coc.tolist()
-    order = sorted(range(len(radii)), key=lambda j: -radii[j])  # far to near
     # (views, H, W, C + 1): premultiplied colour and coverage
     result = torch.zeros(2, height, width, channels + 1, dtype=image.dtype, device=image.device)
-    start = 0
-    while start < len(order):
-        d = downsample_factor(radii[order[start]])
-        stop = start + 1
-        while stop < len(order) and downsample_factor(radii[order[stop]]) == d:
-            stop += 1
-        group = order[start:stop]
-        start = stop
+    for d, group in _groups(radii, boxes):
         if d == 1:
             table = _layer_kernels([radii[j] for j in group], 1, params, model, image)
             unblurred: list[int] = []  # consecutive layers whose kernels are exactly [[1]]
@@ -274,6 +274,33 @@ def _strip_runs(first: list[int], last: list[int], half: int) -> list[tuple[int,
                 continue
         runs.append([k, k, col0, col1])
     return [tuple(run) for run in runs]
+
+
+def _groups(radii: list[float], boxes: list[list[int]]) -> list[tuple[int, list[int]]]:
+    """The layers far to near in groups of one downsampling factor ``(d, layers)``: runs of
+    consecutive layers of the whole layering, then only the layers present (row1 >= 0 in
+    ``boxes``), so a window's groups are its frame's, less what it does not hold."""
+    order = sorted(range(len(radii)), key=lambda j: -radii[j])  # far to near
+    groups: list[tuple[int, list[int]]] = []
+    for j in order:
+        d = downsample_factor(radii[j])
+        if not groups or groups[-1][0] != d:
+            groups.append((d, []))
+        groups[-1][1].append(j)
+    present = [(d, [j for j in group if boxes[j][1] >= 0]) for d, group in groups]
+    return [(d, group) for d, group in present if group]
+
+
+def crop_margin(max_coc: float, model: PSFModel = "ours", kappa: float = 0.14) -> int:
+    """Pixels of context a crop needs on every side so that its render equals the same region of
+    the whole frame's, for a frame whose largest |CoC| is ``max_coc`` px: the largest kernel's
+    reach at its resolution 1/d, plus a cell of pooling and the bicubic support there (4 cells
+    of d px), rounded up to d. The crop's origin must lie on the d-px grid (d =
+    :func:`downsample_factor` of ``max_coc``; the 16-px grid serves every frame)."""
+    d = downsample_factor(max_coc)
+    reach = max(kernel_size(max_coc, model, kappa) // 2,
+                d * (kernel_size(max_coc / d, model, kappa) // 2 + 4))
+    return -(-reach // d) * d
 
 
 def _composite_strips(result, opaque, labels, j, first, last, kernels) -> None:

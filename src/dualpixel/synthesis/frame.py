@@ -15,7 +15,13 @@ import torch
 from dualpixel.errors import ParameterError
 from dualpixel.names import PSF_SHAPE_SOURCES
 from dualpixel.optics.crosstalk import apply_crosstalk, check_disparity_ratio
-from dualpixel.optics.distortion import DISTORTION_PRESETS, DivisionDistortion, distort_image
+from dualpixel.optics.distortion import (
+    DISTORTION_PRESETS,
+    DivisionDistortion,
+    distort_image,
+    distort_window,
+    window_sources,
+)
 from dualpixel.optics.noise import (
     PAPER_NOISE_SIGMAS,
     NoiseModel,
@@ -34,14 +40,15 @@ from dualpixel.optics.tone import (
     linear_to_srgb,
     srgb_to_linear,
 )
-from dualpixel.synthesis.layers import check_render_mode
+from dualpixel.synthesis.fast_renderer import crop_margin, downsample_factor, render_fast
+from dualpixel.synthesis.layers import check_render_mode, quantise_layers
 from dualpixel.synthesis.renderer import render_dp_views
 
 if TYPE_CHECKING:
     from dualpixel.optics.camera import DPCamera
 
-__all__ = ["DPFrame", "SequenceDraw", "camera_settings", "draw_sequence", "synthesize_frame",
-           "synthesize_frames"]
+__all__ = ["DPFrame", "SequenceDraw", "camera_settings", "draw_sequence", "render_region",
+           "sharp_target", "synthesize_frame", "synthesize_frames"]
 
 
 @dataclass(frozen=True)
@@ -207,10 +214,38 @@ class DPFrame:
     defocus: torch.Tensor  # (H, W), signed CoC radius in pixels
 
 
-def _noisy_view(view: torch.Tensor, draw: SequenceDraw, seed: int) -> torch.Tensor:
+@dataclass(frozen=True)
+class _Window:
+    """Where a window's render sits: the whole frame's ``(H, W)``, the rendered region's top-left
+    pixel, and the window ``(top, left, height, width)``, all in frame pixels."""
+
+    frame: tuple[int, int]
+    origin: tuple[int, int]
+    window: tuple[int, int, int, int]
+
+    def cut(self, region: torch.Tensor) -> torch.Tensor:
+        """The window of ``(..., h, w)`` values of the rendered region."""
+        top, left, rows, cols = self.window
+        top, left = top - self.origin[0], left - self.origin[1]
+        return region[..., top : top + rows, left : left + cols]
+
+    def of_frame(self, values: torch.Tensor) -> torch.Tensor:
+        """The window of ``(..., H, W)`` values of the whole frame."""
+        top, left, rows, cols = self.window
+        return values[..., top : top + rows, left : left + cols]
+
+
+def _noisy_view(view: torch.Tensor, draw: SequenceDraw, seed: int,
+                window: _Window | None = None) -> torch.Tensor:
     generator = torch.Generator(device=view.device).manual_seed(seed)
+    gaussian = None
+    if window is not None:  # the whole frame's draws, so a window's noise is the frame's there
+        gaussian = window.of_frame(torch.randn((view.shape[0], *window.frame),
+                                               generator=generator, dtype=view.dtype,
+                                               device=view.device))
     # Noise is added to the paper's half-brightness view I_l = view / 2 (Eq. 7).
-    half = add_noise(view / 2.0, draw.noise_sigma, generator=generator, model=draw.noise_model)
+    half = add_noise(view / 2.0, draw.noise_sigma, generator=generator, model=draw.noise_model,
+                     gaussian=gaussian)
     return 2.0 * half
 
 
@@ -221,6 +256,7 @@ def synthesize_frame(
     *,
     noise_seed: int = 0,
     device: str | torch.device = "cpu",
+    window: tuple[int, int, int, int] | None = None,
 ) -> DPFrame:
     """Synthesise DP views for one all-in-focus frame.
 
@@ -230,16 +266,78 @@ def synthesize_frame(
         draw: camera, PSF, distortion and noise of the sequence.
         noise_seed: seed of this frame's noise; the views draw independent noise from it.
         device: where to compute ("cpu", "cuda", ...).
+        window: ``(top, left, height, width)`` px: render only this window of the frame, with
+            the whole frame's layers and the blur margin around it (:func:`render_region`), so
+            it equals that window of the whole frame's render to float rounding (training crops
+            on the fly). The default ("fast") render mode only.
 
     Returns:
-        A :class:`DPFrame` on ``device``.
+        A :class:`DPFrame` on ``device``, of the window's size where one is given.
     """
     image, scene, coc = _prepared(rgb, depth, draw, device)
-    left, right = render_dp_views(
-        scene, coc, draw.psf, model=draw.psf_model, max_layers=draw.max_layers,
-        mode=draw.render_mode,
-    )
-    return _finished(image, scene, coc, left, right, draw, noise_seed)
+    if window is None:
+        left, right = render_dp_views(
+            scene, coc, draw.psf, model=draw.psf_model, max_layers=draw.max_layers,
+            mode=draw.render_mode,
+        )
+        return _finished(image, scene, coc, left, right, draw, noise_seed)
+    if draw.render_mode != "fast":
+        raise ParameterError("a window is rendered with the default (fast) layering only")
+    place = _Window(tuple(coc.shape), (0, 0), _checked_window(window, coc.shape))
+    row0, row1, col0, col1 = render_region(coc, draw, place.window)
+    place = _Window(place.frame, (row0, col0), place.window)
+    rows, cols = slice(row0, row1), slice(col0, col1)
+    labels, layer_coc = quantise_layers(coc, draw.max_layers, mode="fast")
+    left, right = render_fast(scene[:, rows, cols], coc[rows, cols], draw.psf,
+                              model=draw.psf_model, layers=(labels[rows, cols], layer_coc))
+    return _finished(image[:, rows, cols], scene[:, rows, cols], coc[rows, cols], left, right,
+                     draw, noise_seed, place)
+
+
+def _checked_window(window, frame: tuple[int, int]) -> tuple[int, int, int, int]:
+    top, left, rows, cols = (int(v) for v in window)
+    if rows < 1 or cols < 1 or top < 0 or left < 0 or top + rows > frame[0] \
+            or left + cols > frame[1]:
+        raise ParameterError(f"window {cols}x{rows} at ({left}, {top}) does not lie inside the "
+                             f"{frame[1]}x{frame[0]} frame")
+    return top, left, rows, cols
+
+
+def render_region(coc: torch.Tensor, draw: SequenceDraw, window: tuple[int, int, int, int]
+                  ) -> tuple[int, int, int, int]:
+    """Half-open ``(row0, row1, col0, col1)`` of the frame (CoC map ``(H, W)`` px) to render for
+    ``window`` ``(top, left, height, width)``: the pixels its distortion reads, grown by the
+    blur margin of the frame's largest CoC (:func:`~dualpixel.synthesis.fast_renderer.
+    crop_margin`), from an origin on its coarsest resolution's grid, clipped to the frame."""
+    height, width = coc.shape
+    top, left, rows, cols = window
+    needed = (top, top + rows, left, left + cols)
+    if draw.distortion is not None:
+        needed = window_sources(draw.distortion, (height, width), window)
+    largest = float(coc.abs().max())
+    margin = crop_margin(largest, draw.psf_model, (draw.psf or PSFParams()).kappa)
+    grid = downsample_factor(largest)  # the coarsest resolution's cells start on it
+    return (max(needed[0] - margin, 0) // grid * grid, min(needed[1] + margin, height),
+            max(needed[2] - margin, 0) // grid * grid, min(needed[3] + margin, width))
+
+
+def sharp_target(rgb: np.ndarray | torch.Tensor, depth: np.ndarray | torch.Tensor,
+                 draw: SequenceDraw, *, device: str | torch.device = "cpu") -> torch.Tensor:
+    """The frame's sharp target ``(3, H, W)`` in [0, 1] as :func:`synthesize_frame` makes it
+    (distorted, in the views' encoding), without rendering the views."""
+    image, scene, _ = _prepared(rgb, depth, draw, device)
+    target = scene if draw.distortion is None else distort_image(scene, draw.distortion)
+    return _encoded_target(image, target, draw).clamp(0.0, 1.0)
+
+
+def _encoded_target(image: torch.Tensor, target: torch.Tensor, draw: SequenceDraw
+                    ) -> torch.Tensor:
+    """The sharp target (in the light the lens blurs, distorted) in the views' encoding."""
+    if draw.raw is not None:
+        return linear_to_raw(target, *draw.raw)
+    if draw.light == "linear":  # the target is the input itself unless the distortion moved it
+        return linear_to_srgb(target) if draw.distortion is not None else image
+    return target
 
 
 def synthesize_frames(
@@ -293,29 +391,37 @@ def _prepared(rgb, depth, draw: SequenceDraw, device) -> tuple[torch.Tensor, ...
 
 
 def _finished(image: torch.Tensor, scene: torch.Tensor, coc: torch.Tensor, left: torch.Tensor,
-              right: torch.Tensor, draw: SequenceDraw, noise_seed: int) -> DPFrame:
+              right: torch.Tensor, draw: SequenceDraw, noise_seed: int,
+              window: _Window | None = None) -> DPFrame:
     """The rendered views through the rest of the formation: crosstalk, distortion, tone or raw
-    storage, noise, clipping and the combined image."""
+    storage, noise, clipping and the combined image. ``window``: the inputs are a rendered
+    region of a frame and the result is that window of it."""
     linear = draw.light == "linear"
     if draw.disparity_ratio is not None:
         left, right = apply_crosstalk(left, right, draw.disparity_ratio)
     target, defocus = scene, coc
     if draw.distortion is not None:
         # one warp for all planes: the inverse-distortion grid is computed once per frame
-        warped = distort_image(torch.cat((left, right, target, coc[None])), draw.distortion)
+        planes = torch.cat((left, right, target, coc[None]))
+        warped = (distort_image(planes, draw.distortion) if window is None else
+                  distort_window(planes, draw.distortion, window.frame, window.origin,
+                                 window.window))
         left, right, target, defocus = warped.split((3, 3, 3, 1))
         defocus = defocus[0]
+    elif window is not None:
+        left, right, target, defocus = (window.cut(t) for t in (left, right, target, defocus))
+    if window is not None:
+        image = window.cut(image)
     light = (left, right)  # the views' light, before any tone curve or noise
     if draw.raw is not None:  # stored as raw values, still linear; noise is added to them
-        left, right, target = (linear_to_raw(t, *draw.raw) for t in (left, right, target))
+        left, right = (linear_to_raw(t, *draw.raw) for t in (left, right))
     elif linear:  # the tone curve after the optics; noise is added to the stored values
         left, right = linear_to_srgb(left), linear_to_srgb(right)
-        # the sharp target is the input itself unless the distortion moved it
-        target = linear_to_srgb(target) if draw.distortion is not None else image
+    target = _encoded_target(image, target, draw)
     noisy = draw.noise_sigma is not None and draw.noise_sigma > 0
     if noisy:
-        left = _noisy_view(left, draw, noise_seed * 2)
-        right = _noisy_view(right, draw, noise_seed * 2 + 1)
+        left = _noisy_view(left, draw, noise_seed * 2, window)
+        right = _noisy_view(right, draw, noise_seed * 2 + 1, window)
     left, right, target = (t.clamp(0.0, 1.0) for t in (left, right, target))
     if linear and draw.raw is None:  # the two photodiodes' light summed, then the tone curve
         if noisy:  # the light of the stored (noisy) views

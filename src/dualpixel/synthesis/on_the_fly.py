@@ -12,6 +12,12 @@ quantisation, grey channel and combined image) and cuts the crop from it as
 same region of a written frame with the same draw, and the samples follow the written
 dataset's distributions; only the files are gone.
 
+Only the crop is rendered: the crop's place is chosen on the frame's sharp target (as from
+files), then its views are rendered with the whole frame's layers over the crop and its blur
+margin (:func:`~dualpixel.synthesis.frame.synthesize_frame`'s ``window``), equal to the crop of
+the whole frame's render to a level of rounding where the distortion moves it, exactly where
+none does.
+
 Training names such a folder wherever it names a dataset (``synthetic_data``; a recipe's synth
 step with ``source: on-the-fly``); validation stays on datasets written once.
 """
@@ -149,13 +155,39 @@ class OnTheFlyDataset(DPPatchDataset):
                                      lens_sets=(self.source.config.lens_sets[sequence.lens_set],))
         return plan_jobs([self.scenes[sequence.scene]], config, self.source.fmt)[frame]
 
-    def _frames(self, index: int, start: int, rng: np.random.Generator
-                ) -> list[dict[str, np.ndarray]]:
+    def _frames(self, index: int, start: int, rng: np.random.Generator) -> list:
+        """The frames' draws, each with its whole sharp target (what the crop's place is chosen
+        on): the views are rendered for the crop alone (:meth:`_cut`)."""
         seed = int(rng.integers(2**62))
         frames = range(start, start + self.config.frames)
         if self._rendered is not None:  # rendered beforehand, all at once (render_items)
             return [self._rendered[index, seed, k] for k in frames]
-        return [self._frames_of_job(self.job(index, seed, k)) for k in frames]
+        return [self._pending(self.job(index, seed, k)) for k in frames]
+
+    def _pending(self, job) -> _Pending:
+        from dualpixel.synthesis.dataset import render_target
+        from dualpixel.synthesis.inputs import load_frame
+
+        config = self.source.config
+        scene = load_frame(job.frame, self.source.fmt, max_depth=config.max_depth,
+                           depth_scale=config.depth_scale)
+        target = _as_read(render_target(job, config, scene), config.bit_depth)
+        return _Pending(job, scene, target)
+
+    def _cut(self, frame, top: int, left: int, height: int, width: int
+             ) -> dict[str, np.ndarray]:
+        """The crop's views rendered with their blur margin alone (the same region of the whole
+        frame's render to float rounding), the target cut from the frame's."""
+        if not isinstance(frame, _Pending):
+            return super()._cut(frame, top, left, height, width)
+        from dualpixel.synthesis.dataset import render_job
+
+        whole = (top, left, height, width) == (0, 0, *frame.target.shape[:2])
+        stored = render_job(frame.job, self.source.fmt, self.source.config, scene=frame.scene,
+                            window=None if whole else (top, left, height, width))
+        bits = self.source.config.bit_depth
+        return {"left": _as_read(stored["left"], bits), "right": _as_read(stored["right"], bits),
+                "target": frame.target[top : top + height, left : left + width]}
 
     _rendered: dict | None = None
 
@@ -192,6 +224,21 @@ class OnTheFlyDataset(DPPatchDataset):
         stored = render_job(job, self.source.fmt, self.source.config)
         return {key: _as_read(stored[key], self.source.config.bit_depth)
                 for key in ("left", "right", "target")}
+
+
+@dataclass(frozen=True)
+class _Pending:
+    """A frame whose views are not rendered yet: its job, RGB and depth, and its whole sharp
+    target (as read) for the choice of the crop."""
+
+    job: object  # FrameJob
+    scene: tuple[np.ndarray, np.ndarray]
+    target: np.ndarray
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        if key != "target":
+            raise KeyError(key)
+        return self.target
 
 
 def _as_read(image: np.ndarray, bit_depth: int) -> np.ndarray:
