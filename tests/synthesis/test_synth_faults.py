@@ -276,3 +276,85 @@ def test_workers_die_with_their_parent(scenes, tmp_path):
     while time.monotonic() < deadline and any(_alive(p) for p in workers):
         time.sleep(0.1)
     assert not any(_alive(p) for p in workers), "a worker outlived its parent"
+
+
+def _kill_when(child: subprocess.Popen, ready, what: str) -> None:
+    """SIGKILL ``child``'s process group once ``ready()`` holds (polled), as a machine that
+    loses power or an OOM killer stops it: no cleanup runs."""
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and child.poll() is None:
+        if ready():
+            os.killpg(child.pid, signal.SIGKILL)
+            break
+        time.sleep(0.005)
+    assert child.wait(timeout=60) == -signal.SIGKILL, f"{what} finished before it was killed"
+
+
+# Each child slows its own writes down (a sleep after each) so the kill lands mid-run; the kill
+# itself is a real signal.
+_SCENES_CHILD = textwrap.dedent("""
+    import sys, time
+    from dualpixel.synthesis import scenes
+    write = scenes._write_sequence
+    def slow(*args):
+        write(*args)
+        time.sleep(0.3)
+    scenes._write_sequence = slow
+    scenes.write_scene_folder(sys.argv[1], 6, scenes.SceneConfig(width=96, height=64, frames=2,
+                              layout="photo"), seed=4, progress=False)
+""")
+
+_MERGE_CHILD = textwrap.dedent("""
+    import shutil, sys, time
+    from dualpixel.synthesis.dataset import merge_shards
+    copy = shutil.copyfile
+    def slow(*args, **kwargs):
+        time.sleep(0.05)
+        return copy(*args, **kwargs)
+    shutil.copyfile = slow
+    merge_shards(sys.argv[2:], sys.argv[1], progress=False)
+""")
+
+
+def _child(script: str, *args) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-c", script, *map(str, args)],
+                            start_new_session=True,
+                            env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+
+
+def test_killed_scenes_rerun_to_the_uninterrupted_bytes(tmp_path):
+    """Issue #76: `scenes` killed by SIGKILL after two of six sequences, then run again, leaves
+    the folder an uninterrupted run writes, byte for byte (lock file included)."""
+    config = SceneConfig(width=96, height=64, frames=2, layout="photo")
+    write_scene_folder(tmp_path / "reference", 6, config, seed=4, progress=False)
+    killed = tmp_path / "killed"
+    child = _child(_SCENES_CHILD, killed)
+    _kill_when(child, lambda: len(list(killed.glob("seq_*/depth/frame_0001.npy"))) >= 2,
+               "scenes")
+    assert json.loads((killed / "scenes.json").read_text())["status"] == "incomplete"
+    write_scene_folder(killed, 6, config, seed=4, progress=False)
+    assert every_file(killed) == every_file(tmp_path / "reference")
+
+
+def test_killed_merge_rerun_to_the_uninterrupted_bytes(scenes, tmp_path):
+    """Issue #76: `merge-shards` killed by SIGKILL mid-copy is never read as a dataset; merged
+    again into the same folder, it is the uninterrupted merge byte for byte; a folder holding
+    anything else is still refused."""
+    from dualpixel.errors import OutputFileError
+    from dualpixel.synthesis.dataset import merge_shards
+
+    parts = []
+    for k in range(2):
+        parts.append(tmp_path / f"part{k}")
+        synthesize_dataset(scenes, "rgbd", parts[-1], SynthConfig(**CONFIG), shard=(k, 2),
+                           progress=False)
+    merge_shards(parts, tmp_path / "reference", progress=False)
+    killed = tmp_path / "killed"
+    child = _child(_MERGE_CHILD, killed, *parts)
+    _kill_when(child, lambda: len(list(killed.rglob("*.png"))) >= 10, "merge-shards")
+    with pytest.raises(InputFileError, match="unfinished"):
+        discover_dp_dataset(killed, "train")
+    merge_shards(parts, killed, progress=False)
+    assert every_file(killed) == every_file(tmp_path / "reference")
+    with pytest.raises(OutputFileError, match="not empty"):  # a finished merge is not redone
+        merge_shards(parts, killed, progress=False)

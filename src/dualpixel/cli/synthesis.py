@@ -259,7 +259,8 @@ def _shard(param, value: str | None) -> tuple[int, int] | None:
 @click.argument("shards", nargs=-1, required=True,
                 type=InputPath(file_okay=False, exists=True, path_type=Path))
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
-              help="New dataset folder: the same files as one `synth` run without --shard.")
+              help="New dataset folder (or this merge's, cut short: it is finished): the "
+                   "same files as one `synth` run without --shard.")
 def merge_shards_command(shards: tuple[Path, ...], output: Path) -> None:
     """Join the folders of `synth --shard K/N` (all N of them) into one dataset."""
     from dualpixel.synthesis.dataset import merge_shards

@@ -491,7 +491,8 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
                  progress: bool = True) -> dict:
     """Join the folders of ``synth --shard K/N`` (all N, each complete) into ``output_dir``:
     files, manifest and ``dataset.json`` byte-identical to a single run's. The input folder the
-    shards were made from must be readable here (the frame plan is rebuilt from it)."""
+    shards were made from must be readable here (the frame plan is rebuilt from it). A merge
+    into the folder of the same merge cut short finishes it."""
 
     roots = [Path(s) for s in shards]
     if not roots:
@@ -524,17 +525,27 @@ def merge_shards(shards: list[str | Path], output_dir: str | Path, *,
         raise InputFileError(owner[missing[0]] / "manifest.jsonl",
                              f"lacks {len(missing)} frame(s), e.g. {missing[0]}")
     out = Path(output_dir)
-    if out.exists() and any(out.iterdir()):
+    description = _description(config, first["input"], first["format"], len(jobs), out)
+    if out.exists() and any(out.iterdir()) and not _unfinished_merge(out, description):
         raise OutputFileError(out, "is not empty; merge into a new folder")
     with folder_lock(out, "merge-shards"):
-        return _merge_locked(out, jobs, records, owner, config, first, progress)
+        return _merge_locked(out, jobs, records, owner, description, progress)
 
 
-def _merge_locked(out: Path, jobs: list, records: dict, owner: dict, config: SynthConfig,
-                  first: dict, progress: bool) -> dict:
+def _unfinished_merge(out: Path, description: dict) -> bool:
+    """Whether ``out`` is this merge cut short (a rerun finishes it): its ``dataset.json`` is
+    the one the merge writes first, and no manifest (written last) is there."""
+    path = out / "dataset.json"
+    if not path.is_file() or (out / "manifest.jsonl").exists():
+        return False
+    return read_mapping(path, "dataset description (remove the folder and rerun)") == description
+
+
+def _merge_locked(out: Path, jobs: list, records: dict, owner: dict, description: dict,
+                  progress: bool) -> dict:
     """:func:`merge_shards` once it holds the output's lock: ``dataset.json`` says
     "incomplete" before the first file is copied and "complete" after the last, so a merge cut
-    short never reads as a finished dataset."""
+    short never reads as a finished dataset; a rerun copies every file again."""
     import shutil
 
     for job in jobs:  # every path a manifest names stays inside its folders, checked first
@@ -542,7 +553,7 @@ def _merge_locked(out: Path, jobs: list, records: dict, owner: dict, config: Syn
         for relative in records[job.key]["outputs"].values():
             contained(owner[job.key], relative, manifest)
             contained(out, relative, manifest)
-    description = _description(config, first["input"], first["format"], len(jobs), out)
+    remove_partials(out)  # copies a kill cut short
     _write_json(out / "dataset.json", description)  # "incomplete" until the end
     for job in progress_bar(jobs, desc="merging shards", unit="frame", enabled=progress):
         for relative in records[job.key]["outputs"].values():
