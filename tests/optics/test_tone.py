@@ -67,3 +67,25 @@ def test_raw_storage_adds_the_black_level_and_scales_the_light():
     light = torch.tensor([0.0, 0.5, 1.0, 2.0])
     stored = linear_to_raw(light, black_level=0.0625, gain=0.8)
     assert torch.allclose(stored, 0.0625 + 0.9375 * 0.8 * light.clamp(0, 1))
+
+
+def test_the_combined_image_is_the_views_mean_in_the_light_named():
+    """One definition (paper Eq. 7 at the views' brightness): the views' mean, in linear light
+    by default (what the photodiodes gather), in the stored values when ``light="encoded"``;
+    views stored linear (raw) average the same either way."""
+    from dualpixel.errors import ParameterError
+    from dualpixel.optics.tone import combined_image, combined_light
+
+    dark, bright = np.zeros((2, 2, 3), np.float32), np.ones((2, 2, 3), np.float32)
+    assert combined_light(dark, bright) == pytest.approx(0.5)
+    # linear 0.5 in sRGB: 1.055 * 0.5 ** (1 / 2.4) - 0.055
+    assert combined_image(dark, bright) == pytest.approx(0.735357, abs=1e-5)
+    assert combined_image(dark, bright, light="encoded") == pytest.approx(0.5)
+    grey = np.full((2, 2, 1), 0.2, np.float32)
+    assert combined_image(grey, grey) == pytest.approx(0.2, abs=1e-6)  # equal views: themselves
+    for light in ("linear", "encoded"):
+        assert combined_image(dark, bright, encoding="linear", light=light) == pytest.approx(0.5)
+    with pytest.raises(ParameterError, match="encoding must be one of"):
+        combined_light(dark, bright, "gamma")
+    with pytest.raises(ParameterError, match="light"):
+        combined_image(dark, bright, light="stored")

@@ -29,6 +29,7 @@ import numpy as np
 
 from dualpixel.data.layout import discover_any, read_frame
 from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.optics.tone import combined_image
 
 __all__ = [
     "DatasetStatistics",
@@ -210,7 +211,8 @@ def frame_statistics(
 ) -> FrameStatistics:
     """Measure one frame; images are float ``(H, W, 3)`` in [0, 1] of one size.
 
-    ``combined`` defaults to the mean of the views (DPDD brightness convention).
+    ``combined`` defaults to the views' mean in linear light
+    (:func:`~dualpixel.optics.tone.combined_image`; DPDD brightness convention).
     """
     shapes = {a.shape for a in (left, right, target, combined) if a is not None}
     if len(shapes) != 1:
@@ -219,7 +221,7 @@ def frame_statistics(
         raise ParameterError(f"images of {left.shape[1]}x{left.shape[0]} are smaller than the "
                              f"{patch}-px blocks")
     if combined is None:
-        combined = (left + right) / 2.0
+        combined = combined_image(left, right)
     blur = (block_blur(combined, target, patch=patch, max_sigma=max_sigma)
             if target is not None else np.zeros(0, np.float32))
     return FrameStatistics(

@@ -31,6 +31,7 @@ from dualpixel.evaluation.temporal import FlickerMeter
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.documents import read_text_file
 from dualpixel.io.images import IMAGE_SUFFIXES, max_level, read_rgb, read_views
+from dualpixel.optics.tone import combined_image
 from dualpixel.progress import progress_bar
 
 if TYPE_CHECKING:
@@ -189,8 +190,8 @@ def evaluate(
             raise InputFileError(example.left, f"{example.name} is not in the category list")
         target = read_rgb(example.target)
         left, right, (bits, _) = read_views(example.left, example.right)
-        combined = (read_rgb(example.combined) if example.combined
-                    else _as_rgb((left + right) / 2))
+        combined = (read_rgb(example.combined) if example.combined else _as_rgb(
+            combined_image(left, right, encoding=encoding.encoding if encoding else "srgb")))
         results.append(_score("input", example.name, category, combined, target, niqe_model,
                               None, example.combined or example.left, align))
         images = {"input": combined}

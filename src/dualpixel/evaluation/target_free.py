@@ -39,7 +39,7 @@ from dualpixel.filters import gradient_magnitude
 from dualpixel.inference.brightness import is_palette_image, smooth
 from dualpixel.inference.encoding import ENCODINGS, ViewEncoding
 from dualpixel.names import output_modes_suffix
-from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
+from dualpixel.optics.tone import combined_light, linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
     "TargetFreeReport", "check_deblurred", "check_folder", "check_model",
@@ -183,8 +183,7 @@ def _combined(left: np.ndarray, right: np.ndarray,
               encoding: str) -> tuple[np.ndarray, np.ndarray]:
     """The combined image (the views' mean in linear light): in linear light, and stored in
     ``encoding`` as the views are."""
-    to_linear = _to_linear(encoding)
-    linear = 0.5 * (to_linear(left) + to_linear(right))
+    linear = combined_light(left, right, encoding)
     return linear, linear if encoding == "linear" else linear_to_srgb_array(linear)
 
 
@@ -274,7 +273,7 @@ def check_deblurred(left: np.ndarray, right: np.ndarray, output: np.ndarray, *,
     if palette is None:
         palette = is_palette_image(left)
     if palette:  # dither added to the stored values: smoothed there, then linearised
-        lin_in = 0.5 * (srgb_to_linear_array(shown_left) + srgb_to_linear_array(shown_right))
+        lin_in = combined_light(shown_left, shown_right)
         lin_out = srgb_to_linear_array(shown_out)
     else:  # camera noise is added in linear light: smoothing there keeps every mean
         lin_out = to_linear(output)

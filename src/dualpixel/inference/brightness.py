@@ -20,7 +20,7 @@ import numpy as np
 
 from dualpixel.errors import ParameterError
 from dualpixel.names import BRIGHTNESS_MODES, DEFAULT_BRIGHTNESS
-from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
+from dualpixel.optics.tone import combined_light, linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
     "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "DITHER_SIGMA", "check_brightness",
@@ -103,7 +103,7 @@ def tie_brightness(output: np.ndarray, left: np.ndarray, right: np.ndarray | Non
     if is_palette_image(views[0]):  # both sides measured alike, after the dither's smoothing
         views = [smooth(v, DITHER_SIGMA) for v in views]
         measured = smooth(output, DITHER_SIGMA)
-    linear_in = sum(srgb_to_linear_array(v) for v in views) / len(views)
+    linear_in = (combined_light(*views) if len(views) == 2 else srgb_to_linear_array(views[0]))
     linear_out = srgb_to_linear_array(output)
     linear_measured = linear_out if measured is output else srgb_to_linear_array(measured)
     gain = ((_low_pass(linear_in.mean(axis=2), sigma) + _FLOOR)

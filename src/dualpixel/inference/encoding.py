@@ -28,7 +28,12 @@ import numpy as np
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.inference.view_checks import ViewFinding, views_from_sum
 from dualpixel.names import ENCODINGS
-from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
+from dualpixel.optics.tone import (
+    combined_image,
+    combined_light,
+    linear_to_srgb_array,
+    srgb_to_linear_array,
+)
 
 __all__ = [
     "ENCODINGS", "EXPOSURE_TARGET", "LINEAR_LIGHT", "ViewEncoding", "deblur_encoded",
@@ -185,7 +190,7 @@ def exposure_gain(left: np.ndarray, right: np.ndarray) -> float | np.ndarray:
     >>> round(float(exposure_gain(dark, dark)), 4)
     7.0
     """
-    combined = 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
+    combined = combined_light(left, right, "linear")
     flat = combined.reshape(*combined.shape[:-3], -1)
     high, peak = np.percentile(flat, [EXPOSURE_PERCENTILE, EXPOSURE_PEAK_PERCENTILE], axis=-1)
     with np.errstate(divide="ignore"):
@@ -245,7 +250,7 @@ def flat_field_gain(left: np.ndarray, right: np.ndarray, *, black_level: float =
 def encoding_findings(left: np.ndarray, right: np.ndarray, encoding: str) -> list[ViewFinding]:
     """A warning when views ``(H, W, C)`` in [0, 1] look linear (raw) but are declared
     display-encoded, or the reverse; empty when they look as declared."""
-    values = 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
+    values = combined_image(left, right, light="encoded")  # the stored values, as declared
     median, p99 = float(np.median(values)), float(np.percentile(values, 99))
     if encoding == "srgb" and median < LINEAR_MEDIAN and p99 < LINEAR_P99:
         return [ViewFinding("looks-linear", (

@@ -18,7 +18,7 @@ import numpy as np
 
 from dualpixel.errors import ParameterError
 from dualpixel.names import DEFAULT_OVERSHOOT, OVERSHOOT_MODES
-from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
+from dualpixel.optics.tone import combined_image
 
 __all__ = [
     "DEFAULT_OVERSHOOT", "OVERSHOOT_MARGIN", "OVERSHOOT_MODES", "check_overshoot",
@@ -43,11 +43,11 @@ def overshoot_radius(width: int) -> int:
 
 
 def combined_view(left: np.ndarray, right: np.ndarray | None) -> np.ndarray:
-    """The combined image (display values, ``(H, W, C)``): the views' mean in linear light."""
+    """The combined image (display values, ``(H, W, C)``): the views' mean in linear light
+    (:func:`~dualpixel.optics.tone.combined_image`); ``left`` alone where there is no right."""
     if right is None:
         return np.asarray(left, np.float32)
-    linear = 0.5 * (srgb_to_linear_array(left) + srgb_to_linear_array(right))
-    return linear_to_srgb_array(linear).astype(np.float32)
+    return combined_image(left, right)
 
 
 def limit_overshoot(output: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,

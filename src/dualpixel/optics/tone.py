@@ -22,10 +22,11 @@ import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError, check_range
-from dualpixel.names import LIGHT_SPACES
+from dualpixel.names import ENCODINGS, LIGHT_SPACES
 
-__all__ = ["LIGHT_SPACES", "Light", "check_light", "check_raw_storage", "linear_to_raw",
-           "linear_to_srgb", "linear_to_srgb_array", "srgb_to_linear", "srgb_to_linear_array"]
+__all__ = ["LIGHT_SPACES", "Light", "check_light", "check_raw_storage", "combined_image",
+           "combined_light", "linear_to_raw", "linear_to_srgb", "linear_to_srgb_array",
+           "srgb_to_linear", "srgb_to_linear_array"]
 
 Light = Literal["encoded", "linear"]  # LIGHT_SPACES
 
@@ -79,6 +80,33 @@ def srgb_to_linear_array(image: np.ndarray) -> np.ndarray:
 def linear_to_srgb_array(image: np.ndarray) -> np.ndarray:
     """:func:`linear_to_srgb` for a NumPy array (any shape): float32 sRGB-encoded values."""
     return linear_to_srgb(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
+
+
+def _check_encoding(encoding: str) -> str:
+    if encoding not in ENCODINGS:
+        raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, got {encoding!r}")
+    return encoding
+
+
+def combined_light(left: np.ndarray, right: np.ndarray, encoding: str = "srgb") -> np.ndarray:
+    """The combined image in linear light: the light the two photodiodes gather (paper Eq. 7,
+    ``I_b = I_l + I_r``; at the views' brightness, as DPDD stores them, their mean), from views
+    stored in ``encoding`` ("srgb": display values; "linear": linear values, e.g. raw above
+    the black level). float32, the views' shape."""
+    if _check_encoding(encoding) == "linear":
+        return 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
+    return 0.5 * (srgb_to_linear_array(left) + srgb_to_linear_array(right))
+
+
+def combined_image(left: np.ndarray, right: np.ndarray, *, encoding: str = "srgb",
+                   light: Light = "linear") -> np.ndarray:
+    """The combined image stored as the views are (``encoding``): the views averaged in
+    ``light``, "linear" (:func:`combined_light`, what a sensor sums: the package's definition)
+    or "encoded" (their stored values' mean: the paper's generator, which blurs the stored
+    values, and a DPDD folder's own combined frames). float32, the views' shape."""
+    if check_light(light) == "encoded" or _check_encoding(encoding) == "linear":
+        return 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
+    return linear_to_srgb_array(combined_light(left, right, encoding))
 
 
 def check_raw_storage(black_level: float, gains: tuple[float, float]) -> None:
