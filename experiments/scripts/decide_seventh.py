@@ -40,6 +40,33 @@ def scene_gains(folder: Path) -> dict[str, float]:
     return {name: model[name] - given[name] for name in model}
 
 
+def real_pair_failures(rows: list[dict[str, str]]) -> list[str]:
+    """Item 3 on one method's ``check-model`` rows (printed): no frame's brightness changed by
+    more than :data:`FRAME_BRIGHTNESS`, per camera the mean local shift and overshoot within
+    :data:`BOUNDS`; the failures."""
+    cameras = {k: v["camera"] for k, v in json.loads(
+        Path("../shared/data/dp-real-nogt/pairs.json").read_text()).items()}
+    failures, groups = [], {}
+    for row in rows:
+        folder, name = row["pair"].split("/", 1)
+        groups.setdefault(cameras[name] if folder == "dp-real-nogt" else folder, []).append(row)
+        change = float(row["brightness_change"])
+        if abs(change) > FRAME_BRIGHTNESS:
+            failures.append(f"{row['pair']} brightness {100 * change:+.2f} %")
+    print(f"   largest |brightness change| "
+          f"{max(abs(float(r['brightness_change'])) for r in rows):.4f}")
+    for camera, members in sorted(groups.items()):
+        kind = "phone" if "Pixel" in camera else "DSLR"
+        for key, bound in BOUNDS[kind].items():
+            mean = sum(float(r[key]) for r in members) / len(members)
+            ok = mean <= bound
+            print(f"   {camera[:40]:40} n={len(members):2} {key:16} {mean:.4f} (bound {bound})"
+                  f"{'' if ok else '  <- fails'}")
+            if not ok:
+                failures.append(f"{camera} mean {key} {mean:.4f} > {bound}")
+    return failures
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--candidate", required=True)
@@ -81,31 +108,11 @@ def main() -> None:
               f"{BOUNDS[kind]['local_brightness']}, {BOUNDS[kind]['overshoot']})")
 
     print("3. real pairs (dualpixel check-model)")
-    cameras = {k: v["camera"] for k, v in json.loads(
-        Path("../shared/data/dp-real-nogt/pairs.json").read_text()).items()}
     rows = [r for r in csv.DictReader(open(out / "target-free" / "target_free.csv"))]
-    mine_rows = {r["pair"]: r for r in rows if r["method"] == args.candidate + "+tied"}
+    mine_rows = [r for r in rows if r["method"] == args.candidate + "+tied"]
     if not mine_rows:
         raise SystemExit(f"no rows of {args.candidate}+tied in the target-free table")
-    groups: dict[str, list[dict]] = {}
-    for pair, row in mine_rows.items():
-        folder, name = pair.split("/", 1)
-        camera = cameras[name] if folder == "dp-real-nogt" else folder
-        groups.setdefault(camera, []).append(row)
-        change = float(row["brightness_change"])
-        if abs(change) > FRAME_BRIGHTNESS:
-            failures.append(f"3: {pair} brightness {100 * change:+.2f} %")
-    print(f"   largest |brightness change| "
-          f"{max(abs(float(r['brightness_change'])) for r in mine_rows.values()):.4f}")
-    for camera, members in sorted(groups.items()):
-        kind = "phone" if "Pixel" in camera else "DSLR"
-        for key, bound in BOUNDS[kind].items():
-            mean = sum(float(r[key]) for r in members) / len(members)
-            ok = mean <= bound
-            print(f"   {camera[:40]:40} n={len(members):2} {key:16} {mean:.4f} (bound {bound})"
-                  f"{'' if ok else '  <- fails'}")
-            if not ok:
-                failures.append(f"3: {camera} mean {key} {mean:.4f} > {bound}")
+    failures += [f"3: {failure}" for failure in real_pair_failures(mine_rows)]
 
     print("4. dev Canon scenes (a floor)")
     for res in ("canon-dp-real", "canon-dp-real-hd"):

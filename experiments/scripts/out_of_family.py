@@ -19,16 +19,23 @@ MODELS = ["rdpd-light.v15", "rdpd-light.v12", "rdpd-wide.v2"]
 TIE = 0.05  # dB: v15 "loses" a set only below v12 by more than this
 
 
-def write_results(out: Path, path: Path) -> None:
-    """Per set, model and image: the input's and the model's PSNR (the model card's source)."""
+def write_results(out: Path, path: Path, models: list[str], append: bool = False) -> None:
+    """Per set, model and image: the input's and the model's PSNR (the model card's source);
+    ``append``: added to ``path``'s rows (a model shipped later), replacing none."""
     rows = []
     for s in SETS:
-        for m in MODELS:
+        for m in models:
             found = list(csv.DictReader(open(out / "eval" / s / m / "per_image.csv")))
             given = {r["name"]: r["psnr"] for r in found if r["method"] == "input"}
             rows += [{"evaluation": s, "image": r["name"], "method": r["method"],
                       "input_psnr": f"{float(given[r['name']]):.4f}",
                       "psnr": f"{float(r['psnr']):.4f}"} for r in found if r["method"] != "input"]
+    if append:
+        existing = list(csv.DictReader(open(path, newline="", encoding="utf-8")))
+        known = {r["method"] for r in existing}
+        if known & {r["method"] for r in rows}:
+            raise SystemExit(f"{path} already holds rows of {sorted(known)}")
+        rows = existing + rows
     with open(path, "w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]), lineterminator="\n")
         writer.writeheader()
@@ -58,7 +65,11 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", nargs="?", type=Path, default=Path("runs/out-of-family"))
     parser.add_argument("--csv", type=Path, help="also write the per-image results here")
+    parser.add_argument("--models", nargs="+", default=MODELS,
+                        help="the models whose rows are written (the table needs the three)")
+    parser.add_argument("--append", action="store_true", help="add the rows to --csv's")
     args = parser.parse_args()
-    main(args.out)
+    if args.models == MODELS:
+        main(args.out)
     if args.csv:
-        write_results(args.out, args.csv)
+        write_results(args.out, args.csv, args.models, args.append)
