@@ -1,6 +1,7 @@
 """Camera calibration from real DP pairs (dualpixel.calibration.camera) and view crosstalk."""
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -16,6 +17,7 @@ from dualpixel.optics.psf import PSFParams, dp_psf
 from dualpixel.optics.thin_lens import ThinLensCamera
 from dualpixel.synthesis.frame import SequenceDraw, synthesize_frame
 
+ROOT_CAMERAS = Path(__file__).resolve().parents[2] / "src" / "dualpixel" / "cameras"
 TRUE_PSF = PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)
 OTHER_PSF = PSFParams(n=9, alpha=1.0, beta=0.4, kappa=0.14)
 RATIO = (0.6, 0.85, 0.75)
@@ -216,3 +218,20 @@ def test_shipped_cameras_load_by_name_and_an_unknown_name_lists_them():
     assert load_camera("canon-840-linear").light == "linear"
     with pytest.raises(InputFileError, match="the shipped cameras: canon-840"):
         load_camera("canon-9000")
+
+
+def test_the_shipped_canon_camera_is_what_calibrate_camera_measures(shared_dir, tmp_path):
+    """Issue #76: `canon-840-linear.json` re-derived from the dev Canon pairs at 840x512 with
+    the command's defaults: the same blocks, blur sizes and light, the disparity ratios to the
+    file's last digit but one, the noise to 1 %."""
+    shipped = json.loads((ROOT_CAMERAS / "canon-840-linear.json").read_text())
+    out = tmp_path / "camera.json"
+    result = CliRunner().invoke(cli, ["-q", "calibrate", "camera", "--input",
+                                      str(shared_dir / "data" / "canon-dp-real"), "-o", str(out),
+                                      "--name", "canon-840-linear"])
+    assert result.exit_code == 0, result.output
+    measured = json.loads(out.read_text())
+    for key in ("format", "name", "width", "psf", "coc_percentiles", "blocks", "light"):
+        assert measured[key] == shipped[key], key
+    assert measured["disparity_ratio"] == pytest.approx(shipped["disparity_ratio"], abs=1e-3)
+    assert measured["noise_std"] == pytest.approx(shipped["noise_std"], rel=0.01)
