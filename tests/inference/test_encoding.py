@@ -318,3 +318,37 @@ def test_levels_that_do_not_fit_the_views_are_named(raw_pair, tiny_checkpoint, t
     with pytest.raises(ParameterError, match="beyond these views' full scale"):
         dualpixel.deblur(raw_pair[0], raw_pair[1], model=tiny_checkpoint, device="cpu",
                          encoding="linear", black_level=0, white_level=70000)
+
+
+@pytest.mark.parametrize("name", ["pixel-gif-02", "pixel-gif-05"])
+def test_pixel_dp_import_gives_real_captures_the_documented_orientation(name, shared_dir,
+                                                                        tmp_path):
+    """Issue #76, from data rather than the test's own assumption: two real Pixel 4 pairs of
+    ../shared/data/dp-real-nogt, whose README documents how they were taken from the authors'
+    release (frame 0 left, frame 1 right, turned 90 degrees counter-clockwise) and measures the
+    right view's content to the right of the left's behind the focus (medians +0.92 and +2.77 px,
+    most tiles positive), put back as the release stores them and imported: both views come back
+    as documented, with that disparity; turned the other way, the sign flips."""
+    from dualpixel.data.statistics import block_disparity
+
+    pair = shared_dir / "data" / "dp-real-nogt" / name
+    views = [cv2.imread(str(pair / f"{side}.png"), cv2.IMREAD_UNCHANGED)
+             for side in ("left", "right")]
+    capture = tmp_path / "release" / name
+    capture.mkdir(parents=True)
+    for side, view in zip(("left", "right"), views):  # stored baseline vertical: turned back
+        cv2.imwrite(str(capture / f"result_{side}Pd_center.png"), np.rot90(view, -1).copy())
+    medians = {}
+    for rotate in ("ccw", "cw"):
+        out = tmp_path / rotate
+        result = CliRunner().invoke(cli, ["import-pixel-dp", str(capture), "-o", str(out),
+                                          "--rotate", rotate])
+        assert result.exit_code == 0, result.output
+        left, right = (cv2.imread(str(out / f"test_{s}/source/{name}.png"),
+                                  cv2.IMREAD_UNCHANGED) for s in ("l", "r"))
+        if rotate == "ccw":
+            np.testing.assert_array_equal(left, views[0])
+            np.testing.assert_array_equal(right, views[1])
+        shifts = block_disparity(left[..., None] / 255.0, right[..., None] / 255.0, patch=32)
+        medians[rotate] = float(np.median(shifts))
+    assert medians["ccw"] > 0.3 and medians["cw"] < -0.3, medians
