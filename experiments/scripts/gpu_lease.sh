@@ -24,10 +24,11 @@
 #   synthesis                   issue #71's GPU figures into $OUT: the batched renderer against
 #                               exact and its frames per second, training iterations per second
 #                               on written and on-the-fly data (loader and device rendering)
+#   tests                       issue #76's CUDA-path tests (tests/gpu) into $OUT/tests_gpu.txt
 #
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, stop, collect, kit, figures or synthesis}; shift
+command=${1:?start, wait, stop, collect, kit, figures, synthesis or tests}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -126,8 +127,14 @@ synthesis)  # issue #71's GPU figures: the batched renderer and on-the-fly train
   PYTHONPATH=src python3 benchmarks/bench_synthesis.py --training --device cuda --iterations 40 \
     --loader-workers 12 2>&1 | grep -v '^{' | tee "$OUT/bench_training_cuda.txt"
   ;;
+tests)  # issue #76: the CUDA paths' tests (tests/gpu), their report into $OUT (~2 minutes)
+  : "${OUT:?set OUT to the device tool output folder}"
+  python3 -c "import pytest" 2>/dev/null || python3 -m pip install --quiet pytest
+  PYTHONPATH=src python3 -m pytest -q -p no:cacheprovider tests/gpu 2>&1 | tee "$OUT/tests_gpu.txt"
+  ;;
 *)
-  echo "unknown command: $command (start, wait, stop, collect, kit, figures or synthesis)" >&2
+  echo "unknown command: $command (start, wait, stop, collect, kit, figures, synthesis or" \
+       "tests)" >&2
   exit 2
   ;;
 esac
