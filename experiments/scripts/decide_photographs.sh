@@ -14,7 +14,8 @@ OUT=$RUN/decision
 for camera in canon-840 canon-hd canon-stored dslr phone phone-raw phone-close; do
   out=$OUT/v15/photo-$camera
   [ -f $out/summary.json ] || $DP -q eval --dataset $RUN/data/$camera-test --split test \
-      --checkpoint rdpd-light.v15 --brightness tied --no-niqe --figures 0 -o $out > /dev/null
+      --checkpoint rdpd-light.v15 --brightness tied --precision fp32 --no-niqe --figures 0 \
+      -o $out > /dev/null
 done
 echo "v15 on the photographic sets done $(date +%T)"
 [ -f $OUT/target-free/target_free.csv ] || $DP -q check-model --input ../shared/data/dp-real-nogt \

@@ -188,10 +188,13 @@ def test_clear_errors_and_the_listing():
     with pytest.raises(ValueError, match="checkpoint not found"):
         dualpixel.load_model("no-such-model")
     models = dualpixel.list_models()
-    assert {"rdpd-wide.v2", "rdpd-light.v12", "rdpd-light.v15"} <= set(models)
-    info = models["rdpd-light.v15"]
-    assert "rdpd-light" in info["aliases"] and "rdpd-wide" in models["rdpd-wide.v2"]["aliases"]
-    assert models["rdpd-light.v12"]["aliases"] == []  # kept by its tag: the others' start
+    assert {"rdpd-light.v12", "rdpd-light.v15", "rdpd-light.v16"} <= set(models)
+    info = models["rdpd-light.v16"]
+    assert "rdpd-light" in info["aliases"]
+    assert models["rdpd-light.v15"]["aliases"] == []  # kept by its tag: v16's start
+    for retired in ("rdpd-wide", "rdpd-wide.v2"):  # the recipe that remakes it named
+        with pytest.raises(ValueError, match=rf"{retired} no longer ships.*recipes/rdpd-wide"):
+            dualpixel.load_model(retired)
     with pytest.raises(ValueError, match=r"rdpd-light-fast no longer ships.*use rdpd-light"):
         dualpixel.load_model("rdpd-light-fast")
     assert info["parameters"] > 1_000_000 and len(info["sha256"]) == 64

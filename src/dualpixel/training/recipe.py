@@ -701,7 +701,8 @@ def _view_encoding(entry: dict[str, Any]):
 
 def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) -> dict:
     """Score the shipped weights, run with the recipe's output settings, on each ``evaluate``
-    entry; returns ``{name: metrics}``."""
+    entry, in float32 on the CPU (the figures of record are the same on every machine, where
+    ``auto`` precision would take bfloat16 on some CPUs); returns ``{name: metrics}``."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
     from dualpixel.inference.pipeline import build_deblurrer
 
@@ -712,7 +713,8 @@ def evaluate_shipped(recipe: Recipe, weights: Path, output: Path, *, log=print) 
             log(f"evaluate {entry['name']}: {dataset} not found, skipped")
             continue
         folder = output / "eval" / entry["name"]
-        deblurrer = build_deblurrer(weights, device="cpu", **recipe.output_settings)
+        deblurrer = build_deblurrer(weights, device="cpu", precision="fp32",
+                                    **recipe.output_settings)
         run_evaluation(EvaluationRequest(output=folder, dataset=dataset,
                                          split=entry.get("split", "test"), niqe=False,
                                          figures=1, encoding=_view_encoding(entry)),
