@@ -37,9 +37,14 @@ from dualpixel.data.statistics import block_disparity_map, block_sums
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.filters import gradient_magnitude
 from dualpixel.inference.brightness import is_palette_image, smooth
-from dualpixel.inference.encoding import ENCODINGS, ViewEncoding
+from dualpixel.inference.encoding import ViewEncoding
 from dualpixel.names import output_modes_suffix
-from dualpixel.optics.tone import combined_light, linear_to_srgb_array, srgb_to_linear_array
+from dualpixel.optics.tone import (
+    check_encoding,
+    combined_light,
+    linear_to_srgb_array,
+    srgb_to_linear_array,
+)
 
 __all__ = [
     "TargetFreeReport", "check_deblurred", "check_folder", "check_model",
@@ -117,9 +122,7 @@ def _check_images(images: dict[str, np.ndarray], *, finite: bool = True) -> None
 
 def _to_linear(encoding: str):
     """The function that takes images stored in ``encoding`` to linear light."""
-    if encoding not in ENCODINGS:
-        raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, got {encoding!r}")
-    return srgb_to_linear_array if encoding == "srgb" else np.asarray
+    return srgb_to_linear_array if check_encoding(encoding) == "srgb" else np.asarray
 
 
 def block_size(width: int) -> int:

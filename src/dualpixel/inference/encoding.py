@@ -29,6 +29,7 @@ from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.inference.view_checks import ViewFinding, views_from_sum
 from dualpixel.names import ENCODINGS
 from dualpixel.optics.tone import (
+    check_encoding,
     combined_image,
     combined_light,
     linear_to_srgb_array,
@@ -81,10 +82,7 @@ class ViewEncoding:
     light_gain: float | np.ndarray = 1.0
 
     def __post_init__(self) -> None:
-        if self.encoding not in ENCODINGS:
-            raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, "
-                                 f"got {self.encoding!r}")
-        if self.encoding == "srgb":
+        if check_encoding(self.encoding) == "srgb":
             if (self.black_level is not None or self.white_level is not None
                     or not np.all(np.asarray(self.right_gain) == 1.0)
                     or not np.all(np.asarray(self.light_gain) == 1.0)):

@@ -24,7 +24,8 @@ import torch
 from dualpixel.errors import ParameterError, check_range
 from dualpixel.names import ENCODINGS, LIGHT_SPACES
 
-__all__ = ["LIGHT_SPACES", "Light", "check_light", "check_raw_storage", "combined_image",
+__all__ = ["LIGHT_SPACES", "Light", "check_encoding", "check_light", "check_raw_storage",
+           "combined_image",
            "combined_light", "linear_to_raw", "linear_to_srgb", "linear_to_srgb_array",
            "srgb_to_linear", "srgb_to_linear_array"]
 
@@ -82,7 +83,8 @@ def linear_to_srgb_array(image: np.ndarray) -> np.ndarray:
     return linear_to_srgb(torch.from_numpy(np.ascontiguousarray(image, np.float32))).numpy()
 
 
-def _check_encoding(encoding: str) -> str:
+def check_encoding(encoding: str) -> str:
+    """The one check of how images store light (:data:`~dualpixel.names.ENCODINGS`)."""
     if encoding not in ENCODINGS:
         raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, got {encoding!r}")
     return encoding
@@ -93,7 +95,7 @@ def combined_light(left: np.ndarray, right: np.ndarray, encoding: str = "srgb") 
     ``I_b = I_l + I_r``; at the views' brightness, as DPDD stores them, their mean), from views
     stored in ``encoding`` ("srgb": display values; "linear": linear values, e.g. raw above
     the black level). float32, the views' shape."""
-    if _check_encoding(encoding) == "linear":
+    if check_encoding(encoding) == "linear":
         return 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
     return 0.5 * (srgb_to_linear_array(left) + srgb_to_linear_array(right))
 
@@ -104,7 +106,7 @@ def combined_image(left: np.ndarray, right: np.ndarray, *, encoding: str = "srgb
     ``light``, "linear" (:func:`combined_light`, what a sensor sums: the package's definition)
     or "encoded" (their stored values' mean: the paper's generator, which blurs the stored
     values, and a DPDD folder's own combined frames). float32, the views' shape."""
-    if check_light(light) == "encoded" or _check_encoding(encoding) == "linear":
+    if check_light(light) == "encoded" or check_encoding(encoding) == "linear":
         return 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
     return linear_to_srgb_array(combined_light(left, right, encoding))
 

@@ -52,7 +52,7 @@ from dualpixel.io.images import check_png_compression, quantise, save_npy, write
 from dualpixel.io.lock import folder_lock
 from dualpixel.io.paths import check_plain_name, contained
 from dualpixel.io.run_folder import differing_settings, locate, same_location
-from dualpixel.names import ENCODINGS, renamed_keys
+from dualpixel.names import renamed_keys
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
@@ -63,7 +63,7 @@ from dualpixel.optics.thin_lens import (
     ThinLensCamera,
     focus_from_depth,
 )
-from dualpixel.optics.tone import check_raw_storage
+from dualpixel.optics.tone import check_encoding, check_raw_storage
 from dualpixel.parallel import completed
 from dualpixel.progress import progress_bar
 from dualpixel.synthesis.frame import (
@@ -154,10 +154,7 @@ class SynthConfig:
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
         light = self.draw_settings()[2]  # refuses a bad camera, light or psf_shapes now
-        if self.encoding not in ENCODINGS:
-            raise ParameterError(f"encoding must be one of {', '.join(ENCODINGS)}, got "
-                                 f"{self.encoding!r}")
-        if self.encoding == "linear":
+        if check_encoding(self.encoding) == "linear":
             check_raw_storage(self.black_level, self.raw_gains)
             if light != "linear":
                 raise ParameterError("encoding 'linear' (raw values) needs light 'linear': a "

@@ -283,9 +283,9 @@ def synthesize_frame(
         return _finished(image, scene, coc, left, right, draw, noise_seed)
     if draw.render_mode != "fast":
         raise ParameterError("a window is rendered with the default (fast) layering only")
-    place = _Window(tuple(coc.shape), (0, 0), _checked_window(window, coc.shape))
-    row0, row1, col0, col1 = render_region(coc, draw, place.window)
-    place = _Window(place.frame, (row0, col0), place.window)
+    window = _checked_window(window, coc.shape)
+    row0, row1, col0, col1 = render_region(coc, draw, window)
+    place = _Window(tuple(coc.shape), (row0, col0), window)
     rows, cols = slice(row0, row1), slice(col0, col1)
     labels, layer_coc = quantise_layers(coc, draw.max_layers, mode="fast")
     left, right = render_fast(scene[:, rows, cols], coc[rows, cols], draw.psf,
