@@ -15,6 +15,7 @@ from dualpixel.inference.brightness import tie_brightness
 from dualpixel.inference.overshoot import combined_view, limit_overshoot, overshoot_radius
 from dualpixel.io.images import read_rgb, write_png
 from dualpixel.models import save_model
+from dualpixel.optics import tone
 from dualpixel.optics.tone import srgb_to_linear_array
 
 
@@ -71,7 +72,7 @@ def test_bad_settings_are_refused(edge, refined_model):
 
 
 def test_the_option_reaches_the_deblurrer_the_api_and_the_commands(edge, refined_model,
-                                                                    tmp_path):
+                                                                    tmp_path, monkeypatch):
     blurred, _, _ = edge
     left, right = blurred, np.roll(blurred, 1, axis=1)
     plain = Deblurrer(refined_model, precision="fp32")(left, right)
@@ -80,6 +81,16 @@ def test_the_option_reaches_the_deblurrer_the_api_and_the_commands(edge, refined
     both = Deblurrer(refined_model, precision="fp32", overshoot="limited",
                      brightness="tied")(left, right)
     np.testing.assert_allclose(both, tie_brightness(limited, left, right), atol=1e-6)
+    # one combined image per frame: the views are linearised once for both output modes
+    calls = []
+    original = tone.combined_light
+    monkeypatch.setattr(tone, "combined_light", lambda *a, **k: calls.append(1) or original(*a,
+                                                                                             **k))
+    again = Deblurrer(refined_model, precision="fp32", overshoot="limited",
+                      brightness="tied")(left, right)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(again, both)
+    monkeypatch.undo()
     api = dualpixel.deblur(left, right, model=refined_model, device="cpu", precision="fp32",
                            overshoot="limited")
     np.testing.assert_allclose(api, limited, atol=1e-6)

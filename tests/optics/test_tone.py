@@ -89,3 +89,19 @@ def test_the_combined_image_is_the_views_mean_in_the_light_named():
         combined_light(dark, bright, "gamma")
     with pytest.raises(ParameterError, match="light"):
         combined_image(dark, bright, light="stored")
+
+
+def test_a_frames_combined_image_is_made_once_in_each_light():
+    """``CombinedImage``: the same numbers as the functions, each light made on first read and
+    kept; one view alone is its own image."""
+    from dualpixel.optics.tone import CombinedImage, combined_image, combined_light
+
+    rng = np.random.default_rng(3)
+    left, right = rng.random((2, 12, 16, 3), dtype=np.float32)
+    combined = CombinedImage(left, right)
+    np.testing.assert_array_equal(combined.light, combined_light(left, right))
+    np.testing.assert_array_equal(combined.encoded, combined_image(left, right))
+    assert combined.light is combined.light and combined.encoded is combined.encoded
+    alone = CombinedImage(left)
+    np.testing.assert_array_equal(alone.encoded, left)
+    np.testing.assert_allclose(alone.light, _iec_decode(left), atol=1e-6)

@@ -20,7 +20,7 @@ import numpy as np
 
 from dualpixel.errors import ParameterError
 from dualpixel.names import BRIGHTNESS_MODES, DEFAULT_BRIGHTNESS
-from dualpixel.optics.tone import combined_light, linear_to_srgb_array, srgb_to_linear_array
+from dualpixel.optics.tone import CombinedImage, linear_to_srgb_array, srgb_to_linear_array
 
 __all__ = [
     "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "DITHER_SIGMA", "check_brightness",
@@ -87,23 +87,27 @@ def _low_pass(grey: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def tie_brightness(output: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,
-                   sigma: float | None = None) -> np.ndarray:
+                   sigma: float | None = None,
+                   combined: CombinedImage | None = None) -> np.ndarray:
     """``output`` ``(H, W, 3)`` display (sRGB) values in [0, 1], scaled in linear light so that
     its Gaussian low-pass (std ``sigma`` px, default :func:`tie_sigma`) of the channel mean
     equals that of the input, the
     mean of ``left`` and ``right`` in linear light (``left`` alone for a one-view model).
     For palette images (:func:`is_palette_image`) both sides are measured after a Gaussian of
-    :data:`DITHER_SIGMA` px in the stored values."""
+    :data:`DITHER_SIGMA` px in the stored values. ``combined``: the views' combined image when
+    already made (a frame's :class:`~dualpixel.optics.tone.CombinedImage`)."""
     if sigma is None:
         sigma = tie_sigma(output.shape[1])
     if not (math.isfinite(sigma) and sigma > 0):
         raise ParameterError(f"sigma must be a positive number of pixels, got {sigma}")
-    views = [v for v in (left, right) if v is not None]
     measured = output
-    if is_palette_image(views[0]):  # both sides measured alike, after the dither's smoothing
-        views = [smooth(v, DITHER_SIGMA) for v in views]
+    if is_palette_image(left):  # both sides measured alike, after the dither's smoothing
+        combined = CombinedImage(*(None if v is None else smooth(v, DITHER_SIGMA)
+                                   for v in (left, right)))
         measured = smooth(output, DITHER_SIGMA)
-    linear_in = (combined_light(*views) if len(views) == 2 else srgb_to_linear_array(views[0]))
+    elif combined is None:
+        combined = CombinedImage(left, right)
+    linear_in = combined.light
     linear_out = srgb_to_linear_array(output)
     linear_measured = linear_out if measured is output else srgb_to_linear_array(measured)
     gain = ((_low_pass(linear_in.mean(axis=2), sigma) + _FLOOR)

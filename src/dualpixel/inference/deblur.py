@@ -66,6 +66,7 @@ from dualpixel.inference.precision import Precision, resolve_precision
 from dualpixel.inference.tiling import MAX_BATCH, TileGrid, deblur_tiled
 from dualpixel.memory import GIB, available_memory
 from dualpixel.models.unet import DeblurNet, pass_memory
+from dualpixel.optics.tone import CombinedImage
 
 #: Smallest tile and overlap (px) whose output matches whole-frame deblurring closely: below
 #: them a tile's border sees too little of the image, and outputs change by tens of levels.
@@ -249,11 +250,13 @@ class Deblurrer:
     def finish(self, out: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,
                brightness: str | None = None, overshoot: str | None = None) -> np.ndarray:
         """``out`` of :meth:`network_output` for these views with the output modes applied:
-        the overshoot limit, then the brightness tie (``None``: this deblurrer's modes)."""
+        the overshoot limit, then the brightness tie (``None``: this deblurrer's modes), both
+        reading one combined image of the views."""
+        combined = CombinedImage(left, right)  # each light made once, when first read
         if check_overshoot(overshoot or self.overshoot) == "limited":
-            out = limit_overshoot(out, left, right)
+            out = limit_overshoot(out, left, right, combined=combined.encoded)
         if check_brightness(brightness or self.brightness) == "tied":
-            out = tie_brightness(out, left, right)
+            out = tie_brightness(out, left, right, combined=combined)
         return out
 
     def _ensemble(self, left: np.ndarray, right: np.ndarray | None, scale: int) -> np.ndarray:

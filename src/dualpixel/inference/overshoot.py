@@ -18,7 +18,7 @@ import numpy as np
 
 from dualpixel.errors import ParameterError
 from dualpixel.names import DEFAULT_OVERSHOOT, OVERSHOOT_MODES
-from dualpixel.optics.tone import combined_image
+from dualpixel.optics.tone import CombinedImage
 
 __all__ = [
     "DEFAULT_OVERSHOOT", "OVERSHOOT_MARGIN", "OVERSHOOT_MODES", "check_overshoot",
@@ -45,24 +45,25 @@ def overshoot_radius(width: int) -> int:
 def combined_view(left: np.ndarray, right: np.ndarray | None) -> np.ndarray:
     """The combined image (display values, ``(H, W, C)``): the views' mean in linear light
     (:func:`~dualpixel.optics.tone.combined_image`); ``left`` alone where there is no right."""
-    if right is None:
-        return np.asarray(left, np.float32)
-    return combined_image(left, right)
+    return CombinedImage(left, right).encoded
 
 
 def limit_overshoot(output: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,
-                    radius: int | None = None,
-                    margin: float = OVERSHOOT_MARGIN) -> np.ndarray:
+                    radius: int | None = None, margin: float = OVERSHOOT_MARGIN,
+                    combined: np.ndarray | None = None) -> np.ndarray:
     """``output`` ``(H, W, C)`` display values in [0, 1], clipped per channel to the combined
     input's (:func:`combined_view`) minimum and maximum over a square window of half-side
-    ``radius`` px (default :func:`overshoot_radius`), widened by ``margin`` levels of 255."""
+    ``radius`` px (default :func:`overshoot_radius`), widened by ``margin`` levels of 255.
+    ``combined``: that image when already made (a frame's
+    :class:`~dualpixel.optics.tone.CombinedImage`), else made here from the views."""
     if radius is None:
         radius = overshoot_radius(output.shape[1])
     if not (isinstance(radius, int) and radius >= 0):
         raise ParameterError(f"radius must be a whole number of pixels >= 0, got {radius!r}")
     if not (math.isfinite(margin) and margin >= 0):
         raise ParameterError(f"margin must be >= 0 levels of 255, got {margin}")
-    combined = np.ascontiguousarray(combined_view(left, right))
+    combined = np.ascontiguousarray(combined_view(left, right) if combined is None
+                                    else combined, np.float32)
     window = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
     low = cv2.erode(combined, window, borderType=cv2.BORDER_REFLECT).reshape(combined.shape)
     high = cv2.dilate(combined, window, borderType=cv2.BORDER_REFLECT).reshape(combined.shape)

@@ -15,6 +15,8 @@ The transfer function is sRGB's (IEC 61966-2-1), applied to values in [0, 1].
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal
 
 import cv2
@@ -24,7 +26,7 @@ import torch
 from dualpixel.errors import ParameterError, check_range
 from dualpixel.names import ENCODINGS, LIGHT_SPACES
 
-__all__ = ["LIGHT_SPACES", "Light", "check_encoding", "check_light", "check_raw_storage",
+__all__ = ["LIGHT_SPACES", "CombinedImage", "Light", "check_encoding", "check_light", "check_raw_storage",
            "combined_image",
            "combined_light", "linear_to_raw", "linear_to_srgb", "linear_to_srgb_array",
            "srgb_to_linear", "srgb_to_linear_array"]
@@ -109,6 +111,32 @@ def combined_image(left: np.ndarray, right: np.ndarray, *, encoding: str = "srgb
     if check_light(light) == "encoded" or check_encoding(encoding) == "linear":
         return 0.5 * (np.asarray(left, np.float32) + np.asarray(right, np.float32))
     return linear_to_srgb_array(combined_light(left, right, encoding))
+
+
+@dataclass(eq=False)
+class CombinedImage:
+    """One pair's combined image, made once and read in either light: :attr:`light` (linear,
+    :func:`combined_light`) and :attr:`encoded` (display values, :func:`combined_image`), for
+    views ``(H, W, C)`` stored as display values. ``right`` None: one view's own image. The
+    output modes of a frame (the overshoot limit, the brightness tie) share one."""
+
+    left: np.ndarray
+    right: np.ndarray | None = None
+
+    @cached_property
+    def light(self) -> np.ndarray:
+        """Linear light, float32 ``(H, W, C)``."""
+        if self.right is None:
+            return srgb_to_linear_array(self.left)
+        return combined_light(self.left, self.right)
+
+    @cached_property
+    def encoded(self) -> np.ndarray:
+        """Display values, float32 ``(H, W, C)``: :attr:`light` encoded (the view itself when
+        there is one)."""
+        if self.right is None:
+            return np.asarray(self.left, np.float32)
+        return linear_to_srgb_array(self.light)
 
 
 def check_raw_storage(black_level: float, gains: tuple[float, float]) -> None:
