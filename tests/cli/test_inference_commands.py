@@ -18,7 +18,7 @@ def run(*args):
     return CliRunner().invoke(cli, [str(a) for a in args])
 
 
-def test_deblur_pair_keeps_16_bits_and_checks_sizes(checkpoint, tmp_path):
+def test_deblur_pair_keeps_16_bits_and_checks_sizes(checkpoint, tmp_path, capfd):
     rng = np.random.default_rng(0)
     for name in ("l", "r"):
         cv2.imwrite(str(tmp_path / f"{name}.png"), rng.integers(0, 65535, (36, 52, 3), np.uint16))
@@ -31,10 +31,12 @@ def test_deblur_pair_keeps_16_bits_and_checks_sizes(checkpoint, tmp_path):
     bad = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
               "--output", tmp_path / "o.png", "--checkpoint", checkpoint)
     assert bad.exit_code == 1 and "r.png" in bad.output and "differs" in bad.output
-    (tmp_path / "r.png").write_bytes(b"broken")
+    (tmp_path / "r.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(100))  # a header, then zeros
+    capfd.readouterr()
     bad = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "r.png",
               "--output", tmp_path / "o.png", "--checkpoint", checkpoint)
     assert bad.exit_code == 1 and "r.png: cannot be decoded" in bad.output
+    assert "grfmt" not in capfd.readouterr().err  # our error alone, not the decoder's log too
     missing = run("deblur", "--left", tmp_path / "l.png", "--right", tmp_path / "l.png",
                   "--output", tmp_path / "o.png", "--checkpoint", tmp_path / "none.safetensors")
     assert missing.exit_code == 1 and "none.safetensors: checkpoint not found" in missing.output

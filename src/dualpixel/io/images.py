@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import os
 import threading
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -129,16 +130,29 @@ def _check_decodable(path: Path) -> None:
                                    f"{available / GIB:.1f} GiB is available")
 
 
+@contextmanager
+def _decoder_quiet():
+    """OpenCV's own log silenced while a file decodes: a file it cannot read gets our error,
+    which names it, not the decoder's internal message besides (restored after)."""
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+
+
 def _imread(path: Path, kind: str = "image") -> np.ndarray:
     """The file's pixels as OpenCV reads them; ``kind`` ("image" or "depth map") words errors."""
     if not path.is_file():
         raise InputFileError(path, "file not found")
     _check_decodable(path)
     try:
-        if path.suffix.lower() in (".tif", ".tiff"):
-            data = cv2.imdecode(_tiff_upright_bytes(path), cv2.IMREAD_UNCHANGED)
-        else:  # IMREAD_UNCHANGED ignores EXIF orientation: pixels stay in sensor order
-            data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        with _decoder_quiet():
+            if path.suffix.lower() in (".tif", ".tiff"):
+                data = cv2.imdecode(_tiff_upright_bytes(path), cv2.IMREAD_UNCHANGED)
+            else:  # IMREAD_UNCHANGED ignores EXIF orientation: pixels stay in sensor order
+                data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     except cv2.error:
         data = None
     if data is None and path.suffix.lower() == ".exr" and not cv2.haveImageReader(str(path)):
