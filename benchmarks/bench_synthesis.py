@@ -54,7 +54,7 @@ import numpy as np
 import torch
 
 from dualpixel.optics.psf import PSFParams, dp_psf
-from dualpixel.optics.thin_lens import CAMERA_PRESETS, coc_radius
+from dualpixel.optics.thin_lens import PAPER_LENS_SETS, coc_radius
 from dualpixel.synthesis.renderer import quantise_layers, render_dp_views
 from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
 
@@ -216,7 +216,7 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int,
                                 str(out), "--lens-sets", name, "--no-noise", "--no-distortion"],
                                check=True, capture_output=True)
                 walls.append(time.perf_counter() - started)
-            camera = CAMERA_PRESETS[name]
+            camera = PAPER_LENS_SETS[name]
             _, per_frame, _ = median_timed(
                 lambda cam=camera: authors_algorithm(rgb, depth, cam, params), "cpu", 1)
             command_s, baseline_s = float(np.median(walls)), frames * per_frame
@@ -241,7 +241,7 @@ def batched(sets: list[str], width: int, height: int, device: str, batch: int,
     print("| set | PSNR default vs exact L / R / C (dB) | PSNR batched vs exact L / R / C (dB) |")
     print("|---|---|---|")
     for name in sets:
-        coc = coc_radius(depths[0], CAMERA_PRESETS[name])
+        coc = coc_radius(depths[0], PAPER_LENS_SETS[name])
         exact = render_dp_views(images[0], coc, params, mode="exact")
         fast = render_dp_views(images[0], coc, params)
         left, right = render_batch(images[:1], coc[None], params)
@@ -258,7 +258,7 @@ def batched(sets: list[str], width: int, height: int, device: str, batch: int,
     for w, h in ((840, 560), (1920, 1080)):
         scaled = torch.nn.functional.interpolate(images, size=(h, w), mode="bilinear")
         depth = torch.nn.functional.interpolate(depths[:, None], size=(h, w))[:, 0]
-        coc = coc_radius(depth, CAMERA_PRESETS["set0"])
+        coc = coc_radius(depth, PAPER_LENS_SETS["set0"])
         render_batch(scaled[:1, :, :64, :64], coc[:1, :64, :64], params)  # warm-up
         def one_by_one(scaled=scaled, coc=coc):
             return [render_dp_views(scaled[k], coc[k], params) for k in range(batch)]
@@ -365,7 +365,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     gpu_figures = []  # printed after the table
     for name in args.sets.split(","):
-        camera = CAMERA_PRESETS[name]
+        camera = PAPER_LENS_SETS[name]
         coc = coc_radius(torch.from_numpy(depth).to(args.device), camera)
         layers = [len(authors_layers(camera))] + [
             quantise_layers(coc, 500, mode=m)[1].numel() for m in ("exact", "fast")]

@@ -168,9 +168,9 @@ def _old_camera_arguments(lens_set: str, camera: Any, camera_file: Any) -> tuple
     """``(lens_set, camera)`` with the arguments' old meanings taken, with a warning: before
     release 0.2, ``camera`` named the lens set and ``camera_file`` the calibrated camera."""
     from dualpixel.names import RENAMED_UNTIL, warn_renamed
-    from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES
+    from dualpixel.optics.thin_lens import DEFOCUS_PROFILES, PAPER_LENS_SETS
 
-    if isinstance(camera, str) and camera in (*CAMERA_PRESETS, *DEFOCUS_PROFILES):
+    if isinstance(camera, str) and camera in (*PAPER_LENS_SETS, *DEFOCUS_PROFILES):
         warnings.warn(f"synthesize(camera={camera!r}): a lens set is now lens_set=; camera= is "
                       f"a calibrated camera (the old meaning goes in release {RENAMED_UNTIL})",
                       FutureWarning, stacklevel=3)
@@ -218,7 +218,7 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
     from dualpixel.device import resolve_device
     from dualpixel.io.images import check_depth_map
     from dualpixel.optics.psf_bank import PSF_BANKS
-    from dualpixel.optics.thin_lens import CAMERA_PRESETS, DEFOCUS_PROFILES, focus_from_depth
+    from dualpixel.optics.thin_lens import DEFOCUS_PROFILES, PAPER_LENS_SETS, focus_from_depth
     from dualpixel.synthesis.dataset import synthesis_settings
     from dualpixel.synthesis.frame import camera_settings, draw_sequence, synthesize_frame
 
@@ -251,12 +251,12 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
         camera, PSF_BANKS[psf_bank], psf_shapes=psf_shapes, light=light)
     if lens_set in DEFOCUS_PROFILES:
         focus = focus_from_depth(depth_map)
-        lens = DEFOCUS_PROFILES[lens_set].camera(np.random.default_rng(seed), focus,
+        lens = DEFOCUS_PROFILES[lens_set].lens(np.random.default_rng(seed), focus,
                                                  depth_map.shape[1])
-    elif lens_set in CAMERA_PRESETS:
+    elif lens_set in PAPER_LENS_SETS:
         lens = lens_set
     else:
-        known = ", ".join([*CAMERA_PRESETS, *DEFOCUS_PROFILES])
+        known = ", ".join([*PAPER_LENS_SETS, *DEFOCUS_PROFILES])
         raise ParameterError(f"lens_set must be one of {known}, got {lens_set!r}")
     draw = draw_sequence(seed, lens, bank=bank, disparity_ratio=disparity_ratio,
                          light=light_space, distortion=distortion,

@@ -81,7 +81,7 @@ def _synthetic_frames(rgbd: list[tuple[np.ndarray, np.ndarray]], lens_set: str, 
     if lens_set in DEFOCUS_PROFILES:
         rng = np.random.default_rng(seed)
         focus = focus_distance or focus_from_depth(rgbd[0][1])
-        lens = DEFOCUS_PROFILES[lens_set].camera(rng, focus, rgbd[0][1].shape[1])
+        lens = DEFOCUS_PROFILES[lens_set].lens(rng, focus, rgbd[0][1].shape[1])
     draw = draw_sequence(seed, lens, noise_sigmas=(0.01,), bank=PIXEL4_PSF_BANK,
                          noise_model="poisson-gaussian")
     frames = []

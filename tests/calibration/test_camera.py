@@ -14,7 +14,7 @@ from dualpixel.cli.main import cli
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.optics.crosstalk import apply_crosstalk
 from dualpixel.optics.psf import PSFParams, dp_psf
-from dualpixel.optics.thin_lens import ThinLensCamera
+from dualpixel.optics.thin_lens import ThinLens
 from dualpixel.synthesis.frame import SequenceDraw, synthesize_frame
 
 ROOT_CAMERAS = Path(__file__).resolve().parents[2] / "src" / "dualpixel" / "cameras"
@@ -39,10 +39,10 @@ def _pair(seed: int, ratio=RATIO, params=TRUE_PSF, size=(192, 288), light="encod
     height, width = size
     target = _texture(height, width, seed)
     depth = np.tile(np.linspace(1.3, 8.0, width, dtype=np.float32), (height, 1))
-    lens = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=1.0)
-    camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 10.0,
-                            max_coc_radius=9.0)
-    draw = SequenceDraw(camera=camera, psf=params, distortion=None, noise_sigma=None,
+    lens = ThinLens(0.05, 2.0, 2.0, pixel_pitch=1.0)
+    camera = ThinLens(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 10.0,
+                      max_coc_radius=9.0)
+    draw = SequenceDraw(lens=camera, psf=params, distortion=None, noise_sigma=None,
                             disparity_ratio=ratio, light=light)
     frame = synthesize_frame(target, depth, draw)
     hwc = [t.permute(1, 2, 0).numpy() for t in (frame.left, frame.right, frame.target)]

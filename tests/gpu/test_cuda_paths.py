@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from dualpixel import deblur
-from dualpixel.optics.thin_lens import CAMERA_PRESETS, coc_radius
+from dualpixel.optics.thin_lens import PAPER_LENS_SETS, coc_radius
 from dualpixel.synthesis.batched_renderer import render_batch
 from dualpixel.synthesis.frame import draw_sequence, synthesize_frame
 from dualpixel.synthesis.renderer import render_dp_views
@@ -51,7 +51,7 @@ def test_the_renderers_on_the_gpu_are_the_cpu_renderers(gpu, frame):
     on the device, against the default renderer on the CPU."""
     rgb, depth = frame
     image = torch.from_numpy(rgb).permute(2, 0, 1)
-    coc = coc_radius(torch.from_numpy(depth), CAMERA_PRESETS["set4"])  # reduced resolutions too
+    coc = coc_radius(torch.from_numpy(depth), PAPER_LENS_SETS["set4"])  # reduced resolutions too
     cpu = render_dp_views(image, coc)
     default = render_dp_views(image.to(gpu), coc.to(gpu))
     batched = render_batch(image[None].to(gpu), coc[None].to(gpu))

@@ -7,7 +7,7 @@ import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.optics.psf import PSFParams
-from dualpixel.optics.thin_lens import CAMERA_PRESETS, coc_radius
+from dualpixel.optics.thin_lens import PAPER_LENS_SETS, coc_radius
 from dualpixel.synthesis.batched_renderer import crop_margin, render_batch
 from dualpixel.synthesis.layers import quantise_layers
 from dualpixel.synthesis.renderer import render_dp_views
@@ -31,7 +31,7 @@ def frames():
 @pytest.mark.parametrize("name", ["set0", "set1", "set2", "set3", "set4"])
 def test_batch_is_the_default_renderer_and_near_exact(frames, name):
     images, depths = frames
-    coc = coc_radius(depths, CAMERA_PRESETS[name])
+    coc = coc_radius(depths, PAPER_LENS_SETS[name])
     left, right = render_batch(images[:2], coc[:2])
     assert left.shape == right.shape == images[:2].shape
     for b in range(2):
@@ -46,7 +46,7 @@ def test_batch_is_the_default_renderer_and_near_exact(frames, name):
 
 def test_each_frame_keeps_its_own_psf_and_model(frames):
     images, depths = frames
-    coc = coc_radius(depths, CAMERA_PRESETS["set2"])
+    coc = coc_radius(depths, PAPER_LENS_SETS["set2"])
     params = [PSFParams(), PSFParams(n=6.0, alpha=0.3), None]
     models = ["ours", "ours", "gaussian"]
     left, right = render_batch(images, coc, params, model=models)
@@ -60,7 +60,7 @@ def test_each_frame_keeps_its_own_psf_and_model(frames):
 
 def test_a_crop_with_its_margin_is_that_region_of_the_whole_frame(frames):
     images, depths = frames
-    coc = coc_radius(depths[0], CAMERA_PRESETS["set1"])  # up to ~20 px of blur
+    coc = coc_radius(depths[0], PAPER_LENS_SETS["set1"])  # up to ~20 px of blur
     whole_left, whole_right = render_batch(images[:1], coc[None])
     labels, layer_coc = quantise_layers(coc, 500, mode="fast")
     margin = crop_margin(float(coc.abs().max()))
@@ -79,7 +79,7 @@ def test_a_crop_with_its_margin_is_that_region_of_the_whole_frame(frames):
 
 def test_deterministic_and_in_double_precision(frames):
     images, depths = frames[0][:1], frames[1][:1]
-    coc = coc_radius(depths, CAMERA_PRESETS["set1"])
+    coc = coc_radius(depths, PAPER_LENS_SETS["set1"])
     first = render_batch(images, coc)
     again = render_batch(images, coc)
     assert all(torch.equal(a, b) for a, b in zip(first, again))
@@ -90,7 +90,7 @@ def test_deterministic_and_in_double_precision(frames):
 
 def test_bad_batches_are_refused(frames):
     images, depths = frames
-    coc = coc_radius(depths, CAMERA_PRESETS["set0"])
+    coc = coc_radius(depths, PAPER_LENS_SETS["set0"])
     with pytest.raises(ParameterError, match=r"\(B, C, H, W\)"):
         render_batch(images[0], coc[0])
     with pytest.raises(ParameterError, match="one entry per frame"):

@@ -426,10 +426,10 @@ def test_the_phone_profile_blurs_crops_like_the_phone_frame():
 
     profile = DEFOCUS_PROFILES["phone-2016-crop"]
     rng = np.random.default_rng(0)
-    far = [abs(float(coc_radius(np.array([1e6]), profile.camera(rng, 1.0, 840))[0]))
+    far = [abs(float(coc_radius(np.array([1e6]), profile.lens(rng, 1.0, 840))[0]))
            for _ in range(200)]
     assert 1.0 <= min(far) and max(far) <= 12.0  # px, whatever the crop's width
     close = [abs(float(coc_radius(np.array([1e6]),
-                                  DEFOCUS_PROFILES["phone-2016-close"].camera(rng, 1.0, 840))[0]))
+                                  DEFOCUS_PROFILES["phone-2016-close"].lens(rng, 1.0, 840))[0]))
              for _ in range(200)]
     assert 2.0 <= min(close) and max(close) <= 24.0 and np.median(close) > 1.8 * np.median(far)

@@ -102,8 +102,8 @@ def test_bad_layout_is_refused():
 def test_defocus_profile_scales_with_the_frame_and_focuses():
     profile = DEFOCUS_PROFILES["dslr-840"]
     rng = np.random.default_rng(0)
-    full = profile.camera(np.random.default_rng(5), 3.0, 840)
-    half = profile.camera(np.random.default_rng(5), 3.0, 420)
+    full = profile.lens(np.random.default_rng(5), 3.0, 840)
+    half = profile.lens(np.random.default_rng(5), 3.0, 420)
     depths = np.array([3.0, 1e9, 1.5])
     r_full, r_half = coc_radius(depths, full), coc_radius(depths, half)
     assert r_full[0] == pytest.approx(0.0, abs=1e-9)
@@ -112,13 +112,13 @@ def test_defocus_profile_scales_with_the_frame_and_focuses():
     assert r_half[1] == pytest.approx(r_full[1] / 2, rel=1e-6)  # relative to the frame
     assert r_full[2] < 0  # in front of the focus
     assert abs(coc_radius(np.array([1e-3]), full)[0]) == pytest.approx(profile.max_coc_radius)
-    draws = [coc_radius(np.array([1e9]), profile.camera(rng, 2.0, 840))[0] for _ in range(200)]
+    draws = [coc_radius(np.array([1e9]), profile.lens(rng, 2.0, 840))[0] for _ in range(200)]
     assert low <= min(draws) and max(draws) <= high and np.std(draws) > 1
     with pytest.raises(ParameterError, match="infinity_coc"):
         DefocusProfile("bad", 840, (5.0, 1.0), 10.0)
 
 
-def test_every_sequence_gets_its_own_profile_camera(tmp_path):
+def test_every_sequence_gets_its_own_profile_lens(tmp_path):
     # regression: the first sequence's camera (focus and blur scale) was reused for all others
     scenes = tmp_path / "scenes"
     write_scene_folder(scenes, 4, SceneConfig(width=64, height=48, frames=1, layout="photo"),
@@ -129,11 +129,11 @@ def test_every_sequence_gets_its_own_profile_camera(tmp_path):
     assert len(jobs) == 8
     for job in jobs:
         scene = json.loads((job.frame.rgb.parent.parent / "scene.json").read_text())
-        camera = job.draw.camera
+        camera = job.draw.lens
         assert camera.name == ("dslr-840" if job.sequence <= 4 else "dslr-840-mild")
         assert camera.focus_distance == pytest.approx(scene["focus_distance"])
-    assert len({job.draw.camera.focus_distance for job in jobs}) == 4
-    assert len({job.draw.camera.pixel_pitch for job in jobs}) == 8  # blur scale per sequence
+    assert len({job.draw.lens.focus_distance for job in jobs}) == 4
+    assert len({job.draw.lens.pixel_pitch for job in jobs}) == 8  # blur scale per sequence
 
 
 def test_pixel4_bank_spans_the_fitted_shapes():

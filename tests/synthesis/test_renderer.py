@@ -5,7 +5,7 @@ import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.optics.psf import PSFParams
-from dualpixel.optics.thin_lens import CAMERA_PRESETS
+from dualpixel.optics.thin_lens import PAPER_LENS_SETS
 from dualpixel.synthesis.convolution import convolve_same
 from dualpixel.synthesis.frame import draw_sequence, synthesize_frame
 from dualpixel.synthesis.renderer import quantise_layers, render_dp_views
@@ -33,7 +33,7 @@ def test_uniform_scene_renders_uniform_for_any_depth():
 
 
 def test_in_focus_plane_gives_identical_views_and_target():
-    camera = CAMERA_PRESETS["set1"]
+    camera = PAPER_LENS_SETS["set1"]
     depth = np.full((H, W), camera.focus_distance, np.float32)
     rgb = textured().permute(1, 2, 0).numpy()
     for distortion in (False, True):
@@ -139,13 +139,13 @@ def _psnr8(a: torch.Tensor, b: torch.Tensor) -> float:
 @pytest.mark.parametrize(("camera", "large_blur"), [("set0", False), ("set2", True),
                                                     ("set4", True)])
 def test_default_rendering_stays_within_45_db_of_exact(camera, large_blur):
-    from dualpixel.optics.thin_lens import CAMERA_PRESETS, coc_radius
+    from dualpixel.optics.thin_lens import PAPER_LENS_SETS, coc_radius
     from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
 
     rgb, depth = render_scene_sequence(3, SceneConfig(width=192, height=128, frames=1,
                                                       leaves=12))[0]
     image = torch.from_numpy(rgb).permute(2, 0, 1)
-    coc = coc_radius(torch.from_numpy(depth), CAMERA_PRESETS[camera])
+    coc = coc_radius(torch.from_numpy(depth), PAPER_LENS_SETS[camera])
     # large blur: layers at reduced resolution are used
     assert (float(coc.abs().max()) > 10) == large_blur
     exact = render_dp_views(image, coc, mode="exact")
@@ -223,14 +223,14 @@ def test_fast_layers_are_unions_of_exact_layers():
 
 def test_reduced_layers_composited_by_covered_regions_equal_the_whole_group(monkeypatch):
     """Upsampling only the covered blocks of a reduced-resolution group changes no pixel."""
-    from dualpixel.optics.thin_lens import CAMERA_PRESETS, coc_radius
+    from dualpixel.optics.thin_lens import PAPER_LENS_SETS, coc_radius
     from dualpixel.synthesis import fast_renderer
     from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
 
     rgb, depth = render_scene_sequence(5, SceneConfig(width=256, height=160, frames=1,
                                                       leaves=16))[0]
     image = torch.from_numpy(rgb).permute(2, 0, 1)
-    coc = coc_radius(torch.from_numpy(depth), CAMERA_PRESETS["set4"])
+    coc = coc_radius(torch.from_numpy(depth), PAPER_LENS_SETS["set4"])
     regions = fast_renderer._covered_regions(torch.ones(2, 9, 7, 1))
     assert regions == [(0, 9, 0, 7)]
     split = fast_renderer.render_fast(image, coc)
@@ -246,17 +246,17 @@ def test_linear_light_blur_conserves_light_not_stored_values():
     linear intensity, blurred in the stored values (the paper's generator) its mean stored
     value; flat regions far from the edge are the same either way."""
     from dualpixel.optics.psf import PSFParams
-    from dualpixel.optics.thin_lens import ThinLensCamera
+    from dualpixel.optics.thin_lens import ThinLens
     from dualpixel.optics.tone import srgb_to_linear
     from dualpixel.synthesis.frame import SequenceDraw, synthesize_frame
 
     image = np.full((64, 96, 3), 0.05, np.float32)
     image[:, 40:56] = 0.9  # a bright bar on a dark ground
     depth = np.full((64, 96), 8.0, np.float32)
-    lens = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=1.0)
-    camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 8.0)
+    lens = ThinLens(0.05, 2.0, 2.0, pixel_pitch=1.0)
+    camera = ThinLens(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 8.0)
     frames = {light: synthesize_frame(image, depth, SequenceDraw(
-        camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None, light=light))
+        lens=camera, psf=PSFParams(), distortion=None, noise_sigma=None, light=light))
         for light in ("encoded", "linear")}
     inner = (slice(None), slice(None), slice(16, 80))  # away from the frame's borders
     source = torch.from_numpy(image).permute(2, 0, 1)[inner]
@@ -277,18 +277,18 @@ def test_raw_storage_keeps_the_light_in_the_stored_values():
     lies between the black level and black + (1 - black) * gain, and the target is the sRGB
     frame's light stored so."""
     from dualpixel.optics.psf import PSFParams
-    from dualpixel.optics.thin_lens import ThinLensCamera
+    from dualpixel.optics.thin_lens import ThinLens
     from dualpixel.optics.tone import srgb_to_linear
     from dualpixel.synthesis.frame import SequenceDraw, synthesize_frame
 
     image = np.full((64, 96, 3), 0.05, np.float32)
     image[:, 40:56] = 0.9
     depth = np.full((64, 96), 8.0, np.float32)
-    lens = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=1.0)
-    camera = ThinLensCamera(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 8.0)
+    lens = ThinLens(0.05, 2.0, 2.0, pixel_pitch=1.0)
+    camera = ThinLens(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 8.0)
     black, gain = 0.0625, 0.5
     frame = synthesize_frame(image, depth, SequenceDraw(
-        camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None, light="linear",
+        lens=camera, psf=PSFParams(), distortion=None, noise_sigma=None, light="linear",
         raw=(black, gain)))
     inner = (slice(None), slice(None), slice(16, 80))
     light = srgb_to_linear(torch.from_numpy(image).permute(2, 0, 1))
@@ -301,10 +301,10 @@ def test_raw_storage_keeps_the_light_in_the_stored_values():
         assert float(view.max()) <= black + (1 - black) * gain + 1e-6
     torch.testing.assert_close(frame.combined, (frame.left + frame.right) / 2)
     with pytest.raises(ParameterError, match="raw storage needs light 'linear'"):
-        SequenceDraw(camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None,
+        SequenceDraw(lens=camera, psf=PSFParams(), distortion=None, noise_sigma=None,
                      raw=(black, gain))
     with pytest.raises(ParameterError, match=r"black_level \(of full scale\) must be in"):
-        SequenceDraw(camera=camera, psf=PSFParams(), distortion=None, noise_sigma=None,
+        SequenceDraw(lens=camera, psf=PSFParams(), distortion=None, noise_sigma=None,
                      light="linear", raw=(0.7, gain))
 
 

@@ -23,18 +23,18 @@ from dualpixel.optics.psf_bank import (
     PSFBank,
 )
 from dualpixel.optics.thin_lens import (
-    CAMERA_PRESETS,
     DEFOCUS_PROFILES,
+    PAPER_LENS_SETS,
     DefocusProfile,
-    ThinLensCamera,
+    ThinLens,
     coc_radius,
 )
 
 __all__ = [
     "BROAD_PSF_BANK",
-    "CAMERA_PRESETS",
     "DEFOCUS_PROFILES",
     "DISTORTION_PRESETS",
+    "PAPER_LENS_SETS",
     "PAPER_NOISE_SIGMAS",
     "PAPER_PSF_BANK",
     "PIXEL4_PSF_BANK",
@@ -45,7 +45,7 @@ __all__ = [
     "DivisionDistortion",
     "PSFBank",
     "PSFParams",
-    "ThinLensCamera",
+    "ThinLens",
     "add_noise",
     "coc_radius",
     "distort_image",
@@ -55,3 +55,10 @@ __all__ = [
     "sample_noise_sigma",
     "undistort_points",
 ]
+
+
+def __getattr__(name: str):
+    """Old names (until release 0.3): :data:`~dualpixel.optics.thin_lens._RENAMED`."""
+    from dualpixel.optics import thin_lens
+
+    return getattr(thin_lens, name)

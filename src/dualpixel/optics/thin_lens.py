@@ -2,7 +2,7 @@
 
 Units. The paper gives its five camera sets {f, F, s} without units or pixel pitch. We follow the
 authors' generator: ``focal_length`` and ``focus_distance`` are in the same unit as depth (metres
-for SYNTHIA and our procedural scenes), the camera is a *virtual* one, and Eq. 1 gives the CoC
+for SYNTHIA and our procedural scenes), the lens is a *virtual* one, and Eq. 1 gives the CoC
 radius on the virtual sensor in that unit. ``pixel_pitch`` (same unit) turns it into pixels. The
 presets use ``pixel_pitch = 0.5``, which reproduces the CoC sizes of the authors' generator (it
 omits the factor 1/2 of Eq. 1, i.e. it reads the diameter as the radius in pixels). Every radius is
@@ -23,10 +23,10 @@ import torch
 from dualpixel.errors import ParameterError, check_range
 
 __all__ = [
-    "CAMERA_PRESETS",
     "DEFOCUS_PROFILES",
+    "PAPER_LENS_SETS",
     "DefocusProfile",
-    "ThinLensCamera",
+    "ThinLens",
     "coc_radius",
     "focus_from_depth",
     "validate_depth",
@@ -36,8 +36,10 @@ ArrayT = TypeVar("ArrayT", np.ndarray, torch.Tensor)
 
 
 @dataclass(frozen=True)
-class ThinLensCamera:
-    """A thin-lens camera (paper Eq. 1). Lengths share the depth map's unit; see module docstring.
+class ThinLens:
+    """A thin lens before the sensor (paper Eq. 1): what a lens set blurs a scene with, not a
+    calibrated camera (:class:`~dualpixel.optics.camera.DPCamera`). Lengths share the depth
+    map's unit; see the module docstring.
 
     Args:
         focal_length: f, > 0.
@@ -107,15 +109,15 @@ def validate_depth(depth: np.ndarray | torch.Tensor, name: str = "depth") -> Non
         )
 
 
-def coc_radius(depth: ArrayT, camera: ThinLensCamera, *, clamp: bool = True) -> ArrayT:
+def coc_radius(depth: ArrayT, lens: ThinLens, *, clamp: bool = True) -> ArrayT:
     r"""Signed circle-of-confusion radius in pixels (paper Eq. 1).
 
     .. math:: r = \frac{q}{2} \frac{s'}{s} \frac{d - s}{d}
 
     Args:
-        depth: distances d > 0, any shape, NumPy array or torch tensor (same unit as the camera).
-        camera: the thin-lens camera.
-        clamp: clamp |r| to ``camera.max_coc_radius``.
+        depth: distances d > 0, any shape, NumPy array or torch tensor (same unit as the lens).
+        lens: the thin lens.
+        clamp: clamp |r| to ``lens.max_coc_radius``.
 
     Returns:
         r in pixels, same type, shape, dtype and device as ``depth``.
@@ -123,29 +125,30 @@ def coc_radius(depth: ArrayT, camera: ThinLensCamera, *, clamp: bool = True) -> 
     Raises:
         ParameterError: depth with NaN, inf, zero or negative values.
 
-    >>> cam = ThinLensCamera(4.0, 5.0, 6.0)
-    >>> float(coc_radius(np.array([6.0]), cam)[0])
+    >>> lens = ThinLens(4.0, 5.0, 6.0)
+    >>> float(coc_radius(np.array([6.0]), lens)[0])
     0.0
     """
     validate_depth(depth)
-    radius = camera.coc_scale * (depth - camera.focus_distance) / depth
+    radius = lens.coc_scale * (depth - lens.focus_distance) / depth
     if clamp:
-        limit = camera.max_coc_radius
+        limit = lens.max_coc_radius
         radius = radius.clamp(-limit, limit) if isinstance(radius, torch.Tensor) else np.clip(
             radius, -limit, limit
         )
     return radius
 
 
-#: The paper's five camera sets {f, F, s} (Sec. 5), in order; distortion presets match by index.
-CAMERA_PRESETS: dict[str, ThinLensCamera] = {
-    camera.name: camera
-    for camera in (
-        ThinLensCamera(4, 5, 6, name="set0"),
-        ThinLensCamera(5, 8, 6, name="set1"),
-        ThinLensCamera(7, 5, 8, name="set2"),
-        ThinLensCamera(10, 13, 12, name="set3"),
-        ThinLensCamera(22, 10, 30, name="set4"),
+#: The paper's five camera parameter sets {f, F, s} (Sec. 5), in order: the lens sets
+#: ``set0``..``set4``; distortion presets match by index.
+PAPER_LENS_SETS: dict[str, ThinLens] = {
+    lens.name: lens
+    for lens in (
+        ThinLens(4, 5, 6, name="set0"),
+        ThinLens(5, 8, 6, name="set1"),
+        ThinLens(7, 5, 8, name="set2"),
+        ThinLens(10, 13, 12, name="set3"),
+        ThinLens(22, 10, 30, name="set4"),
     )
 }
 
@@ -158,12 +161,12 @@ class DefocusProfile:
     a blur far larger, relative to its content, than a photograph has. A profile instead says how
     large the CoC is at a reference frame width: per sequence it draws the CoC radius of a point
     at infinity, ``|r_inf|``, log-uniformly from ``infinity_coc`` (px at ``reference_width``),
-    scales it by ``width / reference_width`` and builds the thin-lens camera of Eq. 1 that focuses
+    scales it by ``width / reference_width`` and builds the thin lens of Eq. 1 that focuses
     at the given distance and gives that CoC (r = r_inf (d - s) / d). ``max_coc_radius`` (px at the
     reference width) clamps near, strongly defocused surfaces.
 
-    >>> camera = DEFOCUS_PROFILES["dslr-840"].camera(np.random.default_rng(0), 2.0, 840)
-    >>> round(float(coc_radius(np.array([2.0]), camera)[0]), 6)
+    >>> lens = DEFOCUS_PROFILES["dslr-840"].lens(np.random.default_rng(0), 2.0, 840)
+    >>> round(float(coc_radius(np.array([2.0]), lens)[0]), 6)
     0.0
     """
 
@@ -183,10 +186,15 @@ class DefocusProfile:
         check_range("infinity_coc high", high, low)
         check_range("max_coc_radius", self.max_coc_radius, 0.0, low_inclusive=False)
 
-    def camera(
-        self, rng: np.random.Generator, focus_distance: float, width: int
-    ) -> ThinLensCamera:
-        """The camera of one sequence: focused at ``focus_distance``, frame ``width`` px wide."""
+    def camera(self, rng: np.random.Generator, focus_distance: float, width: int) -> ThinLens:
+        """Old name of :meth:`lens` (until release 0.3)."""
+        from dualpixel.names import warn_renamed
+
+        warn_renamed("DefocusProfile.camera()", "DefocusProfile.lens()", stacklevel=2)
+        return self.lens(rng, focus_distance, width)
+
+    def lens(self, rng: np.random.Generator, focus_distance: float, width: int) -> ThinLens:
+        """The lens of one sequence: focused at ``focus_distance``, frame ``width`` px wide."""
         check_range("focus_distance", focus_distance, 0.0, low_inclusive=False)
         check_range("width", width, 1)
         low, high = self.infinity_coc
@@ -194,8 +202,8 @@ class DefocusProfile:
         r_inf = float(np.exp(rng.uniform(np.log(low), np.log(high)))) * scale
         focal_length = min(0.05, 0.5 * float(focus_distance))  # any f < s: the pitch absorbs it
         f_number = 2.0
-        lens = ThinLensCamera(focal_length, f_number, float(focus_distance), pixel_pitch=1.0)
-        return ThinLensCamera(
+        lens = ThinLens(focal_length, f_number, float(focus_distance), pixel_pitch=1.0)
+        return ThinLens(
             focal_length, f_number, float(focus_distance),
             pixel_pitch=lens.coc_scale / r_inf,
             max_coc_radius=self.max_coc_radius * scale,
@@ -250,3 +258,16 @@ DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
                        scale_with_width=False),
     )
 }
+
+
+#: Old names (until release 0.3): "camera" now names a calibrated camera file alone.
+_RENAMED = {"ThinLensCamera": "ThinLens", "CAMERA_PRESETS": "PAPER_LENS_SETS"}
+
+
+def __getattr__(name: str):
+    if name in _RENAMED:
+        from dualpixel.names import warn_renamed
+
+        warn_renamed(f"dualpixel.optics.{name}", _RENAMED[name], stacklevel=2)
+        return globals()[_RENAMED[name]]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

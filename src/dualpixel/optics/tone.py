@@ -26,10 +26,9 @@ import torch
 from dualpixel.errors import ParameterError, check_range
 from dualpixel.names import ENCODINGS, LIGHT_SPACES
 
-__all__ = ["LIGHT_SPACES", "CombinedImage", "Light", "check_encoding", "check_light", "check_raw_storage",
-           "combined_image",
-           "combined_light", "linear_to_raw", "linear_to_srgb", "linear_to_srgb_array",
-           "srgb_to_linear", "srgb_to_linear_array"]
+__all__ = ["LIGHT_SPACES", "CombinedImage", "Light", "check_encoding", "check_light",
+           "check_raw_storage", "combined_image", "combined_light", "linear_to_raw",
+           "linear_to_srgb", "linear_to_srgb_array", "srgb_to_linear", "srgb_to_linear_array"]
 
 Light = Literal["encoded", "linear"]  # LIGHT_SPACES
 

@@ -57,10 +57,10 @@ from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_s
 from dualpixel.optics.psf import PSFModel, check_psf_model
 from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
 from dualpixel.optics.thin_lens import (
-    CAMERA_PRESETS,
     DEFOCUS_PROFILES,
+    PAPER_LENS_SETS,
     DefocusProfile,
-    ThinLensCamera,
+    ThinLens,
     focus_from_depth,
 )
 from dualpixel.optics.tone import check_encoding, check_raw_storage
@@ -92,7 +92,7 @@ class SynthConfig:
 
     # What blurs each output sequence (one per input and lens set): the paper's camera
     # parameter sets setK, or blur profiles relative to the frame (dslr-840, ...).
-    lens_sets: tuple[str, ...] = tuple(CAMERA_PRESETS)
+    lens_sets: tuple[str, ...] = tuple(PAPER_LENS_SETS)
     psf_model: PSFModel = "ours"
     psf_bank: str = "paper"
     max_layers: int = 500
@@ -131,7 +131,7 @@ class SynthConfig:
         for key in ("lens_sets", "noise_sigmas", "raw_gains"):  # lists from JSON or YAML
             if isinstance(getattr(self, key), list):
                 object.__setattr__(self, key, tuple(getattr(self, key)))
-        known = (*CAMERA_PRESETS, *DEFOCUS_PROFILES)
+        known = (*PAPER_LENS_SETS, *DEFOCUS_PROFILES)
         unknown = [c for c in self.lens_sets if c not in known]
         if unknown or not self.lens_sets:
             raise ParameterError(
@@ -254,11 +254,11 @@ class FrameJob:
         return {role: paths[role] for role in ("combined", "left", "right", "target", "defocus")}
 
 
-def _profile_camera(
+def _profile_lens(
     profile: DefocusProfile, sequence: InputSequence, fmt: InputFormat, config: SynthConfig,
     seed: tuple[int, ...],
-) -> ThinLensCamera:
-    """A defocus profile's camera for a sequence: focused at the distance its ``scene.json``
+) -> ThinLens:
+    """A defocus profile's lens for a sequence: focused at the distance its ``scene.json``
     gives (procedural "photo" scenes), else at a depth percentile (10..50, drawn) of its first
     frame; the frame width scales the blur."""
     rng = np.random.default_rng((*seed, 1))
@@ -277,7 +277,7 @@ def _profile_camera(
             raise InputFileError(scene_file, str(error)) from None
     if focus is None:
         focus = focus_from_depth(depth, rng.uniform(10, 50))
-    return profile.camera(rng, focus, depth.shape[1])
+    return profile.lens(rng, focus, depth.shape[1])
 
 
 def plan_jobs(
@@ -286,18 +286,17 @@ def plan_jobs(
     """Every output frame, with the draw of its sequence drawn from the seed."""
     jobs = []
     bank, disparity_ratio, light = config.draw_settings()
-    for cam_index, camera_name in enumerate(config.lens_sets):
+    for set_index, lens_set in enumerate(config.lens_sets):
         for seq_index, sequence in enumerate(sequences):
-            number = cam_index * len(sequences) + seq_index + 1
-            seed = (config.seed, seq_index, cam_index)
+            number = set_index * len(sequences) + seq_index + 1
+            seed = (config.seed, seq_index, set_index)
             distortion = config.distortion
-            # a defocus profile draws a camera per sequence (its focus and blur scale)
-            camera: str | ThinLensCamera = camera_name
-            if camera_name in DEFOCUS_PROFILES:
-                camera = _profile_camera(DEFOCUS_PROFILES[camera_name], sequence, fmt, config,
-                                         seed)
+            # a defocus profile draws a lens per sequence (its focus and blur scale)
+            lens: str | ThinLens = lens_set
+            if lens_set in DEFOCUS_PROFILES:
+                lens = _profile_lens(DEFOCUS_PROFILES[lens_set], sequence, fmt, config, seed)
             draw = draw_sequence(
-                seed, camera, psf_model=config.psf_model, bank=bank,
+                seed, lens, psf_model=config.psf_model, bank=bank,
                 disparity_ratio=disparity_ratio, light=light,
                 distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,

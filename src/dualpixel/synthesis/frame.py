@@ -1,10 +1,12 @@
 """One synthetic DP frame: CoC -> layered DP views -> radial distortion -> noise (paper Sec. 3).
 
-A :class:`SequenceDraw` fixes what the paper keeps constant over a sequence (camera, PSF shape,
+A :class:`SequenceDraw` fixes what the paper keeps constant over a sequence (lens, PSF shape,
 distortion set, noise strength); :func:`draw_sequence` draws it reproducibly from a seed.
 """
 
 from __future__ import annotations
+
+import functools
 
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -31,7 +33,7 @@ from dualpixel.optics.noise import (
 )
 from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
 from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
-from dualpixel.optics.thin_lens import CAMERA_PRESETS, ThinLensCamera, coc_radius
+from dualpixel.optics.thin_lens import PAPER_LENS_SETS, ThinLens, coc_radius
 from dualpixel.optics.tone import (
     Light,
     check_light,
@@ -53,9 +55,10 @@ __all__ = ["DPFrame", "SequenceDraw", "camera_settings", "draw_sequence", "rende
 
 @dataclass(frozen=True)
 class SequenceDraw:
-    """Everything that stays fixed over one synthetic sequence."""
+    """Everything that stays fixed over one synthetic sequence; ``lens`` is the lens set's
+    thin lens (manifests record it under ``camera``, as they always have)."""
 
-    camera: ThinLensCamera
+    lens: ThinLens
     psf: PSFParams
     distortion: DivisionDistortion | None
     noise_sigma: float | None
@@ -84,14 +87,22 @@ class SequenceDraw:
                 raise ParameterError("raw storage needs light 'linear' (a sensor's values are "
                                      "linear in light, so the lens blurs them as stored)")
 
+    @property
+    def camera(self) -> ThinLens:
+        """Old name of :attr:`lens` (until release 0.3)."""
+        from dualpixel.names import warn_renamed
+
+        warn_renamed("SequenceDraw.camera", "SequenceDraw.lens", stacklevel=2)
+        return self.lens
+
     def describe(self) -> dict:
         """A JSON-ready description for manifests."""
-        camera = self.camera
+        lens = self.lens
         return {
             "camera": {
-                "name": camera.name, "focal_length": camera.focal_length,
-                "f_number": camera.f_number, "focus_distance": camera.focus_distance,
-                "pixel_pitch": camera.pixel_pitch, "max_coc_radius": camera.max_coc_radius,
+                "name": lens.name, "focal_length": lens.focal_length,
+                "f_number": lens.f_number, "focus_distance": lens.focus_distance,
+                "pixel_pitch": lens.pixel_pitch, "max_coc_radius": lens.max_coc_radius,
             },
             "psf_model": self.psf_model,
             "psf": self.psf.as_dict(),
@@ -108,6 +119,27 @@ class SequenceDraw:
             **({} if self.raw is None
                else {"raw": {"black_level": self.raw[0], "gain": self.raw[1]}}),
         }
+
+
+def _init_with_old_names(init):
+    """``SequenceDraw(camera=...)``, the old name of ``lens=``, taken with a warning (until
+    release 0.3)."""
+
+    @functools.wraps(init)
+    def __init__(self, *args, camera: ThinLens | None = None, **kwargs) -> None:
+        if camera is not None:
+            from dualpixel.names import warn_renamed
+
+            if "lens" in kwargs:
+                raise ParameterError("give lens only (camera is its old name)")
+            warn_renamed("SequenceDraw(camera=...)", "SequenceDraw(lens=...)", stacklevel=2)
+            kwargs["lens"] = camera
+        init(self, *args, **kwargs)
+
+    return __init__
+
+
+SequenceDraw.__init__ = _init_with_old_names(SequenceDraw.__init__)  # type: ignore[method-assign]
 
 
 def camera_settings(
@@ -141,7 +173,7 @@ def camera_settings(
 
 def draw_sequence(
     seed: int | tuple[int, ...],
-    camera: str | ThinLensCamera,
+    lens: str | ThinLens,
     *,
     bank: PSFBank = PAPER_PSF_BANK,
     psf_model: PSFModel = "ours",
@@ -156,25 +188,26 @@ def draw_sequence(
     raw_black_level: float | None = None,
     raw_gains: tuple[float, float] = (1.0, 1.0),
 ) -> SequenceDraw:
-    """Draw a sequence's PSF shape and noise strength from ``seed`` for a camera.
+    """Draw a sequence's PSF shape and noise strength from ``seed`` for a lens set's ``lens``
+    (a name of :data:`~dualpixel.optics.thin_lens.PAPER_LENS_SETS` or a thin lens).
 
-    A preset camera ``setK`` gets the matching distortion preset ``setK`` (supplement S3); any
-    other camera (e.g. one drawn from a defocus profile) a preset drawn from ``seed``. With a
+    A paper lens set ``setK`` gets the matching distortion preset ``setK`` (supplement S3); any
+    other lens (e.g. one drawn from a defocus profile) a preset drawn from ``seed``. With a
     ``raw_black_level`` the sequence is stored as raw values, its exposure gain drawn
     uniformly from ``raw_gains``.
     """
     check_psf_model(psf_model)
     check_render_mode(render_mode)
-    if isinstance(camera, str):
-        if camera not in CAMERA_PRESETS:
+    if isinstance(lens, str):
+        if lens not in PAPER_LENS_SETS:
             raise ParameterError(
-                f"camera must be one of {', '.join(CAMERA_PRESETS)}, got {camera!r}"
+                f"lens set must be one of {', '.join(PAPER_LENS_SETS)}, got {lens!r}"
             )
-        camera = CAMERA_PRESETS[camera]
+        lens = PAPER_LENS_SETS[lens]
     rng = np.random.default_rng(seed)
     psf = bank.sample(rng)
     sigma = sample_noise_sigma(rng, check_noise_sigmas(noise_sigmas))
-    warp = DISTORTION_PRESETS.get(camera.name)
+    warp = DISTORTION_PRESETS.get(lens.name)
     if warp is None:
         presets = list(DISTORTION_PRESETS.values())
         warp = presets[int(np.random.default_rng((*np.atleast_1d(seed), 2)).integers(len(presets)))]
@@ -184,7 +217,7 @@ def draw_sequence(
         gain = float(np.random.default_rng((*np.atleast_1d(seed), 3)).uniform(*raw_gains))
         raw = (float(raw_black_level), gain)
     return SequenceDraw(
-        camera=camera,
+        lens=lens,
         psf=psf,
         distortion=warp if distortion else None,
         noise_sigma=sigma if noise else None,
@@ -262,8 +295,8 @@ def synthesize_frame(
 
     Args:
         rgb: ``(H, W, 3)`` NumPy or ``(3, H, W)`` torch image in [0, 1].
-        depth: ``(H, W)`` depth, same unit as the camera, finite and > 0.
-        draw: camera, PSF, distortion and noise of the sequence.
+        depth: ``(H, W)`` depth, same unit as the lens, finite and > 0.
+        draw: lens, PSF, distortion and noise of the sequence.
         noise_seed: seed of this frame's noise; the views draw independent noise from it.
         device: where to compute ("cpu", "cuda", ...).
         window: ``(top, left, height, width)`` px: render only this window of the frame, with
@@ -350,7 +383,7 @@ def synthesize_frames(
     """:func:`synthesize_frame` for many frames at once: the frames of one size are rendered
     together by :func:`~dualpixel.synthesis.batched_renderer.render_batch` (the default
     renderer's layers and compositing, for accelerators), the rest of the formation per frame.
-    The draws' render mode must be "fast"; each frame keeps its own camera, PSF and noise."""
+    The draws' render mode must be "fast"; each frame keeps its own lens, PSF and noise."""
     from dualpixel.synthesis.batched_renderer import render_batch
 
     if not len(frames) == len(draws) == len(noise_seeds):
@@ -385,7 +418,7 @@ def _prepared(rgb, depth, draw: SequenceDraw, device) -> tuple[torch.Tensor, ...
             f"rgb and depth must be the same size; got rgb {tuple(image.shape)} and depth "
             f"{tuple(depth_t.shape)}"
         )
-    coc = coc_radius(depth_t, draw.camera)
+    coc = coc_radius(depth_t, draw.lens)
     scene = srgb_to_linear(image) if draw.light == "linear" else image
     return image, scene, coc
 
