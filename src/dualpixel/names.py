@@ -7,7 +7,8 @@ __all__ = ["ALIGN_MODE_NAMES", "BACKENDS", "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNE
            "DEFAULT_OVERSHOOT", "ENCODINGS", "LIGHT_SPACES", "MAX_SEQUENCES", "OVERSHOOT_MODES",
            "PRECISIONS", "PSF_BANK_NAMES", "PSF_MODELS", "PSF_SHAPE_SOURCES", "RAW_VIEWS",
            "RENAMED", "RENAMED_UNTIL", "RENDER_ON", "SCENE_LAYOUTS", "SYNTH_SETTINGS_NAMES",
-           "SYNTH_SOURCES", "checkpoint_label", "output_modes_suffix", "renamed_keys",
+           "SYNTH_SOURCES", "checkpoint_label", "output_modes_suffix", "renamed_attributes",
+           "renamed_keys",
            "warn_renamed"]
 
 #: Registrations of an output to its target before scoring
@@ -111,6 +112,19 @@ def warn_renamed(old: str, new: str, where: str | None = None, *, stacklevel: in
 
     warnings.warn(f"{where + ': ' if where else ''}{old} is now {new}; the old name goes in "
                   f"release {RENAMED_UNTIL}", FutureWarning, stacklevel=stacklevel + 1)
+
+
+def renamed_attributes(module: str, renamed: dict[str, str], namespace: dict):
+    """A module's ``__getattr__`` that answers each old name of ``renamed`` (old: new) with the
+    new name's object from ``namespace`` (the module's ``globals()``) and a warning."""
+
+    def __getattr__(name: str):
+        if name in renamed:
+            warn_renamed(f"{module}.{name}", renamed[name], stacklevel=2)
+            return namespace[renamed[name]]
+        raise AttributeError(f"module {module!r} has no attribute {name!r}")
+
+    return __getattr__
 
 
 def renamed_keys(values: dict, where: str, *, warn: bool = True) -> dict:

@@ -1,5 +1,6 @@
 """Optics of dual-pixel image formation (paper Sec. 2): thin lens, DP PSFs, distortion, noise."""
 
+from dualpixel.names import renamed_attributes
 from dualpixel.optics.distortion import (
     DISTORTION_PRESETS,
     DivisionDistortion,
@@ -57,8 +58,5 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    """Old names (until release 0.3): :data:`~dualpixel.optics.thin_lens._RENAMED`."""
-    from dualpixel.optics import thin_lens
-
-    return getattr(thin_lens, name)
+__getattr__ = renamed_attributes(
+    __name__, {"ThinLensCamera": "ThinLens", "CAMERA_PRESETS": "PAPER_LENS_SETS"}, globals())

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from dualpixel.errors import ParameterError, check_range
+from dualpixel.names import renamed_attributes
 
 __all__ = [
     "DEFOCUS_PROFILES",
@@ -261,13 +262,5 @@ DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
 
 
 #: Old names (until release 0.3): "camera" now names a calibrated camera file alone.
-_RENAMED = {"ThinLensCamera": "ThinLens", "CAMERA_PRESETS": "PAPER_LENS_SETS"}
-
-
-def __getattr__(name: str):
-    if name in _RENAMED:
-        from dualpixel.names import warn_renamed
-
-        warn_renamed(f"dualpixel.optics.{name}", _RENAMED[name], stacklevel=2)
-        return globals()[_RENAMED[name]]
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = renamed_attributes(
+    __name__, {"ThinLensCamera": "ThinLens", "CAMERA_PRESETS": "PAPER_LENS_SETS"}, globals())

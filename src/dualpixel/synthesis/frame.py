@@ -7,7 +7,6 @@ distortion set, noise strength); :func:`draw_sequence` draws it reproducibly fro
 from __future__ import annotations
 
 import functools
-
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
