@@ -187,6 +187,10 @@ def test_clear_errors_and_the_listing():
             dualpixel.synthesize(rgb, depth, seed=seed)
     with pytest.raises(ValueError, match="checkpoint not found"):
         dualpixel.load_model("no-such-model")
+    from dualpixel.models import load_model as load_file  # the file loader, given a name
+
+    with pytest.raises(ValueError, match=r"shipped model's name: dualpixel\.load_model"):
+        load_file("rdpd-light")
     models = dualpixel.list_models()
     assert {"rdpd-light.v12", "rdpd-light.v15", "rdpd-light.v16"} <= set(models)
     info = models["rdpd-light.v16"]
