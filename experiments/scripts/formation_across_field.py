@@ -45,8 +45,8 @@ def field_map(height: int, width: int) -> np.ndarray:
 
 
 def dev_blocks(root: str, model: str) -> tuple[np.ndarray, list]:
-    """Per textured block: radius, field, input MSE, output MSE, |ratio|, texture; and the
-    frames."""
+    """Per textured block: radius, field, input MSE, output MSE, |ratio|, texture, and the fit's
+    residual and the views' variance per pixel (linear light); and the frames."""
     params = load_camera("canon-840-linear").psf
     radii = np.arange(0.0, 12.01, 0.5)
     rows, frames = [], []
@@ -56,6 +56,7 @@ def dev_blocks(root: str, model: str) -> tuple[np.ndarray, list]:
         output = dualpixel.deblur(left, right, model=model, device="cpu")
         linear = [srgb_to_linear_array(v) for v in (left, right, target)]
         fit = fit_blocks(*linear, params, radii, patch=PATCH)
+        fit_pixels = 2 * PATCH * PATCH * left.shape[-1]  # both views, every channel
         height, width = target.shape[:2]
         centre = np.array([(width - 1) / 2, (height - 1) / 2])
         for index in np.ndindex(fit.radius.shape[:2]):
@@ -63,11 +64,13 @@ def dev_blocks(root: str, model: str) -> tuple[np.ndarray, list]:
                 continue
             x, y = (int(v - PATCH / 2) for v in fit.centres[index])
             block = (slice(y, y + PATCH), slice(x, x + PATCH))
-            field = np.linalg.norm((fit.centres[index] - centre) / centre) / np.sqrt(2)
+            field = np.linalg.norm(fit.centres[index] - centre) / np.linalg.norm(centre)
             rows.append((fit.radius[index][1], field,
                          float(((combined[block] - target[block]) ** 2).mean()),
                          float(((output[block] - target[block]) ** 2).mean()),
-                         abs(fit.ratio[index][1]), float(fit.texture[index].min())))
+                         abs(fit.ratio[index][1]), float(fit.texture[index].min()),
+                         float(fit.residual[index].sum() / fit_pixels),
+                         float(fit.variance[index].sum() / fit_pixels)))
             frames.append((scene, tuple(fit.centres[index]), linear))
     return np.array(rows), frames
 
@@ -84,6 +87,12 @@ def print_dev(rows: np.ndarray) -> None:
             cells.append(f"{gain:+.2f} (n={int(inside.sum())})")
         print(f"  r {low:4.1f}-{high:4.1f} px: " + " | ".join(cells))
     large = rows[rows[:, 0] >= 4.5]
+    zones = [large[(large[:, 1] >= a) & (large[:, 1] < b)] for a, b in ZONES]
+    for column, label in ((2, "input MSE"), (3, "output MSE"), (6, "fit residual / px"),
+                          (7, "views' variance / px")):
+        print(f"  r >= 4.5 px, {label} by zone, mean: " + " ".join(
+            f"{z[:, column].mean():.2e}" for z in zones) + "; median: " + " ".join(
+            f"{np.median(z[:, column]):.2e}" for z in zones))
     print("  disparity ratio (r >= 4.5 px), median by zone: " + " ".join(
         f"{np.median(large[(large[:, 1] >= a) & (large[:, 1] < b), 4]):.2f}" for a, b in ZONES))
 
@@ -171,7 +180,8 @@ def shading(root: str) -> None:
                        for v in ("left", "right"))
         bands = np.array_split(np.arange(left.shape[1]), 5)
         ratios = [left[:, b].sum() / max(right[:, b].sum(), 1e-9) for b in bands]
-        print(f"  {os.path.basename(folder.rstrip('/')):26s} " + " ".join(f"{r:.3f}" for r in ratios))
+        name = os.path.basename(folder.rstrip("/"))
+        print(f"  {name:26s} " + " ".join(f"{r:.3f}" for r in ratios))
 
 
 def main() -> None:

@@ -13,6 +13,7 @@ the blur is large.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 
@@ -58,6 +59,7 @@ def main() -> None:
         variance = np.zeros_like(residual)
         field_res, field_var = np.zeros(len(FIELD) - 1), np.zeros(len(FIELD) - 1)
         ratios = []
+        field_pixels = np.zeros(len(FIELD) - 1)
         for _, left, right, target in linear:
             fit = fit_blocks(left, right, target, params, radii, patch=args.patch)
             green = fit.radius[..., 1]
@@ -75,15 +77,18 @@ def main() -> None:
                           & (field < FIELD[f + 1]))
                 field_res[f] += fit.residual[inside].sum()
                 field_var[f] += fit.variance[inside].sum()
+                field_pixels[f] += inside.sum() * 2 * args.patch**2 * left.shape[-1]
         ratios = np.concatenate(ratios)
         large = ratios[ratios[:, 0] >= LARGE]
-        field_ratio = [float(np.median(large[(large[:, 1] >= FIELD[f]) & (large[:, 1] < FIELD[f + 1]), 2]))
-                       for f in range(len(FIELD) - 1)]
+        field_ratio = [float(np.median(large[(large[:, 1] >= low) & (large[:, 1] < high), 2]))
+                       for low, high in itertools.pairwise(FIELD)]
         rows[label] = {"params": params.as_dict(),
                        "by_radius": [float(x) for x in residual.sum(1) / variance.sum(1)],
                        "by_channel": [float(x) for x in residual.sum(0) / variance.sum(0)],
                        "by_field": [float(x) for x in field_res / field_var],
                        "blocks_variance": [float(x) for x in variance.sum(1)],
+                       "field_residual_per_pixel": [float(x) for x in field_res / field_pixels],
+                       "field_variance_per_pixel": [float(x) for x in field_var / field_pixels],
                        "field_disparity_ratio": field_ratio,
                        "total": float(residual.sum() / variance.sum())}
         print(f"{label:16s} total {rows[label]['total']:.4f}  by radius "
@@ -91,6 +96,10 @@ def main() -> None:
               + "  by channel " + " ".join(f"{x:.4f}" for x in rows[label]["by_channel"])
               + "  by field (r >= 4.5) " + " ".join(f"{x:.4f}" for x in rows[label]["by_field"])
               + "  ratio " + " ".join(f"{x:.2f}" for x in field_ratio)
+              + "  per pixel: residual " + " ".join(
+                  f"{x:.1e}" for x in rows[label]["field_residual_per_pixel"])
+              + ", variance " + " ".join(
+                  f"{x:.1e}" for x in rows[label]["field_variance_per_pixel"])
               + f"  ({time.monotonic() - started:.0f} s)", flush=True)
     if args.json:
         with open(args.json, "w") as handle:
