@@ -352,3 +352,29 @@ def test_pixel_dp_import_gives_real_captures_the_documented_orientation(name, sh
         shifts = block_disparity(left[..., None] / 255.0, right[..., None] / 255.0, patch=32)
         medians[rotate] = float(np.median(shifts))
     assert medians["ccw"] > 0.3 and medians["cw"] < -0.3, medians
+
+
+def test_raw_views_hand_their_own_light_to_the_output_modes(raw_pair, tiny_checkpoint,
+                                                            monkeypatch):
+    """Linear views are made light once: the brightness tie and the overshoot limit read the
+    combined light the views had before they were encoded for the network, not the encoded
+    views decoded again; the output is the same either way."""
+    from dualpixel.inference import build_deblurrer
+    from dualpixel.inference.encoding import deblur_encoded
+    from dualpixel.optics import tone
+
+    left, right = (v.astype(np.float32)[..., None] / 65535 for v in raw_pair)
+    encoding = ViewEncoding("linear", BLACK, WHITE)
+    deblurrer = build_deblurrer(tiny_checkpoint, device="cpu", precision="fp32",
+                                brightness="tied", overshoot="limited")
+    decodes = []
+    original = tone.combined_light
+    monkeypatch.setattr(tone, "combined_light",
+                        lambda *a, **k: decodes.append(a[2] if len(a) > 2 else "srgb")
+                        or original(*a, **k))
+    own = deblur_encoded(deblurrer, left, right, encoding, scale=65535)
+    assert decodes == []  # the light was handed over
+    deblurrer.reset()
+    again = deblur_encoded(lambda a, b: deblurrer(a, b), left, right, encoding, scale=65535)
+    assert decodes == ["srgb"]  # a plain callable: the encoded views decoded once, as before
+    np.testing.assert_allclose(own, again, atol=2e-6)

@@ -232,9 +232,12 @@ class Deblurrer:
         self.reset()  # a tiled pass carries per-tile state: start the sequence afresh
         return tile
 
-    def __call__(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
-        """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3)."""
-        return self.finish(self.network_output(left, right), left, right)
+    def __call__(self, left: np.ndarray, right: np.ndarray | None = None, *,
+                 combined: CombinedImage | None = None) -> np.ndarray:
+        """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3).
+        ``combined``: the views' combined image when its light is known already
+        (:meth:`~dualpixel.optics.tone.CombinedImage.of_light`)."""
+        return self.finish(self.network_output(left, right), left, right, combined=combined)
 
     @torch.inference_mode()
     def network_output(self, left: np.ndarray, right: np.ndarray | None = None) -> np.ndarray:
@@ -248,11 +251,13 @@ class Deblurrer:
         return out
 
     def finish(self, out: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,
-               brightness: str | None = None, overshoot: str | None = None) -> np.ndarray:
+               brightness: str | None = None, overshoot: str | None = None,
+               combined: CombinedImage | None = None) -> np.ndarray:
         """``out`` of :meth:`network_output` for these views with the output modes applied:
         the overshoot limit, then the brightness tie (``None``: this deblurrer's modes), both
-        reading one combined image of the views."""
-        combined = CombinedImage(left, right)  # each light made once, when first read
+        reading one combined image of the views (``combined``, else made here)."""
+        if combined is None:
+            combined = CombinedImage(left, right)  # each light made once, when first read
         if check_overshoot(overshoot or self.overshoot) == "limited":
             out = limit_overshoot(out, left, right, combined=combined.encoded)
         if check_brightness(brightness or self.brightness) == "tied":

@@ -29,6 +29,7 @@ from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.inference.view_checks import ViewFinding, views_from_sum
 from dualpixel.names import ENCODINGS
 from dualpixel.optics.tone import (
+    CombinedImage,
     check_encoding,
     combined_image,
     combined_light,
@@ -205,14 +206,24 @@ def to_model(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
     (65535 for 16-bit data read as fractions), by which the levels are divided.
     ``views_sum``: the views sum to the combined image (a raw A/B split): each is doubled (in
     linear light for linear views; :func:`~dualpixel.inference.view_checks.views_from_sum`)."""
+    return _to_model(left, right, encoding, scale=scale, views_sum=views_sum)[0]
+
+
+def _to_model(left: np.ndarray, right: np.ndarray, encoding: ViewEncoding, *,
+              scale: float = 1.0, views_sum: bool = False):
+    """:func:`to_model`'s views, and for linear views their combined light ``(..., H, W, 3)``
+    (the mean of their light before encoding), else None."""
+    light = None
     if encoding.linear:
         left, right = linear_light(left, right, encoding, scale=scale, views_sum=views_sum)
+        light = combined_light(left, right, "linear")
         left, right = linear_to_srgb_array(left), linear_to_srgb_array(right)
     elif views_sum:
         left, right = views_from_sum(left, right)
     if left.shape[-1] == 1:
         left, right = np.repeat(left, 3, axis=-1), np.repeat(right, 3, axis=-1)
-    return left.astype(np.float32, copy=False), right.astype(np.float32, copy=False)
+        light = None if light is None else np.repeat(light, 3, axis=-1)
+    return (left.astype(np.float32, copy=False), right.astype(np.float32, copy=False)), light
 
 
 def from_model(output: np.ndarray, encoding: ViewEncoding, channels: int, *,
@@ -305,12 +316,21 @@ def deblur_encoded(deblurrer: Callable[[np.ndarray, np.ndarray | None], np.ndarr
     will (checks of a sequence's first pair)."""
     views_sum = views_sum and right is not None
     other = left if right is None else right
+    from dualpixel.inference.deblur import Deblurrer
+
     if exposed is None:
         exposed = (encoding or ViewEncoding()).exposed(left, other, scale=scale,
                                                        views_sum=views_sum)
-    model_left, model_right = to_model(left, other, exposed, scale=scale, views_sum=views_sum)
+    (model_left, model_right), light = _to_model(left, other, exposed, scale=scale,
+                                                 views_sum=views_sum)
     if right is None:
         model_right = None
     elif inspect is not None:
         inspect(model_left, model_right)
-    return from_model(deblurrer(model_left, model_right), exposed, left.shape[-1], scale=scale)
+    if light is not None and right is not None and isinstance(deblurrer, Deblurrer):
+        # linear views: the combined image's light as it was before encoding, not decoded again
+        output = deblurrer(model_left, model_right,
+                           combined=CombinedImage.of_light(model_left, model_right, light))
+    else:
+        output = deblurrer(model_left, model_right)
+    return from_model(output, exposed, left.shape[-1], scale=scale)

@@ -122,6 +122,16 @@ class CombinedImage:
     left: np.ndarray
     right: np.ndarray | None = None
 
+    @classmethod
+    def of_light(cls, left: np.ndarray, right: np.ndarray | None,
+                 light: np.ndarray) -> CombinedImage:
+        """The combined image of display-valued views whose linear light is known already
+        (``light``, the views' mean in linear light, ``(H, W, C)``): raw views, linear before
+        they were encoded for the network, need not be decoded again."""
+        combined = cls(left, right)
+        combined.__dict__["light"] = np.asarray(light, np.float32)  # what the property keeps
+        return combined
+
     @cached_property
     def light(self) -> np.ndarray:
         """Linear light, float32 ``(H, W, C)``."""
