@@ -4,6 +4,7 @@ kept, grey views keep their shape, and the option reaches every way of deblurrin
 import cv2
 import numpy as np
 import pytest
+import torch
 from click.testing import CliRunner
 
 import dualpixel
@@ -109,3 +110,32 @@ def test_the_option_reaches_the_deblurrer_the_api_and_the_commands(edge, refined
     reference = limit_overshoot(Deblurrer(refined_model, precision="fp32")(*stored), *stored)
     written = read_rgb(out)
     assert np.abs(written - reference).max() <= 1.5 / 255
+
+
+def test_the_output_modes_on_the_networks_device_match_the_cpus(edge, refined_model):
+    """``finish`` of a tensor (what a GPU hands over) runs the limit and the tie in torch
+    (inference.device_finish): the same frame as the NumPy/OpenCV steps, for two views, one
+    view and raw views whose light is known."""
+    from dualpixel.optics.tone import CombinedImage, srgb_to_linear_array
+
+    blurred, _, _ = edge
+    rng = np.random.default_rng(2)
+    left = np.clip(blurred + rng.normal(0, 0.02, blurred.shape), 0, 1).astype(np.float32)
+    right = np.roll(left, 2, axis=1)
+    deblurrer = Deblurrer(refined_model, precision="fp32", overshoot="limited",
+                          brightness="tied")
+    out = deblurrer.network_output(left, right)
+    for views in ((left, right), (left, None)):  # (a one-view model's combined image: the view)
+        as_tensor = torch.from_numpy(out).permute(2, 0, 1)
+        np.testing.assert_allclose(deblurrer.finish(as_tensor, *views),
+                                   deblurrer.finish(out, *views), atol=2e-5)
+    light = 0.5 * (srgb_to_linear_array(left) + srgb_to_linear_array(right))
+    known = CombinedImage.of_light(left, right, light)
+    np.testing.assert_allclose(
+        deblurrer.finish(torch.from_numpy(out).permute(2, 0, 1), left, right, combined=known),
+        deblurrer.finish(out, left, right, combined=known), atol=2e-5)
+    deblurrer.reset()
+    on_cpu = deblurrer(left, right)
+    deblurrer._finish_on_device = True  # what a GPU's deblurrer does, here on the CPU
+    deblurrer.reset()
+    np.testing.assert_allclose(deblurrer(left, right), on_cpu, atol=2e-5)

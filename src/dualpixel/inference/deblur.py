@@ -51,8 +51,10 @@ from dualpixel.errors import ParameterError
 from dualpixel.inference.brightness import (
     DEFAULT_BRIGHTNESS,
     check_brightness,
+    is_palette_image,
     tie_brightness,
 )
+from dualpixel.inference.device_finish import limit_overshoot_tensor, tie_brightness_tensor
 from dualpixel.inference.fusion import fused_copy
 from dualpixel.inference.multiscale import (
     FUSION_SIGMA,
@@ -66,7 +68,7 @@ from dualpixel.inference.precision import Precision, resolve_precision
 from dualpixel.inference.tiling import MAX_BATCH, TileGrid, deblur_tiled
 from dualpixel.memory import GIB, available_memory
 from dualpixel.models.unet import DeblurNet, pass_memory
-from dualpixel.optics.tone import CombinedImage
+from dualpixel.optics.tone import CombinedImage, linear_to_srgb, srgb_to_linear
 
 #: Smallest tile and overlap (px) whose output matches whole-frame deblurring closely: below
 #: them a tile's border sees too little of the image, and outputs change by tens of levels.
@@ -193,6 +195,8 @@ class Deblurrer:
         if self.multiscale:
             check_fusion_sigma(self.fusion_sigma)
         self._auto_tile: int | None = None  # set once a frame was too large to run whole
+        # the output modes where the network ran (a GPU), one crossing to the CPU per frame
+        self._finish_on_device = self.device.type != "cpu" and not self.multiscale
         self.reset()
 
     def reset(self) -> None:
@@ -236,7 +240,13 @@ class Deblurrer:
                  combined: CombinedImage | None = None) -> np.ndarray:
         """Deblur the next frame (float32 (H, W, 3) views in [0, 1]); returns (H, W, 3).
         ``combined``: the views' combined image when its light is known already
-        (:meth:`~dualpixel.optics.tone.CombinedImage.of_light`)."""
+        (:meth:`~dualpixel.optics.tone.CombinedImage.of_light`). On a GPU the output modes run
+        there (:mod:`~dualpixel.inference.device_finish`) and the frame crosses to the CPU
+        once."""
+        if self._finish_on_device:
+            with torch.inference_mode():
+                out = self._ensemble(left, right, scale=0, on_device=True)
+                return self.finish(out, left, right, combined=combined)
         return self.finish(self.network_output(left, right), left, right, combined=combined)
 
     @torch.inference_mode()
@@ -250,22 +260,34 @@ class Deblurrer:
             out = fuse_scales(out, coarse, self.fusion_sigma)
         return out
 
-    def finish(self, out: np.ndarray, left: np.ndarray, right: np.ndarray | None = None, *,
-               brightness: str | None = None, overshoot: str | None = None,
+    def finish(self, out: np.ndarray | torch.Tensor, left: np.ndarray,
+               right: np.ndarray | None = None, *, brightness: str | None = None,
+               overshoot: str | None = None,
                combined: CombinedImage | None = None) -> np.ndarray:
         """``out`` of :meth:`network_output` for these views with the output modes applied:
         the overshoot limit, then the brightness tie (``None``: this deblurrer's modes), both
-        reading one combined image of the views (``combined``, else made here)."""
+        reading one combined image of the views (``combined``, else made here). ``out`` a
+        ``(3, H, W)`` tensor: the modes run on its device (the same results,
+        :mod:`~dualpixel.inference.device_finish`); the frame comes back ``(H, W, 3)``."""
+        limited = check_overshoot(overshoot or self.overshoot) == "limited"
+        tied = check_brightness(brightness or self.brightness) == "tied"
+        if isinstance(out, torch.Tensor):
+            if (limited or tied) and not is_palette_image(left):  # a GIF's dither: the CPU's
+                out = _finish_tensor(out, left, right, combined, limited=limited, tied=tied)
+                return out.permute(1, 2, 0).float().cpu().numpy()
+            out = out.permute(1, 2, 0).float().cpu().numpy()
         if combined is None:
             combined = CombinedImage(left, right)  # each light made once, when first read
-        if check_overshoot(overshoot or self.overshoot) == "limited":
+        if limited:
             out = limit_overshoot(out, left, right, combined=combined.encoded)
-        if check_brightness(brightness or self.brightness) == "tied":
+        if tied:
             out = tie_brightness(out, left, right, combined=combined)
         return out
 
-    def _ensemble(self, left: np.ndarray, right: np.ndarray | None, scale: int) -> np.ndarray:
-        """The mean output over the flips, run as batches of members."""
+    def _ensemble(self, left: np.ndarray, right: np.ndarray | None, scale: int, *,
+                  on_device: bool = False) -> np.ndarray | torch.Tensor:
+        """The mean output over the flips, run as batches of members: ``(H, W, 3)``, or with
+        ``on_device`` a ``(3, H, W)`` tensor where the network ran."""
         inputs = []
         for vertical, horizontal in self._flips:
             views = (left, right)
@@ -287,12 +309,13 @@ class Deblurrer:
         for out, (vertical, horizontal) in zip(outputs, self._flips):
             out = out.flip(-2) if vertical else out
             total += out.flip(-1) if horizontal else out
-        return (total / len(self._flips)).permute(1, 2, 0).numpy()
+        total /= len(self._flips)
+        return total if on_device else total.permute(1, 2, 0).cpu().numpy()
 
     def _run(self, key: tuple[int, int], x: torch.Tensor, tile: int | None = None
              ) -> torch.Tensor:
         """One network pass over a batch of members carrying the state ``key`` (in tiles of
-        ``tile`` px when given); float32 on the CPU."""
+        ``tile`` px when given); float32, where the network ran."""
         x = x.to(self.device)
         state = self._states.get(key) if self.model.temporal else None  # single-frame models
         with self.numerics.autocast(self.device):
@@ -307,7 +330,34 @@ class Deblurrer:
                     max_batch=MAX_BATCH, channels_last=self.numerics.channels_last,
                 )
         self._states[key] = state
-        return out.float().cpu()
+        return out.float()
+
+
+def _finish_tensor(out: torch.Tensor, left: np.ndarray, right: np.ndarray | None,
+                   combined: CombinedImage | None, *, limited: bool, tied: bool
+                   ) -> torch.Tensor:
+    """The output modes of :meth:`Deblurrer.finish` on ``out``'s device: the views' combined
+    image made there (or its known light moved there), then the limit and the tie."""
+    device = out.device
+
+    def tensor(image: np.ndarray) -> torch.Tensor:
+        return torch.from_numpy(np.ascontiguousarray(image, np.float32)).to(device).permute(
+            2, 0, 1)
+
+    if combined is not None and "light" in combined.__dict__:  # light known: the raw path
+        light = tensor(combined.light)
+        encoded = linear_to_srgb(light) if right is not None else tensor(left)
+    elif right is None:
+        encoded = tensor(left)
+        light = srgb_to_linear(encoded)
+    else:
+        light = 0.5 * (srgb_to_linear(tensor(left)) + srgb_to_linear(tensor(right)))
+        encoded = linear_to_srgb(light)
+    if limited:
+        out = limit_overshoot_tensor(out, encoded)
+    if tied:
+        out = tie_brightness_tensor(out, light)
+    return out
 
 
 def _onnxruntime_precision(precision: str, device: torch.device) -> Precision:
