@@ -134,6 +134,8 @@ def test_the_output_modes_on_the_networks_device_match_the_cpus(edge, refined_mo
     np.testing.assert_allclose(
         deblurrer.finish(torch.from_numpy(out).permute(2, 0, 1), left, right, combined=known),
         deblurrer.finish(out, left, right, combined=known), atol=2e-5)
+    with pytest.raises(ParameterError, match=r"must be \(3, H, W\)"):
+        deblurrer.finish(torch.from_numpy(out), left, right)  # (H, W, 3): not a network's
     deblurrer.reset()
     on_cpu = deblurrer(left, right)
     deblurrer._finish_on_device = True  # what a GPU's deblurrer does, here on the CPU

@@ -272,6 +272,10 @@ class Deblurrer:
         limited = check_overshoot(overshoot or self.overshoot) == "limited"
         tied = check_brightness(brightness or self.brightness) == "tied"
         if isinstance(out, torch.Tensor):
+            if tuple(out.shape) != (3, *left.shape[:2]):
+                raise ParameterError(f"a network output tensor must be (3, H, W) of the views' "
+                                     f"size {left.shape[1]}x{left.shape[0]}, got "
+                                     f"{tuple(out.shape)}")
             if (limited or tied) and not is_palette_image(left):  # a GIF's dither: the CPU's
                 out = _finish_tensor(out, left, right, combined, limited=limited, tied=tied)
                 return out.permute(1, 2, 0).float().cpu().numpy()
