@@ -17,6 +17,7 @@ import itertools
 import json
 import time
 
+import cv2
 import numpy as np
 
 from dualpixel.calibration.camera import MIN_TEXTURE, fit_blocks, read_calibration_frames
@@ -43,17 +44,24 @@ def main() -> None:
     parser.add_argument("--bank", default=None, help="also every shape of this bank")
     parser.add_argument("--patch", type=int, default=48)
     parser.add_argument("--step", type=float, default=0.25, help="radius grid step, px")
+    parser.add_argument("--base-blur", default="0",
+                        help="Gaussian stds (px) the kernels are also blurred by, comma-separated "
+                             "(a blur of every radius: lens softness, the sensor's processing)")
+    parser.add_argument("--only", default=None, help="only this shape of the list above")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     frames = read_calibration_frames(args.roots)
     linear = [(name, *(srgb_to_linear_array(v) for v in (left, right, target)))
               for name, left, right, target in frames]
-    shapes = dict(SHAPES)
+    shapes = dict(SHAPES) if args.only is None else {args.only: SHAPES[args.only]}
     if args.bank:
         shapes.update({f"{args.bank}:{i}": p for i, p in enumerate(PSF_BANKS[args.bank])})
     radii = np.arange(0.0, 12.01, args.step)
     rows = {}
-    for label, params in shapes.items():
+    base_blurs = [float(b) for b in args.base_blur.split(",")]
+    runs = [(f"{label} + {base:g} px" if base else label, params, base)
+            for label, params in shapes.items() for base in base_blurs]
+    for label, params, base in runs:
         started = time.monotonic()
         residual = np.zeros((len(BINS) - 1, 3))
         variance = np.zeros_like(residual)
@@ -61,6 +69,8 @@ def main() -> None:
         ratios = []
         field_pixels = np.zeros(len(FIELD) - 1)
         for _, left, right, target in linear:
+            if base:  # blurring the target blurs every kernel alike (convolutions commute)
+                target = cv2.GaussianBlur(target, (0, 0), base, borderType=cv2.BORDER_REFLECT)
             fit = fit_blocks(left, right, target, params, radii, patch=args.patch)
             green = fit.radius[..., 1]
             usable = (fit.texture.min(axis=-1) > MIN_TEXTURE) & (green >= BINS[0])
@@ -91,7 +101,7 @@ def main() -> None:
                        "field_variance_per_pixel": [float(x) for x in field_var / field_pixels],
                        "field_disparity_ratio": field_ratio,
                        "total": float(residual.sum() / variance.sum())}
-        print(f"{label:16s} total {rows[label]['total']:.4f}  by radius "
+        print(f"{label:22s} total {rows[label]['total']:.4f}  by radius "
               + " ".join(f"{x:.4f}" for x in rows[label]["by_radius"])
               + "  by channel " + " ".join(f"{x:.4f}" for x in rows[label]["by_channel"])
               + "  by field (r >= 4.5) " + " ".join(f"{x:.4f}" for x in rows[label]["by_field"])

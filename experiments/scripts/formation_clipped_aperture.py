@@ -114,6 +114,8 @@ def main() -> None:
     parser.add_argument("--min-radius", type=float, default=4.5)
     parser.add_argument("--registered", action="store_true",
                         help="also fit with the target moved by the best of +-1 px in halves")
+    parser.add_argument("--base-blur", type=float, default=0.0,
+                        help="a Gaussian std (px) every kernel is also blurred by")
     parser.add_argument("--separate", action="store_true",
                         help="also fit each view alone (its own radius and gains)")
     args = parser.parse_args()
@@ -129,6 +131,9 @@ def main() -> None:
     for scene in sorted(glob.glob(os.path.join(args.root, "scene_*"))):
         left, right, target = (srgb_to_linear_array(read_rgb(os.path.join(scene, f"{n}.png")))
                                for n in ("view0", "view1", "target"))
+        if args.base_blur:  # blurring the target blurs every kernel alike
+            target = cv2.GaussianBlur(target, (0, 0), args.base_blur,
+                                      borderType=cv2.BORDER_REFLECT)
         fit = fit_blocks(left, right, target, params, radii, patch=PATCH)
         height, width = target.shape[:2]
         # blocks at the frame's border read its reflection, as fit_blocks' filters do
