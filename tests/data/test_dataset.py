@@ -140,3 +140,7 @@ def test_bad_datasets_are_named(tmp_path):
     write_dpdd_pairs(small, "train", ["c"], size=(40, 48))
     with pytest.raises(ParameterError, match=r"patch_size 64 exceeds .*c.* \(48x40\)"):
         DPPatchDataset(discover_dp_dataset(small, "train"), PatchConfig(patch_size=64))
+    # issue #73: the setting is named, not only the data it does not fit
+    with pytest.raises(ParameterError, match=r"sequence_frames is 4 but no sequence has that "
+                                             r"many frames .*lower sequence_frames"):
+        DPPatchDataset(discover_dp_dataset(small, "train"), PatchConfig(patch_size=32, frames=4))
