@@ -24,7 +24,7 @@ from dualpixel.optics.tone import CombinedImage, linear_to_srgb_array, srgb_to_l
 
 __all__ = [
     "BRIGHTNESS_MODES", "DEFAULT_BRIGHTNESS", "DITHER_SIGMA", "check_brightness",
-    "is_palette_image", "smooth", "tie_brightness", "tie_sigma",
+    "is_palette_image", "resolved_sigma", "smooth", "tie_brightness", "tie_sigma",
 ]
 
 #: Gaussian std (px) that smooths a palette image's dither in its stored values before they are
@@ -39,6 +39,16 @@ def tie_sigma(width: int) -> float:
     at 840 px, the scale of the largest CoC radius of the training data's DSLR profile there,
     30 px). A wider one leaves local shifts of brightness; no narrower one is needed."""
     return width / 35.0
+
+
+def resolved_sigma(sigma: float | None, width: int) -> float:
+    """The tie's low-pass std (px): ``sigma``, or :func:`tie_sigma` of ``width`` when None; a
+    :class:`ParameterError` unless positive and finite."""
+    if sigma is None:
+        sigma = tie_sigma(width)
+    if not (math.isfinite(sigma) and sigma > 0):
+        raise ParameterError(f"sigma must be a positive number of pixels, got {sigma}")
+    return sigma
 
 
 def check_brightness(mode: str) -> str:
@@ -96,10 +106,7 @@ def tie_brightness(output: np.ndarray, left: np.ndarray, right: np.ndarray | Non
     For palette images (:func:`is_palette_image`) both sides are measured after a Gaussian of
     :data:`DITHER_SIGMA` px in the stored values. ``combined``: the views' combined image when
     already made (a frame's :class:`~dualpixel.optics.tone.CombinedImage`)."""
-    if sigma is None:
-        sigma = tie_sigma(output.shape[1])
-    if not (math.isfinite(sigma) and sigma > 0):
-        raise ParameterError(f"sigma must be a positive number of pixels, got {sigma}")
+    sigma = resolved_sigma(sigma, output.shape[1])
     measured = output
     if is_palette_image(left):  # both sides measured alike, after the dither's smoothing
         combined = CombinedImage(*(None if v is None else smooth(v, DITHER_SIGMA)

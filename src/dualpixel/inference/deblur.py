@@ -68,7 +68,7 @@ from dualpixel.inference.precision import Precision, resolve_precision
 from dualpixel.inference.tiling import MAX_BATCH, TileGrid, deblur_tiled
 from dualpixel.memory import GIB, available_memory
 from dualpixel.models.unet import DeblurNet, pass_memory
-from dualpixel.optics.tone import CombinedImage, linear_to_srgb, srgb_to_linear
+from dualpixel.optics.tone import CombinedImage
 
 #: Smallest tile and overlap (px) whose output matches whole-frame deblurring closely: below
 #: them a tile's border sees too little of the image, and outputs change by tens of levels.
@@ -340,23 +340,9 @@ class Deblurrer:
 def _finish_tensor(out: torch.Tensor, left: np.ndarray, right: np.ndarray | None,
                    combined: CombinedImage | None, *, limited: bool, tied: bool
                    ) -> torch.Tensor:
-    """The output modes of :meth:`Deblurrer.finish` on ``out``'s device: the views' combined
-    image made there (or its known light moved there), then the limit and the tie."""
-    device = out.device
-
-    def tensor(image: np.ndarray) -> torch.Tensor:
-        return torch.from_numpy(np.ascontiguousarray(image, np.float32)).to(device).permute(
-            2, 0, 1)
-
-    if combined is not None and "light" in combined.__dict__:  # light known: the raw path
-        light = tensor(combined.light)
-        encoded = linear_to_srgb(light) if right is not None else tensor(left)
-    elif right is None:
-        encoded = tensor(left)
-        light = srgb_to_linear(encoded)
-    else:
-        light = 0.5 * (srgb_to_linear(tensor(left)) + srgb_to_linear(tensor(right)))
-        encoded = linear_to_srgb(light)
+    """The output modes of :meth:`Deblurrer.finish` on ``out``'s device, reading the views'
+    combined image made there (:meth:`~dualpixel.optics.tone.CombinedImage.tensors`)."""
+    light, encoded = (combined or CombinedImage(left, right)).tensors(out.device)
     if limited:
         out = limit_overshoot_tensor(out, encoded)
     if tied:

@@ -12,12 +12,10 @@ number of them).
 
 from __future__ import annotations
 
-import math
-
 import torch
 import torch.nn.functional as F
 
-from dualpixel.inference.brightness import _FLOOR, tie_sigma
+from dualpixel.inference.brightness import _FLOOR, resolved_sigma
 from dualpixel.inference.overshoot import OVERSHOOT_MARGIN, overshoot_radius
 from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
 
@@ -103,10 +101,7 @@ def tie_brightness_tensor(output: torch.Tensor, light: torch.Tensor, *,
     ``output`` (display values) scaled in linear light so that its low-pass equals that of
     ``light``, the views' combined image in linear light (not for palette images: their
     dither is measured on the CPU)."""
-    if sigma is None:
-        sigma = tie_sigma(output.shape[-1])
-    if not (math.isfinite(sigma) and sigma > 0):
-        raise ValueError(f"sigma must be a positive number of pixels, got {sigma}")
+    sigma = resolved_sigma(sigma, output.shape[-1])
     linear = srgb_to_linear(output)
     gain = ((low_pass_tensor(light.mean(0), sigma) + _FLOOR)
             / (low_pass_tensor(linear.mean(0), sigma) + _FLOOR))

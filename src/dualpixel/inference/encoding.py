@@ -314,10 +314,10 @@ def deblur_encoded(deblurrer: Callable[[np.ndarray, np.ndarray | None], np.ndarr
     its exposure already found (a sequence keeps its first pair's; :meth:`ViewEncoding.exposed`),
     else found here from ``encoding``. ``inspect(left, right)`` sees the views as the network
     will (checks of a sequence's first pair)."""
-    views_sum = views_sum and right is not None
-    other = left if right is None else right
     from dualpixel.inference.deblur import Deblurrer
 
+    views_sum = views_sum and right is not None
+    other = left if right is None else right
     if exposed is None:
         exposed = (encoding or ViewEncoding()).exposed(left, other, scale=scale,
                                                        views_sum=views_sum)

@@ -26,6 +26,7 @@ from dualpixel.optics.psf_bank import (
 from dualpixel.optics.thin_lens import (
     DEFOCUS_PROFILES,
     PAPER_LENS_SETS,
+    RENAMED_LENS_NAMES,
     DefocusProfile,
     ThinLens,
     coc_radius,
@@ -58,5 +59,4 @@ __all__ = [
 ]
 
 
-__getattr__ = renamed_attributes(
-    __name__, {"ThinLensCamera": "ThinLens", "CAMERA_PRESETS": "PAPER_LENS_SETS"}, globals())
+__getattr__ = renamed_attributes(__name__, RENAMED_LENS_NAMES, globals())

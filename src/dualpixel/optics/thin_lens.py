@@ -262,5 +262,5 @@ DEFOCUS_PROFILES: dict[str, DefocusProfile] = {
 
 
 #: Old names (until release 0.3): "camera" now names a calibrated camera file alone.
-__getattr__ = renamed_attributes(
-    __name__, {"ThinLensCamera": "ThinLens", "CAMERA_PRESETS": "PAPER_LENS_SETS"}, globals())
+RENAMED_LENS_NAMES = {"ThinLensCamera": "ThinLens", "CAMERA_PRESETS": "PAPER_LENS_SETS"}
+__getattr__ = renamed_attributes(__name__, RENAMED_LENS_NAMES, globals())

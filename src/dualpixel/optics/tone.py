@@ -147,6 +147,24 @@ class CombinedImage:
             return np.asarray(self.left, np.float32)
         return linear_to_srgb_array(self.light)
 
+    def tensors(self, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(light, encoded)`` as float32 ``(C, H, W)`` tensors made on ``device`` (a GPU's
+        output modes): a light already known moves there, else the views do and it is made
+        there."""
+
+        def tensor(image: np.ndarray) -> torch.Tensor:
+            return torch.from_numpy(np.ascontiguousarray(image, np.float32)).to(
+                device).permute(2, 0, 1)
+
+        if "light" in self.__dict__:  # known (of_light) or already made here
+            light = tensor(self.light)
+            return light, linear_to_srgb(light) if self.right is not None else tensor(self.left)
+        if self.right is None:
+            encoded = tensor(self.left)
+            return srgb_to_linear(encoded), encoded
+        light = 0.5 * (srgb_to_linear(tensor(self.left)) + srgb_to_linear(tensor(self.right)))
+        return light, linear_to_srgb(light)
+
 
 def check_raw_storage(black_level: float, gains: tuple[float, float]) -> None:
     """Refuse a raw storage :func:`linear_to_raw` cannot make: ``black_level`` in [0, 0.5),
