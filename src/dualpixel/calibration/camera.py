@@ -47,6 +47,7 @@ __all__ = [
     "fit_blocks",
     "linear_light_share",
     "load_camera",
+    "view_kernels",
 ]
 
 #: Blocks whose target's mean absolute horizontal gradient (per channel, [0, 1] units) is below
@@ -78,7 +79,7 @@ def _sums(values: np.ndarray, patch: int) -> np.ndarray:
     return block_sums(values, patch, np.float64)
 
 
-def _view_kernels(radius: float, params: PSFParams) -> tuple[np.ndarray, np.ndarray]:
+def view_kernels(radius: float, params: PSFParams) -> tuple[np.ndarray, np.ndarray]:
     """Left and right kernels of CoC radius ``radius`` (each summing to 1), flipped for
     ``cv2.filter2D`` (which correlates)."""
     kernels = dp_psf(float(radius), params)
@@ -110,7 +111,7 @@ def fit_blocks(
         if radius <= 0:
             a = b = sharp[inner]
         else:
-            kl, kr = _view_kernels(radius, params)
+            kl, kr = view_kernels(radius, params)
             a = cv2.filter2D(sharp, -1, kl, borderType=cv2.BORDER_REFLECT)[inner]
             b = cv2.filter2D(sharp, -1, kr, borderType=cv2.BORDER_REFLECT)[inner]
         m11 = _sums(a * a + b * b, patch)
