@@ -296,6 +296,25 @@ def test_quiet_silences_progress_bars(tmp_path):
     assert "rendering scenes" not in quiet.stderr and "wrote 1 sequences" in quiet.stdout
 
 
+def test_quiet_run_from_python_leaves_later_commands_their_bars(tmp_path, monkeypatch):
+    """``--quiet`` silences worker processes through the environment; a command run in this
+    process (a notebook, a test) must not leave it silenced for the commands after it."""
+    import os
+
+    from click.testing import CliRunner
+
+    from dualpixel.cli.main import cli
+
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    args = ["scenes", "--sequences", "1", "--frames", "1", "--size", "32x24", "-o"]
+    result = CliRunner().invoke(cli, ["-q", *args, str(tmp_path / "a")])
+    assert result.exit_code == 0, result.output
+    assert "TQDM_DISABLE" not in os.environ
+    monkeypatch.setenv("TQDM_DISABLE", "0")  # a setting of the user's own is put back as it was
+    assert CliRunner().invoke(cli, ["-q", *args, str(tmp_path / "b")]).exit_code == 0
+    assert os.environ["TQDM_DISABLE"] == "0"
+
+
 def test_eval_names_a_defocus_map_of_the_wrong_size(files, tmp_path, tiny_synthetic_dataset):
     import shutil
 

@@ -3,6 +3,7 @@
 import os
 import time
 
+import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -497,3 +498,28 @@ def test_images_too_small_for_a_metric_or_a_check_name_the_file(tmp_path):
     assert check.exit_code == 1, check.output
     assert "left.png: images must be at least 128x64 px for the target-free checks" in \
         check.output
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_a_folder_that_takes_no_file_is_named_before_any_work(tmp_path):
+    """The access bits pass for root, and /proc takes no new file: the output is checked by
+    making a file, and the error names the file asked for, not a temporary one."""
+    from dualpixel.io.atomic import atomic_path, check_writable
+
+    with pytest.raises(OutputFileError, match=r"^/proc/out\.png: could not be written"):
+        check_writable("/proc/out.png")
+    with pytest.raises(OutputFileError, match=r"^/proc/out\.png: ") as raised:
+        with atomic_path("/proc/out.png"):
+            pass
+    assert "partial" not in str(raised.value)
+    check_writable(tmp_path / "fine.png")  # a writable folder: nothing left behind
+    assert os.listdir(tmp_path) == []
+    views = tmp_path / "views"
+    views.mkdir()
+    for name in ("left.png", "right.png"):
+        cv2.imwrite(str(views / name), np.full((32, 48, 3), 128, np.uint8))
+    result = CliRunner().invoke(cli, ["deblur", "--left", str(views / "left.png"), "--right",
+                                      str(views / "right.png"), "-o", "/proc/out.png"])
+    assert result.exit_code == 1
+    assert "Error: /proc/out.png: could not be written" in result.output
+    assert "deblurring" not in result.output and "Traceback" not in result.output

@@ -23,14 +23,24 @@ def cli(quiet: bool) -> None:
     """dualpixel: dual-pixel defocus deblurring (Abuolaim et al., ICCV 2021)."""
     reuse_freed_memory()
     if quiet:
-        _silence_progress_bars()
+        _silence_progress_bars(click.get_current_context())
 
 
-def _silence_progress_bars() -> None:
+def _silence_progress_bars(ctx: click.Context) -> None:
     """Every progress bar of the library is a tqdm bar that follows tqdm's environment
     (:func:`dualpixel.progress.progress_bar`): ``TQDM_DISABLE`` silences them, in worker
-    processes too."""
+    processes too. The setting is undone when the command ends, so a command run from Python
+    (a notebook, a test) leaves later ones their bars."""
+    before = os.environ.get("TQDM_DISABLE")
     os.environ["TQDM_DISABLE"] = "1"
+
+    def restore() -> None:
+        if before is None:
+            os.environ.pop("TQDM_DISABLE", None)
+        else:
+            os.environ["TQDM_DISABLE"] = before
+
+    ctx.call_on_close(restore)
 
 
 for _module in (synthesis, training, reproduce, inference, calibration, demo):

@@ -83,10 +83,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         match = pattern.fullmatch(leftover.name)
         if match and _is_leftover(leftover, int(match[1]) if match[1] else None):
             leftover.unlink(missing_ok=True)  # this file's earlier write, killed mid-way
-    fd, tmp_name = tempfile.mkstemp(prefix=base + writer, suffix=target.suffix,
-                                    dir=target.parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
+    tmp = _temporary(target, base + writer)
     try:
         yield tmp
         os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the usual permissions
@@ -99,6 +96,18 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _temporary(target: Path, prefix: str) -> Path:
+    """A new empty file ``prefix...<suffix>`` beside ``target``; a folder that takes no file
+    (read-only, a pseudo file system such as /proc) is an :class:`OutputFileError` naming
+    ``target``, not the temporary name."""
+    try:
+        fd, name = tempfile.mkstemp(prefix=prefix, suffix=target.suffix, dir=target.parent)
+    except OSError as error:
+        raise _output_error(target, error) from None
+    os.close(fd)
+    return Path(name)
 
 
 def _output_error(target: Path, error: OSError) -> OutputFileError:
@@ -136,6 +145,9 @@ def check_writable(path: str | Path) -> Path:
         raise _output_error(target, error) from None
     if not os.access(target.parent, os.W_OK | os.X_OK):
         raise OutputFileError(target, "permission denied (folder not writable)")
+    # the access bits do not tell everything (root passes them; /proc takes no new file): make
+    # one, with the partial marker so that a kill right here leaves a file cleanup knows
+    _temporary(target, f".probe{PARTIAL_MARKER}p{os.getpid()}-").unlink(missing_ok=True)
     return target
 
 
