@@ -163,3 +163,34 @@ def test_a_full_disk_under_training_state_names_it_and_keeps_the_last_good(
         train(tiny_config(tiny_synthetic_dataset, epochs=2), out, resume=True, progress=False)
     assert (out / "last_state.pt").read_bytes() == before
     assert not [p for p in out.iterdir() if p.name.startswith(".") and p.is_symlink()]
+
+
+@pytest.mark.parametrize(("text", "says"), [
+    ("epochs: 1e400\n", "'epochs': '1e400' is not an integer"),
+    ("epochs: true\n", "'epochs': True is not an integer"),
+    ("val_limit: 2.5\n", "'val_limit': 2.5 is not an integer or null"),
+    ("refiner: [a, b]\n", "is not a list of integers or null"),
+])
+def test_config_types_are_named_in_words(tmp_path, text, says):
+    """A config value of the wrong type names the key and the type as a user writes it, never
+    Python's ``<class 'int'>``."""
+    config = tmp_path / "bad.yaml"
+    config.write_text(text)
+    result = CliRunner().invoke(cli, ["train", "--config", str(config), "-o",
+                                      str(tmp_path / "run")])
+    assert result.exit_code == 2 and says in result.output
+    assert "<class" not in result.output and "Traceback" not in result.output
+
+
+def test_a_psf_file_that_is_no_plain_array_never_suggests_unsafe_loading(tmp_path):
+    import pickle
+
+    from dualpixel.calibration.measured_psfs import load_measured_psfs
+
+    for name, payload in (("random.npy", os.urandom(2000)),
+                          ("objects.npy", b"\x93NUMPY" + pickle.dumps({"a": 1}))):
+        path = tmp_path / name
+        path.write_bytes(payload)
+        with pytest.raises(InputFileError, match=name) as raised:
+            load_measured_psfs(path, "left")
+        assert "allow_pickle" not in str(raised.value) and "unsafely" not in str(raised.value)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from dualpixel.errors import InputFileError
+from dualpixel.io.images import load_npy, numpy_load_problem
 
 __all__ = ["load_measured_psfs"]
 
@@ -26,15 +27,17 @@ def load_measured_psfs(path: str | Path, view: str) -> np.ndarray:
         raise InputFileError(path, f"expected a .npy or .npz PSF file, got {suffix or 'no suffix'}")
     try:
         if suffix == ".npy":
-            data = np.load(path, allow_pickle=False)
+            data = load_npy(path)
         else:
             with np.load(path, allow_pickle=False) as archive:
                 if view not in archive:
                     raise InputFileError(path, f"has no '{view}' array (it holds "
                                                f"{', '.join(archive.files) or 'none'})")
                 data = archive[view]
+    except InputFileError:
+        raise  # load_npy's, naming the file already
     except (OSError, ValueError, zipfile.BadZipFile) as error:
-        raise InputFileError(path, f"cannot be read as a NumPy file ({error})") from None
+        raise InputFileError(path, numpy_load_problem(error)) from None
     data = np.asarray(data, np.float64)
     if data.ndim == 2:
         data = data[None]

@@ -27,6 +27,7 @@ __all__ = [
     "image_size",
     "load_npy",
     "max_level",
+    "numpy_load_problem",
     "quantise",
     "read_depth",
     "read_rgb",
@@ -460,7 +461,16 @@ def load_npy(path: str | Path) -> np.ndarray:
     try:
         return np.load(path, allow_pickle=False)
     except (ValueError, OSError) as error:
-        raise InputFileError(path, f"cannot be read as a NumPy array ({error})") from None
+        raise InputFileError(path, numpy_load_problem(error)) from None
+
+
+def numpy_load_problem(error: Exception) -> str:
+    """What ``np.load(..., allow_pickle=False)``'s ``error`` says, for a user: NumPy's own text
+    for a file without an array header suggests loading it unsafely, which we never do."""
+    if "pickle" in str(error):
+        return ("is not a plain NumPy array file (no .npy header, or Python objects, which are "
+                "never loaded)")
+    return f"cannot be read as a NumPy array ({error})"
 
 
 def save_npy(path: str | Path, array: np.ndarray) -> None:

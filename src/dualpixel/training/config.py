@@ -220,13 +220,29 @@ def _coerce(name: str, annotation: Any, value: Any) -> Any:
         if origin is list and isinstance(value, list | tuple):
             (item,) = typing.get_args(option)
             if not all(isinstance(v, item) and not isinstance(v, bool) for v in value):
-                raise ParameterError(f"config key {name!r}: {value!r} is not a {hint}")
+                raise ParameterError(f"config key {name!r}: {value!r} is not {_described(hint)}")
             return list(value)
         if origin is not type(None) and isinstance(value, origin) and not (
             origin is int and isinstance(value, bool)
         ):
             return value
-    raise ParameterError(f"config key {name!r}: {value!r} is not a {hint}")
+    raise ParameterError(f"config key {name!r}: {value!r} is not {_described(hint)}")
+
+
+def _described(hint: Any) -> str:
+    """A config type in words: ``int | None`` -> "an integer or null"."""
+    words = {int: "an integer", float: "a number", str: "a string", bool: "true or false",
+             type(None): "null"}
+    plurals = {int: "integers", float: "numbers", str: "strings", bool: "true or false values"}
+    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+    parts = []
+    for option in options:
+        if typing.get_origin(option) is list:
+            (item,) = typing.get_args(option)
+            parts.append(f"a list of {plurals.get(item, getattr(item, '__name__', item))}")
+        else:
+            parts.append(words.get(option, getattr(option, "__name__", str(option))))
+    return " or ".join(parts)
 
 
 #: Keys renamed since configs were first written: old name -> new name (the network's parts are
