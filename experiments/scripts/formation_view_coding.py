@@ -42,16 +42,13 @@ def blocks(root: str, model: str, count: int, coding: str) -> np.ndarray:
     for name in names:
         images = [read_rgb(os.path.join(root, part, name, "frame_0000.png"))
                   for part in ("test_l/source", "test_r/source", "test_c/source", "test_c/target")]
-        coded = [gif_frame(image) for image in images]
-        left, right, combined, target = coded if coding in ("gif", "gif-views") else images
-        if coding in ("gif", "gif-views"):
-            output = dualpixel.deblur(left, right, model=model, device="cpu")
-        else:
-            output = dualpixel.deblur(*images[:2], model=model, device="cpu")
-        if coding == "gif-views":  # the same coded input, scored against the clean target
-            combined, target = coded[2], images[3]
+        coded = [gif_frame(image) for image in images] if coding != "none" else images
+        views = coded[:2] if coding in ("gif", "gif-views") else images[:2]
+        output = dualpixel.deblur(*views, model=model, device="cpu")
         if coding == "gif-output":  # clean views, the output coded as DPDNet's was published
-            output, combined, target = gif_frame(output), coded[2], coded[3]
+            output = gif_frame(output)
+        # "gif-views": the coded input scored against the clean target
+        combined, target = coded[2], (images if coding == "gif-views" else coded)[3]
         coc = np.abs(np.load(os.path.join(root, "test_c", "defocus", name, "frame_0000.npy")))
         height, width = target.shape[:2]
         for y in range(0, height - PATCH + 1, PATCH):

@@ -35,7 +35,7 @@ def load_measured_psfs(path: str | Path, view: str) -> np.ndarray:
                                                f"{', '.join(archive.files) or 'none'})")
                 data = archive[view]
     except InputFileError:
-        raise  # load_npy's, naming the file already
+        raise  # load_npy's or a missing view's, naming the file already
     except (OSError, ValueError, zipfile.BadZipFile) as error:
         raise InputFileError(path, numpy_load_problem(error)) from None
     data = np.asarray(data, np.float64)

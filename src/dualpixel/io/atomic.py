@@ -70,7 +70,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     store) do not delete each other's.
     """
     target = Path(path)
-    check_writable(target)
+    _check_folder(target)  # its own temporary file below is the probe check_writable makes
     # the name says which process writes it ("p<pid>-"), so a rerun removes a killed writer's
     # file at once; the stem is shortened where the name would exceed the longest (mkstemp
     # adds 8)
@@ -129,8 +129,17 @@ def _name_max(folder: Path) -> int:
 def check_writable(path: str | Path) -> Path:
     """Make ``path``'s folder and check a file can be written there, before any long work; raise
     :class:`OutputFileError` naming the path otherwise (an existing folder, a read-only folder,
-    a parent that is a file)."""
-    target = Path(path)
+    a parent that is a file, a folder that takes no file)."""
+    target = _check_folder(Path(path))
+    # the access bits do not tell everything (root passes them; /proc takes no new file): make
+    # one, with the partial marker so that a kill right here leaves a file cleanup knows
+    _temporary(target, f".probe{PARTIAL_MARKER}p{os.getpid()}-").unlink(missing_ok=True)
+    return target
+
+
+def _check_folder(target: Path) -> Path:
+    """:func:`check_writable` without its probe file: the name's length, ``target`` no folder,
+    its folder made and writable by the access bits."""
     longest = _name_max(target.parent if target.parent.is_dir() else Path("."))
     if len(os.fsencode(target.name)) > longest:
         raise OutputFileError(target, f"its name is {len(os.fsencode(target.name))} bytes long, "
@@ -145,9 +154,6 @@ def check_writable(path: str | Path) -> Path:
         raise _output_error(target, error) from None
     if not os.access(target.parent, os.W_OK | os.X_OK):
         raise OutputFileError(target, "permission denied (folder not writable)")
-    # the access bits do not tell everything (root passes them; /proc takes no new file): make
-    # one, with the partial marker so that a kill right here leaves a file cleanup knows
-    _temporary(target, f".probe{PARTIAL_MARKER}p{os.getpid()}-").unlink(missing_ok=True)
     return target
 
 
