@@ -26,7 +26,10 @@ paired: both in one process, passes alternating, the median of the per-pair rati
 ``--profile CASE`` prints where one pass of that case spends its time instead. ``--command``:
 the whole ``dualpixel deblur`` command (start-up, loading, reading, deblurring, writing) on one
 1680x1120 pair of 8-bit PNGs, each run a fresh process, best of ``--repeats``, with its peak
-memory (targets: 3.0 s and 2 GiB on 2 CPU cores).
+memory (targets: 3.0 s and 2 GiB on 2 CPU cores). ``--sequence N``: a temporal model
+(``--checkpoint``, e.g. ``rdpd-light-video``) on N 1680x1120 frames in a sequence, seconds per
+frame with its state carried (frames 2 to N run the ConvLSTM's recurrent convolution) against
+its first frame (zero state), best of ``--repeats`` sequences.
 """
 
 from __future__ import annotations
@@ -81,11 +84,13 @@ def prepare(case: dict, device: str):
     return deblurrer, setup, left, right
 
 
-def timed_pass(deblurrer, left, right, device: str) -> float:
-    """Seconds of one pass from a reset state (the GPU synchronised on both sides)."""
+def timed_pass(deblurrer, left, right, device: str, *, reset: bool = True) -> float:
+    """Seconds of one pass, from a reset state unless ``reset`` is False (a sequence's later
+    frame); the GPU synchronised on both sides."""
     import torch
 
-    deblurrer.reset()
+    if reset:
+        deblurrer.reset()
     if device.startswith("cuda"):
         torch.cuda.synchronize()
     started = time.perf_counter()
@@ -229,6 +234,20 @@ def command_time(checkpoint: str, device: str, repeats: int) -> tuple[float, flo
     return best, peak
 
 
+def sequence_time(checkpoint: str, device: str, frames: int, repeats: int) -> dict:
+    """Best seconds of a sequence's first frame and mean of its later frames (state carried),
+    over ``repeats`` sequences of ``frames`` random 1680x1120 pairs, on the default path."""
+    deblurrer, _, left, right = prepare({"model": "shipped", "checkpoint": checkpoint}, device)
+    first, later = [], []
+    for _ in range(repeats):
+        times = [timed_pass(deblurrer, left, right, device, reset=n == 0) for n in range(frames)]
+        first.append(times[0])
+        later.append(sum(times[1:]) / (frames - 1))
+    return {"temporal": deblurrer.model.temporal, "first": min(first), "later": min(later),
+            "precision": deblurrer.numerics.name,
+            "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+
+
 def run_cases(cases: dict, device: str, repeats: int) -> dict:
     results = {}
     for name, case in cases.items():
@@ -271,6 +290,8 @@ def main() -> None:
                         help="instead: profile one pass of CASE (default, fp32, fp16, tiled, ...)")
     parser.add_argument("--command", action="store_true",
                         help="instead: the whole dualpixel deblur command on a 1680x1120 pair")
+    parser.add_argument("--sequence", type=int, metavar="N",
+                        help="instead: a temporal model on N frames in a sequence")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one case as JSON
     parser.add_argument("--pair", help=argparse.SUPPRESS)  # internal: two cases, alternating
     args = parser.parse_args()
@@ -302,6 +323,15 @@ def main() -> None:
         seconds, peak = command_time(checkpoint, args.device, args.repeats)
         print(f"dualpixel deblur, one 1680x1120 pair, whole command: {seconds:.2f} s "
               f"(target <= 3.0 s), peak RSS {peak:.2f} GiB (target <= 2 GiB)")
+        return
+    if args.sequence is not None:
+        if args.sequence < 2:
+            parser.error(f"--sequence must be at least 2 frames, got {args.sequence}")
+        r = sequence_time(checkpoint, args.device, args.sequence, args.repeats)
+        kind = "temporal" if r["temporal"] else "single frames: no state to carry"
+        print(f"{checkpoint} ({kind}), 1680x1120, {r['precision']}: first frame "
+              f"{r['first']:.2f} s, frames 2-{args.sequence} {r['later']:.2f} s each (ratio "
+              f"{r['later'] / r['first']:.2f}), peak RSS {r['peak_rss_gib']:.2f} GiB")
         return
     if args.profile:
         cases = {**shipped, **PAPER_CASES}

@@ -78,8 +78,10 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
            backend: str = "torch", encoding: str = "srgb", black_level: float | None = None,
            white_level: float | None = None, right_gain: float | np.ndarray = 1.0,
            auto_exposure: bool = True, brightness: str | None = None,
-           overshoot: str | None = None) -> np.ndarray | torch.Tensor:
-    """Deblur a DP pair (or a batch of independent pairs): views at the combined image's
+           overshoot: str | None = None, sequence: bool = False) -> np.ndarray | torch.Tensor:
+    """Deblur a DP pair (or a batch of independent pairs; with ``sequence=True``, the batch
+    is one sequence's frames in order, and a temporal model carries its state from each frame
+    to the next, as ``dualpixel deblur`` on folders of frames): views at the combined image's
     brightness (DPDD), or ``views_sum=True`` for views that sum to it (a raw A/B split; they
     are doubled). :func:`check_views` tells the usual mistakes. ``model``: a name, a checkpoint
     path or a loaded network. ``flips``, ``brightness``, ``overshoot``: None takes the
@@ -146,12 +148,17 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     deblurrer = build_deblurrer(loaded, brightness=brightness, overshoot=overshoot,
                                 flips=flips, tile=tile, multiscale=multiscale,
                                 precision=precision)
-    outputs = []
+    outputs, exposed = [], view_encoding
     for index in range(len(lefts)):
-        deblurrer.reset()  # a batch holds independent pairs, each of its own exposure
-        outputs.append(deblur_encoded(deblurrer, lefts[index][..., :channels],
-                                      None if rights is None else rights[index][..., :channels],
-                                      view_encoding, scale=scale, views_sum=views_sum))
+        frame_left = lefts[index][..., :channels]
+        frame_right = None if rights is None else rights[index][..., :channels]
+        if not sequence or index == 0:  # independent pairs, each of its own exposure; a
+            deblurrer.reset()           # sequence keeps its state and its first pair's
+            exposed = view_encoding.exposed(frame_left, frame_left if frame_right is None
+                                            else frame_right, scale=scale,
+                                            views_sum=views_sum and frame_right is not None)
+        outputs.append(deblur_encoded(deblurrer, frame_left, frame_right, scale=scale,
+                                      views_sum=views_sum, exposed=exposed))
     result = restore_layout(np.stack(outputs), layout, like=left)
     if not type(left).__module__.startswith("PIL.") and np.ndim(left) == 2:  # (H, W) in
         return result[0] if layout == "torch" else result[..., 0]

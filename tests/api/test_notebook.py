@@ -241,3 +241,22 @@ def test_the_guides_first_example_gains_with_the_shipped_model():
     paper = dualpixel.synthesize(rgb, depth, seed=0, settings="paper")
     np.testing.assert_array_equal(paper["left"], dualpixel.synthesize(
         rgb, depth, seed=0, settings="paper", lens_set="set1")["left"])
+
+
+def test_a_sequence_carries_a_temporal_models_state():
+    from dualpixel.models import build_model
+
+    torch.manual_seed(0)
+    model = build_model("rdpd", width=0.125).eval()
+    rng = np.random.default_rng(4)
+    lefts, rights = (rng.random((3, 32, 48, 3), dtype=np.float32) for _ in range(2))
+    apart = dualpixel.deblur(lefts, rights, model=model, device="cpu", precision="fp32")
+    carried = dualpixel.deblur(lefts, rights, model=model, device="cpu", precision="fp32",
+                               sequence=True)
+    np.testing.assert_array_equal(carried[0], apart[0])  # the first frame starts from zero
+    for later in (1, 2):  # the later ones see the state of the frames before them
+        assert np.abs(carried[later] - apart[later]).max() > 1e-4
+    model.temporal = False  # a model trained on single frames runs every frame afresh
+    np.testing.assert_array_equal(
+        dualpixel.deblur(lefts, rights, model=model, device="cpu", precision="fp32",
+                         sequence=True), apart)

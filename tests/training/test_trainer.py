@@ -1,4 +1,5 @@
 import json
+import re
 
 import pytest
 import torch
@@ -367,6 +368,10 @@ def test_models_command_lists_counts():
         assert f"{name}{aliases}: {info['description']}" in result.output
         assert info["sha256"][:16] in result.output
         assert f"recipes/{info['recipe']} phase {info['phase']}" in result.output
+        block = re.search(rf"^  {re.escape(name)}\b.*?(?=^  \S|\Z)", result.output,
+                          flags=re.S | re.M).group()  # this model's lines
+        frames = "carries its state" if info["temporal"] else "single frames"
+        assert frames in block, block
         for dataset, scores in info["metrics"].items():
             assert f"{dataset}: {scores['psnr']:.2f} dB" in result.output
 

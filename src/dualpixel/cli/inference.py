@@ -214,6 +214,9 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @click.option("--figures", type=click.IntRange(0), default=3,
               help="Side-by-side figures for the first N images.")
 @click.option("--save-outputs", is_flag=True, help="Also write the model's outputs (PNG).")
+@click.option("--afresh", is_flag=True,
+              help="Run every frame of a sequence on its own (a temporal model's state reset "
+                   "before each), as a single-frame model runs them.")
 @click.option("--align", type=click.Choice(["none", *ALIGN_MODE_NAMES]), default="none",
               show_default=True,
               help="Also score each output after registering it to its target (ECC), for real "
@@ -235,7 +238,8 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @_WHITE_LEVEL_OPTION
 @_AUTO_EXPOSURE_OPTION
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
-                     niqe_model, no_niqe, output, figures, save_outputs, align, tile, overlap,
+                     niqe_model, no_niqe, output, figures, save_outputs, afresh, align, tile,
+                     overlap,
                      device, precision, backend, flips, multiscale, brightness,
                      overshoot, encoding, black_level, white_level, auto_exposure) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
@@ -245,7 +249,7 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
     request = EvaluationRequest(
         output=output, dataset=dataset, split=split, pred=pred, target=target, compare=compare,
         categories=categories, niqe_model=niqe_model, niqe=not no_niqe, figures=figures,
-        save_outputs=save_outputs, align=None if align == "none" else align,
+        save_outputs=save_outputs, afresh=afresh, align=None if align == "none" else align,
         encoding=ViewEncoding(encoding, black_level, white_level, auto_exposure=auto_exposure))
     deblurrer, method, meta = None, "model", {}
     if not no_model and pred is None and target is None:
@@ -260,7 +264,8 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         method = checkpoint_label(str(checkpoint)) + output_modes_suffix(
             settings["brightness"], settings["overshoot"], flips=settings["flips"],
             multiscale=multiscale)
-        meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, **settings,
+        meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, "afresh": afresh,
+                **settings,
                 "precision": deblurrer.numerics.name, "backend": deblurrer.backend}
     summary = run_evaluation(request, deblurrer, method, meta)
     click.echo(summary.read_text())

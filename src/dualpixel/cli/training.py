@@ -31,8 +31,11 @@ def models(width: float) -> None:
         aliases = f" (alias {', '.join(info['aliases'])})" if info["aliases"] else ""
         click.echo(f"  {tag}{aliases}: {info['description']}")
         refiner = f", refiner {info['refiner']}" if info["refiner"] else ""
+        frames = ("temporal: carries its state along a sequence's frames" if info["temporal"]
+                  else "single frames: each frame afresh")
         click.echo(f"    {info['model']} width {info['width']:g}, residual {info['residual']}"
-                   f"{refiner}, {info['parameters']:,} parameters, {info['bytes'] / 1e6:.1f} MB, "
+                   f"{refiner}, {frames}, {info['parameters']:,} parameters, "
+                   f"{info['bytes'] / 1e6:.1f} MB, "
                    f"sha256 {info['sha256'][:16]}...; made by recipes/{info['recipe']} phase "
                    f"{info['phase']}")
         settings = ", ".join(f"--{k} {v}" if not isinstance(v, bool) else

@@ -40,10 +40,12 @@ if TYPE_CHECKING:
 __all__ = [
     "EvalExample",
     "ImageResult",
+    "by_position",
     "evaluate",
     "evaluate_folders",
     "examples_from_sequences",
     "markdown_table",
+    "position_markdown",
     "read_categories",
     "summarise",
     "write_reports",
@@ -52,8 +54,9 @@ __all__ = [
 
 @dataclass
 class EvalExample:
-    """One image to score: its name, sequence, views, target, other methods' outputs and, for
-    synthetic data, its defocus map (see :mod:`dualpixel.evaluation.blur_breakdown`)."""
+    """One image to score: its name, sequence, views, target, other methods' outputs, for
+    synthetic data its defocus map (see :mod:`dualpixel.evaluation.blur_breakdown`) and, in a
+    sequence of several frames, its ``position`` (0 for the first)."""
 
     name: str
     sequence: str
@@ -63,6 +66,7 @@ class EvalExample:
     combined: Path | None = None
     others: dict[str, Path] = field(default_factory=dict)
     defocus: Path | None = None
+    position: int | None = None
 
 
 @dataclass
@@ -77,6 +81,7 @@ class ImageResult:
     seconds: float | None
     aligned_psnr: float | None = None
     aligned_ssim: float | None = None
+    position: int | None = None  # the frame's place in its sequence (0 first); None: one frame
 
 
 def examples_from_sequences(
@@ -87,7 +92,7 @@ def examples_from_sequences(
     other methods' outputs: per-scene extras and ``compare`` folders (files named like examples)."""
     examples = []
     for sequence in sequences:
-        for frame in sequence.frames:
+        for position, frame in enumerate(sequence.frames):
             if frame.target is None:
                 raise InputFileError(frame.left, "no target to evaluate against")
             multi = len(sequence.frames) > 1
@@ -100,7 +105,8 @@ def examples_from_sequences(
                     raise InputFileError(folder, f"no output of {method!r} for {name}")
                 extra[method] = found[0]
             examples.append(EvalExample(name, sequence.name, frame.left, frame.right,
-                                        frame.target, frame.combined, extra, frame.defocus))
+                                        frame.target, frame.combined, extra, frame.defocus,
+                                        position if multi else None))
     return examples
 
 
@@ -173,6 +179,7 @@ def evaluate(
     align: str | None = None,
     encoding: ViewEncoding | None = None,
     flicker: FlickerMeter | None = None,
+    afresh: bool = False,
 ) -> list[ImageResult]:
     """Score the input, the model (``deblur(left, right)``; ``reset()`` between sequences) and
     every other method of each example; pool errors by blur size into ``breakdown`` where the
@@ -181,9 +188,11 @@ def evaluate(
     (linear raw ones, levels in the files' units, go to the model as ``deblur`` takes them and
     come back raw; every score is taken in the files' own values). ``flicker`` pools the
     frame-to-frame change of each method in static regions of sequences
-    (:mod:`dualpixel.evaluation.temporal`)."""
+    (:mod:`dualpixel.evaluation.temporal`). ``afresh``: ``reset()`` before every frame, so a
+    temporal model runs each frame of a sequence on its own, as a frame model does."""
     results, current = [], None
     for example in progress_bar(examples, desc="evaluating", unit="image", enabled=progress):
+        first = len(results)
         known = categories or {}
         category = known.get(example.sequence, known.get(example.name, ""))
         if categories and not category:
@@ -196,7 +205,7 @@ def evaluate(
                               None, example.combined or example.left, align))
         images = {"input": combined}
         if deblur is not None:
-            if example.sequence != current and reset is not None:
+            if (afresh or example.sequence != current) and reset is not None:
                 reset()
             current = example.sequence
             started = time.perf_counter()
@@ -215,6 +224,8 @@ def evaluate(
             breakdown.add(read_defocus(example.defocus, target.shape[:2]), images, target)
         if flicker is not None:
             flicker.add(example.sequence, target, images)
+        for result in results[first:]:
+            result.position = example.position
     return results
 
 
@@ -238,6 +249,34 @@ def summarise(results: list[ImageResult]) -> dict[str, dict[str, dict[str, float
                     entry[key] = float(np.mean(values)) if values else None
             summary[method][category] = entry
     return summary
+
+
+def by_position(results: list[ImageResult]) -> dict[str, list[dict[str, float]]]:
+    """Means per method and frame position in the sequence (the paper's question for RDPD: does
+    the gain grow along the sequence?): per method, one entry per position (0 first) with
+    psnr, ssim, mae and count; empty when no result lies in a sequence of several frames."""
+    table: dict[str, list[dict[str, float]]] = {}
+    placed = [r for r in results if r.position is not None]
+    for method in dict.fromkeys(r.method for r in placed):
+        rows = [r for r in placed if r.method == method]
+        table[method] = []
+        for position in sorted({r.position for r in rows}):
+            chosen = [r for r in rows if r.position == position]
+            entry = {key: float(np.mean([getattr(r, key) for r in chosen]))
+                     for key in ("psnr", "ssim", "mae")}
+            table[method].append({"position": position, **entry, "count": len(chosen)})
+    return table
+
+
+def position_markdown(table: dict[str, list[dict[str, float]]]) -> str:
+    """:func:`by_position`'s PSNR (dB) as a Markdown table: methods by frame position."""
+    positions = [entry["position"] for entry in next(iter(table.values()))]
+    lines = ["| Method | " + " | ".join(f"frame {p + 1}" for p in positions) + " |",
+             "|---|" + "---|" * len(positions)]
+    for method, entries in table.items():
+        cells = {entry["position"]: f"{entry['psnr']:.2f}" for entry in entries}
+        lines.append(f"| {method} | " + " | ".join(cells.get(p, "–") for p in positions) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def markdown_table(summary: dict[str, dict[str, dict[str, float]]]) -> str:
@@ -268,7 +307,8 @@ def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict 
                   flicker: FlickerMeter | None = None) -> dict:
     """Write ``per_image.csv``, ``summary.json`` and ``summary.md`` atomically; return the
     summary. A filled ``breakdown`` adds PSNR by blur size to both summaries, a ``flicker``
-    meter that saw consecutive frames the change in static regions."""
+    meter that saw consecutive frames the change in static regions, sequences of several
+    frames the scores by frame position (:func:`by_position`)."""
     output = Path(output)
     output.mkdir(parents=True, exist_ok=True)
     buffer = io.StringIO()
@@ -282,6 +322,11 @@ def write_reports(results: list[ImageResult], output: str | Path, *, meta: dict 
         extra["by_blur"] = breakdown.table()
         table += "\nBy true |CoC| radius (errors pooled over all images):\n\n" + \
             breakdown.markdown()
+    positions = by_position(results)
+    if positions:
+        extra["by_position"] = positions
+        table += "\nPSNR (dB) by frame position in the sequence:\n\n" + \
+            position_markdown(positions)
     if flicker is not None and flicker.table():
         extra["flicker"] = flicker.table()
         table += ("\nFrame-to-frame change in static regions (flicker; "

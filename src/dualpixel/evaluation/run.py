@@ -47,6 +47,7 @@ class EvaluationRequest:
     niqe: bool = True
     figures: int = 3
     save_outputs: bool = False
+    afresh: bool = False  # every frame of a sequence on its own (a temporal model's state reset)
     align: str | None = None  # "translation" or "affine": also score registered outputs
     # how the views and targets store light (linear raw views: dualpixel.inference.encoding)
     encoding: ViewEncoding | None = None
@@ -112,7 +113,8 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
                            reset=deblurrer.reset if deblurrer else None, method=method,
                            niqe_model=niqe, categories=cats,
                            save_outputs=keep if deblurrer else None, breakdown=breakdown,
-                           align=request.align, encoding=request.encoding, flicker=flicker)
+                           align=request.align, encoding=request.encoding, flicker=flicker,
+                           afresh=request.afresh)
         draw_comparisons(examples[: request.figures], drawn, results, method, output)
     write_reports(results, output, meta=meta, breakdown=breakdown, flicker=flicker)
     if breakdown is not None and breakdown.images:
