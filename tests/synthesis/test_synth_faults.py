@@ -21,13 +21,29 @@ from dualpixel.synthesis.scenes import SceneConfig, write_scene_folder
 
 CONFIG = {"lens_sets": ("set0", "set4"), "max_layers": 40, "seed": 3}
 
+# The run stops itself (SIGSTOP) once its second manifest line is on disk, so the signal below
+# lands mid-run however fast the workers return their frames (they may return them in a burst).
 _CHILD = textwrap.dedent("""
-    import sys
+    import os, signal, sys
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
+    written, fsync = [0], os.fsync
+    def pausing_fsync(fd):
+        fsync(fd)
+        if os.readlink(f"/proc/self/fd/{fd}").endswith("manifest.jsonl"):
+            written[0] += 1
+            if written[0] == 2:
+                os.kill(os.getpid(), signal.SIGSTOP)
+    os.fsync = pausing_fsync
     synthesize_dataset(sys.argv[1], "rgbd", sys.argv[2],
                        SynthConfig(lens_sets=("set0", "set4"), max_layers=40, seed=3),
                        workers=2, progress=False)
 """)
+
+
+def _stopped(pid: int) -> bool:
+    """Whether process ``pid`` is stopped (state T in ``/proc/PID/stat``)."""
+    stat = Path(f"/proc/{pid}/stat").read_text()
+    return stat[stat.rindex(")") + 2] in "Tt"
 
 
 def every_file(root: Path) -> dict[str, bytes]:
@@ -57,8 +73,10 @@ def test_killed_synth_resumes_byte_identical(scenes, tmp_path, stop):
     manifest = killed / "manifest.jsonl"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and child.poll() is None:
-        if manifest.is_file() and manifest.read_text().count("\n") >= 2:
+        if _stopped(child.pid):
+            assert manifest.read_text().count("\n") == 2
             os.killpg(child.pid, stop)  # the parent and its worker processes, as Ctrl-C does
+            os.killpg(child.pid, signal.SIGCONT)  # a stopped process takes it on waking
             break
         time.sleep(0.01)
     assert child.wait(timeout=60) == -stop, "the run finished before it was stopped"
