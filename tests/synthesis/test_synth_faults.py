@@ -25,6 +25,8 @@ CONFIG = {"lens_sets": ("set0", "set4"), "max_layers": 40, "seed": 3}
 # lands mid-run however fast the workers return their frames (they may return them in a burst).
 _CHILD = textwrap.dedent("""
     import os, signal, sys
+    # Ctrl-C raises KeyboardInterrupt, as from a shell, even where the test process ignores it
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
     written, fsync = [0], os.fsync
     def pausing_fsync(fd):
