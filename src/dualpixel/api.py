@@ -117,7 +117,12 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     import warnings
 
     from dualpixel.inference import build_deblurrer, load_network
-    from dualpixel.inference.encoding import ViewEncoding, deblur_encoded, encoding_findings
+    from dualpixel.inference.encoding import (
+        ViewEncoding,
+        deblur_encoded,
+        encoding_findings,
+        pair_exposed,
+    )
 
     view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain,
                                  auto_exposure=auto_exposure)
@@ -154,9 +159,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         frame_right = None if rights is None else rights[index][..., :channels]
         if not sequence or index == 0:  # independent pairs, each of its own exposure; a
             deblurrer.reset()           # sequence keeps its state and its first pair's
-            exposed = view_encoding.exposed(frame_left, frame_left if frame_right is None
-                                            else frame_right, scale=scale,
-                                            views_sum=views_sum and frame_right is not None)
+            exposed = pair_exposed(view_encoding, frame_left, frame_right, scale=scale,
+                                   views_sum=views_sum)
         outputs.append(deblur_encoded(deblurrer, frame_left, frame_right, scale=scale,
                                       views_sum=views_sum, exposed=exposed))
     result = restore_layout(np.stack(outputs), layout, like=left)

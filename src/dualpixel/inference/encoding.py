@@ -40,7 +40,7 @@ from dualpixel.optics.tone import (
 __all__ = [
     "ENCODINGS", "EXPOSURE_TARGET", "LINEAR_LIGHT", "ViewEncoding", "deblur_encoded",
     "encoding_findings", "exposure_gain", "flat_field_gain", "from_model", "linear_light",
-    "to_model", "view_encoding_from_files",
+    "pair_exposed", "to_model", "view_encoding_from_files",
 ]
 
 #: Views whose median lies below this fraction of full scale, with 99 % of values below
@@ -300,6 +300,15 @@ def view_encoding_from_files(encoding: str, black_level: float | None, white_lev
     return ViewEncoding(encoding, black_level, white_level, gain, auto_exposure=auto_exposure)
 
 
+def pair_exposed(encoding: ViewEncoding | None, left: np.ndarray, right: np.ndarray | None, *,
+                 scale: float = 1.0, views_sum: bool = False) -> ViewEncoding:
+    """``encoding`` (display values when None) with the exposure of one pair found
+    (:meth:`ViewEncoding.exposed`); ``right`` None: a single-view model's pair."""
+    return (encoding or ViewEncoding()).exposed(
+        left, left if right is None else right, scale=scale,
+        views_sum=views_sum and right is not None)
+
+
 def deblur_encoded(deblurrer: Callable[[np.ndarray, np.ndarray | None], np.ndarray],
                    left: np.ndarray, right: np.ndarray | None,
                    encoding: ViewEncoding | None = None, *, scale: float = 1.0,
@@ -319,8 +328,7 @@ def deblur_encoded(deblurrer: Callable[[np.ndarray, np.ndarray | None], np.ndarr
     views_sum = views_sum and right is not None
     other = left if right is None else right
     if exposed is None:
-        exposed = (encoding or ViewEncoding()).exposed(left, other, scale=scale,
-                                                       views_sum=views_sum)
+        exposed = pair_exposed(encoding, left, right, scale=scale, views_sum=views_sum)
     (model_left, model_right), light = _to_model(left, other, exposed, scale=scale,
                                                  views_sum=views_sum)
     if right is None:

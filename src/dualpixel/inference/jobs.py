@@ -17,7 +17,12 @@ import numpy as np
 from dualpixel.data.layout import discover_dp_dataset, image_files
 from dualpixel.errors import InputFileError, OutputFileError, ParameterError
 from dualpixel.inference.deblur import Deblurrer
-from dualpixel.inference.encoding import ViewEncoding, deblur_encoded, encoding_findings
+from dualpixel.inference.encoding import (
+    ViewEncoding,
+    deblur_encoded,
+    encoding_findings,
+    pair_exposed,
+)
 from dualpixel.inference.view_checks import ViewFinding, check_views
 from dualpixel.io.atomic import check_writable
 from dualpixel.io.images import (
@@ -230,8 +235,8 @@ def run_deblur_jobs(
             raw = (left, right if right is not None else left, encoding.encoding)
             if index == 0:  # one exposure per sequence (linear views), from its first pair
                 try:
-                    exposed = encoding.exposed(left, raw[1], scale=scale,
-                                               views_sum=views_sum and right is not None)
+                    exposed = pair_exposed(encoding, left, right, scale=scale,
+                                           views_sum=views_sum)
                 except ParameterError as error:  # levels that do not fit this file
                     raise InputFileError(job.left, str(error)) from None
             def inspect(model_left, model_right, job=job, raw=raw, bits=(bits, right_bits)):
