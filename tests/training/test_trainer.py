@@ -449,6 +449,29 @@ def test_validation_keeps_the_training_memory_format(tiny_synthetic_dataset, mem
     assert weight.is_contiguous(memory_format=memory)
 
 
+@pytest.mark.parametrize("native_bf16", [True, False])
+@pytest.mark.parametrize("channels_last", [True, False])
+def test_training_lays_weights_out_as_configured_on_any_cpu(tiny_synthetic_dataset, tmp_path,
+                                                            monkeypatch, native_bf16,
+                                                            channels_last):
+    """Channels-last is a layout, not a precision: a CPU without native bfloat16 trains in
+    float32 and still channels-last (1.44x faster a step, ``bench_training.py``), unless
+    ``channels_last: false``; bfloat16 autocast follows the CPU."""
+    from dualpixel.training import trainer as trainer_module
+
+    monkeypatch.setattr(trainer_module, "cpu_has_native_bf16", lambda: native_bf16)
+    run = trainer_module.Trainer(tiny_config(tiny_synthetic_dataset, device="cpu",
+                                             channels_last=channels_last), tmp_path / "run")
+    run.check_folder()
+    run.build()
+    weight = next(p for p in run.net.parameters() if p.ndim == 4 and p.shape[-1] > 1)
+    memory = torch.channels_last if channels_last else torch.contiguous_format
+    assert weight.is_contiguous(memory_format=memory)
+    assert not weight.is_contiguous(memory_format=torch.channels_last if not channels_last
+                                    else torch.contiguous_format)
+    assert trainer_module.fast_numerics(torch.device("cpu")) is native_bf16
+
+
 def test_the_fused_optimiser_takes_the_steps_of_the_loop():
     from dualpixel.training.config import TrainConfig
     from dualpixel.training.trainer import make_optimizer

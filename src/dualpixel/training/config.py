@@ -113,7 +113,7 @@ class TrainConfig:
     threads: int | None = None  # torch CPU threads (None: torch's default)
     device: str = "auto"  # auto: cuda when available, else cpu
     amp: bool = True  # bfloat16 autocast on CUDA and on CPUs with native bfloat16
-    channels_last: bool = True  # the same devices
+    channels_last: bool = True  # channels-last weights on CUDA and CPUs
     tensorboard: bool = True
     log_images: int = 2
 

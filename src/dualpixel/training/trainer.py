@@ -167,10 +167,17 @@ def _iterations_per_epoch(config: TrainConfig, kinds: list[DataKind]) -> int:
 
 
 def fast_numerics(device: torch.device) -> bool:
-    """Whether training on ``device`` uses bfloat16 autocast and channels-last weights (config
-    ``amp`` and ``channels_last``): on CUDA, and on CPUs that compute bfloat16 natively, where
-    a step takes about half the time and the model learns as well (``docs/benchmarks.md``)."""
+    """Whether training on ``device`` uses bfloat16 autocast (config ``amp``): on CUDA, and on
+    CPUs that compute bfloat16 natively, where a step takes about half the time and the model
+    learns as well (``docs/benchmarks.md``)."""
     return device.type == "cuda" or (device.type == "cpu" and cpu_has_native_bf16())
+
+
+def channels_last_training(device: torch.device) -> bool:
+    """Whether weights and activations are laid out channels-last when config
+    ``channels_last`` is on: on CUDA and on every CPU, where convolutions run faster so in
+    float32 as well as in bfloat16 (``benchmarks/bench_training.py``, case ``contiguous``)."""
+    return device.type in ("cuda", "cpu")
 
 
 def validate(
@@ -431,7 +438,7 @@ class Trainer:
         # Single frames only (sRDPD+, real pairs): inference must not carry state between frames.
         model.temporal = model.temporal and bool(config.synthetic_data) and not (
             config.synthetic_as_frames)
-        if config.channels_last and fast_numerics(device):
+        if config.channels_last and channels_last_training(device):
             model = model.to(memory_format=torch.channels_last)
         self.net = self.model = model
         self.optimizer = make_optimizer(model, config, device)
