@@ -29,7 +29,9 @@ the whole ``dualpixel deblur`` command (start-up, loading, reading, deblurring, 
 memory (targets: 3.0 s and 2 GiB on 2 CPU cores). ``--sequence N``: a temporal model
 (``--checkpoint``, e.g. ``rdpd-light-video``) on N 1680x1120 frames in a sequence, seconds per
 frame with its state carried (frames 2 to N run the ConvLSTM's recurrent convolution) against
-its first frame (zero state), best of ``--repeats`` sequences.
+its first frame (zero state), best of ``--repeats`` sequences; with ``--fuse-frames K`` each
+frame's views are first averaged with up to K-1 earlier frames registered onto it
+(:mod:`dualpixel.inference.frame_fusion`), any model.
 """
 
 from __future__ import annotations
@@ -70,7 +72,8 @@ def prepare(case: dict, device: str):
     deblurrer = Deblurrer(model, device=device, tile=case.get("tile"),
                           precision=case.get("precision", "auto"), flips=case.get("flips", False),
                           multiscale=case.get("multiscale", False),
-                          backend=case.get("backend", "torch"))
+                          backend=case.get("backend", "torch"),
+                          fuse_frames=case.get("fuse_frames", 1))
     setup = time.perf_counter() - setup
     if case.get("unfused") or case.get("legacy"):  # convolutions and activations apart
         deblurrer._net = deblurrer.model
@@ -234,10 +237,12 @@ def command_time(checkpoint: str, device: str, repeats: int) -> tuple[float, flo
     return best, peak
 
 
-def sequence_time(checkpoint: str, device: str, frames: int, repeats: int) -> dict:
+def sequence_time(checkpoint: str, device: str, frames: int, repeats: int,
+                  fuse_frames: int = 1) -> dict:
     """Best seconds of a sequence's first frame and mean of its later frames (state carried),
     over ``repeats`` sequences of ``frames`` random 1680x1120 pairs, on the default path."""
-    deblurrer, _, left, right = prepare({"model": "shipped", "checkpoint": checkpoint}, device)
+    deblurrer, _, left, right = prepare({"model": "shipped", "checkpoint": checkpoint,
+                                         "fuse_frames": fuse_frames}, device)
     first, later = [], []
     for _ in range(repeats):
         times = [timed_pass(deblurrer, left, right, device, reset=n == 0) for n in range(frames)]
@@ -292,6 +297,8 @@ def main() -> None:
                         help="instead: the whole dualpixel deblur command on a 1680x1120 pair")
     parser.add_argument("--sequence", type=int, metavar="N",
                         help="instead: a temporal model on N frames in a sequence")
+    parser.add_argument("--fuse-frames", type=int, default=1, metavar="K",
+                        help="with --sequence: views averaged with up to K-1 earlier frames")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one case as JSON
     parser.add_argument("--pair", help=argparse.SUPPRESS)  # internal: two cases, alternating
     args = parser.parse_args()
@@ -327,8 +334,11 @@ def main() -> None:
     if args.sequence is not None:
         if args.sequence < 2:
             parser.error(f"--sequence must be at least 2 frames, got {args.sequence}")
-        r = sequence_time(checkpoint, args.device, args.sequence, args.repeats)
+        r = sequence_time(checkpoint, args.device, args.sequence, args.repeats,
+                          args.fuse_frames)
         kind = "temporal" if r["temporal"] else "single frames: no state to carry"
+        if args.fuse_frames > 1:
+            kind += f", views fused with up to {args.fuse_frames - 1} earlier frames"
         print(f"{checkpoint} ({kind}), 1680x1120, {r['precision']}: first frame "
               f"{r['first']:.2f} s, frames 2-{args.sequence} {r['later']:.2f} s each (ratio "
               f"{r['later'] / r['first']:.2f}), peak RSS {r['peak_rss_gib']:.2f} GiB")

@@ -78,7 +78,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
            backend: str = "torch", encoding: str = "srgb", black_level: float | None = None,
            white_level: float | None = None, right_gain: float | np.ndarray = 1.0,
            auto_exposure: bool = True, brightness: str | None = None,
-           overshoot: str | None = None, sequence: bool = False) -> np.ndarray | torch.Tensor:
+           overshoot: str | None = None, sequence: bool = False,
+           fuse_frames: int = 1) -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs; with ``sequence=True``, the batch
     is one sequence's frames in order, and a temporal model carries its state from each frame
     to the next, as ``dualpixel deblur`` on folders of frames): views at the combined image's
@@ -97,7 +98,9 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     input's, ``"model"`` leaves it as the network gives it
     (:mod:`dualpixel.inference.brightness`). ``overshoot``: ``"limited"`` keeps the output
     within the input's local range (no halos), ``"model"`` leaves it
-    (:mod:`dualpixel.inference.overshoot`).
+    (:mod:`dualpixel.inference.overshoot`). ``fuse_frames`` (with ``sequence=True``): each
+    frame's views averaged with those of up to ``fuse_frames - 1`` earlier frames, registered
+    onto it, before the network (:mod:`dualpixel.inference.frame_fusion`; 1: off).
 
     Phone and raw views (:mod:`dualpixel.inference.encoding`): grey views (one channel, such as
     a Pixel's green-only DP data) come back grey, in the layout they came in. ``encoding``:
@@ -124,6 +127,11 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         pair_exposed,
     )
 
+    from dualpixel.inference.frame_fusion import check_fuse_frames
+
+    if check_fuse_frames(fuse_frames) > 1 and not sequence:
+        raise ParameterError("fuse_frames averages the frames of a sequence: give "
+                             "sequence=True (independent pairs have no earlier frames)")
     view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain,
                                  auto_exposure=auto_exposure)
     channels, scale = min(image_channels(left), 3), full_scale(left)
@@ -152,7 +160,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         warnings.warn(finding.message, stacklevel=2)
     deblurrer = build_deblurrer(loaded, brightness=brightness, overshoot=overshoot,
                                 flips=flips, tile=tile, multiscale=multiscale,
-                                precision=precision)
+                                precision=precision, fuse_frames=fuse_frames)
     outputs, exposed = [], view_encoding
     for index in range(len(lefts)):
         frame_left = lefts[index][..., :channels]

@@ -69,6 +69,12 @@ _MULTISCALE_OPTION = click.option(
     help="Also deblur at half resolution and take the coarse structure from there (at most "
          "1.25x the time).")
 
+_FUSE_FRAMES_OPTION = click.option(
+    "--fuse-frames", type=click.IntRange(1), default=1, show_default=True,
+    help="Sequences: average each frame's views with those of up to N-1 earlier frames, "
+         "registered onto it (temporal noise reduction before the network; 1: each frame "
+         "alone).")
+
 
 def _network_name(checkpoint: str) -> str:
     """The network a checkpoint or exported graph holds (its header only; nothing is built)."""
@@ -130,6 +136,7 @@ def _network_name(checkpoint: str) -> str:
 @_BACKEND_OPTION
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
+@_FUSE_FRAMES_OPTION
 @_BRIGHTNESS_OPTION
 @_OVERSHOOT_OPTION
 def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined: Path | None,
@@ -137,8 +144,8 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
            white_level: float | None, right_gain: float, flat_field: tuple[Path, Path] | None,
            auto_exposure: bool, strict: bool, checkpoint: str,
            tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
-           backend: str, flips: bool | None, multiscale: bool, brightness: str | None,
-           overshoot: str | None) -> None:
+           backend: str, flips: bool | None, multiscale: bool, fuse_frames: int,
+           brightness: str | None, overshoot: str | None) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder.
 
     Grey views (a phone's green-only DP data) give a grey output; --encoding linear takes raw
@@ -164,7 +171,8 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
     deblurrer = build_deblurrer(checkpoint, device=device, backend=backend,
                                 brightness=brightness, overshoot=overshoot, flips=flips,
                                 tile=tile, overlap=overlap,
-                                precision="fp16" if half else precision, multiscale=multiscale)
+                                precision="fp16" if half else precision, multiscale=multiscale,
+                                fuse_frames=fuse_frames)
     total = sum(len(sequence) for sequence in jobs)
 
     def report(path: Path, finding) -> None:
@@ -228,6 +236,7 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @_BACKEND_OPTION
 @_FLIPS_OPTION
 @_MULTISCALE_OPTION
+@_FUSE_FRAMES_OPTION
 @_BRIGHTNESS_OPTION
 @_OVERSHOOT_OPTION
 @click.option("--encoding", type=click.Choice(ENCODINGS), default="srgb", show_default=True,
@@ -240,7 +249,7 @@ def _compare(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare, categories,
                      niqe_model, no_niqe, output, figures, save_outputs, afresh, align, tile,
                      overlap,
-                     device, precision, backend, flips, multiscale, brightness,
+                     device, precision, backend, flips, multiscale, fuse_frames, brightness,
                      overshoot, encoding, black_level, white_level, auto_exposure) -> None:
     """PSNR, SSIM, MAE, NIQE and time per image, and a summary like the paper's Table 1."""
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
@@ -258,13 +267,14 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
         deblurrer = build_deblurrer(checkpoint, device=device, backend=backend,
                                     brightness=brightness, overshoot=overshoot, flips=flips,
                                     tile=tile, overlap=overlap, precision=precision,
-                                    multiscale=multiscale)
+                                    multiscale=multiscale, fuse_frames=fuse_frames)
         settings = {"brightness": deblurrer.brightness, "overshoot": deblurrer.overshoot,
                     "flips": deblurrer.flips}
         method = checkpoint_label(str(checkpoint)) + output_modes_suffix(
             settings["brightness"], settings["overshoot"], flips=settings["flips"],
-            multiscale=multiscale)
+            multiscale=multiscale) + (f"+fuse{fuse_frames}" if fuse_frames > 1 else "")
         meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, "afresh": afresh,
+                "fuse_frames": fuse_frames,
                 **settings,
                 "precision": deblurrer.numerics.name, "backend": deblurrer.backend}
     summary = run_evaluation(request, deblurrer, method, meta)

@@ -25,6 +25,10 @@ the model passed in is left as it is.
 ``backend="onnxruntime"`` runs the network with ONNX Runtime on the CPU in float32
 (:mod:`dualpixel.inference.onnx_runtime`); everything above works the same.
 
+``fuse_frames=N`` (ours) averages each frame's views with those of up to ``N - 1`` earlier frames
+of the sequence, registered onto it, before the network (:mod:`dualpixel.inference.frame_fusion`:
+temporal noise reduction; :meth:`Deblurrer.reset` forgets them too). Off (1) by default.
+
 ``multiscale=True`` (ours) also runs the network on the views at half resolution and takes the
 output's coarse structure from there (:mod:`dualpixel.inference.multiscale`): a second pass on a
 quarter of the pixels (at most 1.25x the time). Each scale (and each flip) carries its own
@@ -55,6 +59,7 @@ from dualpixel.inference.brightness import (
     tie_brightness,
 )
 from dualpixel.inference.device_finish import limit_overshoot_tensor, tie_brightness_tensor
+from dualpixel.inference.frame_fusion import FrameFusion
 from dualpixel.inference.fusion import fused_copy
 from dualpixel.inference.multiscale import (
     FUSION_SIGMA,
@@ -142,6 +147,8 @@ class Deblurrer:
             input's (:mod:`dualpixel.inference.brightness`); ``"model"``: as the network gives it.
         overshoot: ``"limited"``: the output kept within the input's local range (no halos;
             :mod:`dualpixel.inference.overshoot`), before any tie; ``"model"``: as it comes.
+        fuse_frames: average each frame's views with those of up to ``fuse_frames - 1``
+            earlier frames of the sequence, registered onto it (module docstring; 1: off).
     """
 
     model: DeblurNet
@@ -157,9 +164,11 @@ class Deblurrer:
     graph: str | Path | None = None
     brightness: str = DEFAULT_BRIGHTNESS
     overshoot: str = DEFAULT_OVERSHOOT
+    fuse_frames: int = 1
 
     def __post_init__(self) -> None:
         check_brightness(self.brightness)
+        self._fusion = FrameFusion(self.fuse_frames)  # refuses a bad count now
         check_overshoot(self.overshoot)
         if self.tile is not None:
             if self.overlap is None:
@@ -200,8 +209,9 @@ class Deblurrer:
         self.reset()
 
     def reset(self) -> None:
-        """Forget the recurrent state (start of a new sequence)."""
+        """Forget the recurrent state and the earlier frames (start of a new sequence)."""
         self._states: dict = {}  # by (scale, batch of members)
+        self._fusion.reset()
 
     def free_memory(self) -> int:
         """Bytes free for a pass: the GPU's free memory on CUDA, else the RAM available."""
@@ -233,7 +243,7 @@ class Deblurrer:
             f"{free / GIB:.1f} GiB is available: deblurring in tiles of {tile} px (overlap "
             f"{default_overlap(tile)} px; --tile sets it)", stacklevel=3)
         self._auto_tile = tile
-        self.reset()  # a tiled pass carries per-tile state: start the sequence afresh
+        self._states = {}  # a tiled pass carries per-tile state: start the sequence afresh
         return tile
 
     def __call__(self, left: np.ndarray, right: np.ndarray | None = None, *,
@@ -242,7 +252,11 @@ class Deblurrer:
         ``combined``: the views' combined image when its light is known already
         (:meth:`~dualpixel.optics.tone.CombinedImage.of_light`). On a GPU the output modes run
         there (:mod:`~dualpixel.inference.device_finish`) and the frame crosses to the CPU
-        once."""
+        once. With ``fuse_frames`` above 1 the views are first averaged with the earlier
+        frames' (the output modes then read the averaged views, ``combined`` is made anew)."""
+        if self._fusion.frames > 1:
+            left, right = self._fusion(left, right)
+            combined = None
         if self._finish_on_device:
             with torch.inference_mode():
                 out = self._ensemble(left, right, scale=0, on_device=True)
