@@ -126,7 +126,6 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
         encoding_findings,
         pair_exposed,
     )
-
     from dualpixel.inference.frame_fusion import check_fuse_frames
 
     if check_fuse_frames(fuse_frames) > 1 and not sequence:

@@ -72,7 +72,7 @@ def test_a_moving_object_leaves_no_ghost():
 
 
 def test_reset_forgets_the_earlier_frames_and_grey_views_work():
-    clean, views = noisy_pan(3)
+    _, views = noisy_pan(3)
     grey = [(left[..., 1], right[..., 1]) for left, right in views]
     fusion = FrameFusion(3)
     fusion(*grey[0])
@@ -80,6 +80,7 @@ def test_reset_forgets_the_earlier_frames_and_grey_views_work():
     fusion.reset()
     left, right = fusion(*grey[2])
     assert left.shape == grey[2][0].shape and np.array_equal(left, grey[2][0])
+    assert np.array_equal(right, grey[2][1])
     one = FrameFusion(1)
     for pair in grey:
         assert np.array_equal(one(*pair)[0], pair[0])
