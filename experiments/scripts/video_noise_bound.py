@@ -4,7 +4,9 @@ ideal average of ``--frames`` registered frames (each view's noise strength over
 sqrt(frames), the same draws), without noise, and on the views as made but with
 ``--fuse-frames`` (:mod:`dualpixel.inference.frame_fusion`). Same scenes, cameras, seeds and
 draws as ``recipes/rdpd-light-video.yaml``'s ``*-test`` steps; the recipe's evaluation (CPU,
-float32, its output settings). Writes the data and reports under OUTPUT, then prints Markdown.
+float32, its output settings). Writes the data and reports under OUTPUT, then prints Markdown,
+and OUTPUT/fuse_frames.png: one phone frame 6 (input, the model, the model with
+``--fuse-frames``, target), a crop at full size.
 
     .venv/bin/python experiments/scripts/video_noise_bound.py runs/video-noise-bound
 """
@@ -17,8 +19,13 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
+
+import dualpixel
+from dualpixel.data.layout import discover_dp_dataset, read_frame
 from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
 from dualpixel.inference.pipeline import build_deblurrer
+from dualpixel.io.images import write_png
 from dualpixel.synthesis.dataset import synthesize_dataset
 from dualpixel.synthesis.scenes import write_scene_folder
 from dualpixel.training.recipe import load_recipe, scene_config, synth_config
@@ -34,6 +41,20 @@ def views(config, arm: str, frames: int):
         return dataclasses.replace(config, noise_sigmas=tuple(
             s / math.sqrt(frames) for s in config.noise_sigmas))
     return config
+
+
+def figure(folder: Path, model: str, frames: int, output: Path) -> None:
+    """The last frame of the second sequence: input, ``model``, ``model`` with fusion, target
+    (rows 150-350, columns 300-560), side by side."""
+    sequence = discover_dp_dataset(folder, "test")[1]
+    images = [read_frame(paths) for paths in sequence.frames[:frames]]
+    lefts, rights = (np.stack([image[key] for image in images]) for key in ("left", "right"))
+    alone, fused = (dualpixel.deblur(lefts, rights, model=model, sequence=True, precision="fp32",
+                                     fuse_frames=n) for n in (1, frames))
+    last = images[-1]
+    panels = [(last["left"] + last["right"]) / 2, alone[-1], fused[-1], last["target"]]
+    strip = np.concatenate([p[150:350, 300:560, 1] for p in panels], axis=1)  # grey views
+    write_png(output, strip.clip(0, 1), bit_depth=8)
 
 
 def main() -> None:
@@ -67,6 +88,8 @@ def main() -> None:
                                                  figures=0), deblurrer, "model")
             scores.setdefault(camera, {})[arm] = json.loads(
                 (report / "summary.json").read_text())
+    figure(args.output / "data" / "phone" / "as made", args.model, args.frames,
+           args.output / "fuse_frames.png")
     print(f"{args.model}, PSNR (dB) on each camera's held-out sequences:\n")
     print("| views | " + " | ".join(cameras) + " | mean |")
     print("|---|" + "---|" * (len(cameras) + 1))
