@@ -121,3 +121,27 @@ def test_the_commands_refuse_a_bad_frame_count(tmp_path):
                                           str(tmp_path / command)])
         assert result.exit_code == 2 and "--fuse-frames" in result.output
         assert "Traceback" not in result.output
+
+
+def test_deblur_fuses_a_frame_folder_and_says_when_there_is_nothing_to_fuse(
+        tiny_checkpoint, tiny_synthetic_dataset, tmp_path):
+    left = tiny_synthetic_dataset / "train_l" / "source" / "seq_001"
+    right = tiny_synthetic_dataset / "train_r" / "source" / "seq_001"
+    outputs = {}
+    for frames in (1, 3):
+        result = CliRunner().invoke(cli, [
+            "deblur", "--left", str(left), "--right", str(right), "--output",
+            str(tmp_path / f"fuse{frames}"), "--checkpoint", str(tiny_checkpoint),
+            "--fuse-frames", str(frames)])
+        assert result.exit_code == 0, result.output
+        assert "nothing to fuse" not in result.output
+        outputs[frames] = [cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+                           for path in sorted((tmp_path / f"fuse{frames}").iterdir())]
+    assert len(outputs[3]) == len(outputs[1]) >= 2
+    assert np.array_equal(outputs[3][0], outputs[1][0])  # the first frame as without
+    assert not np.array_equal(outputs[3][-1], outputs[1][-1])
+    pair = sorted(left.iterdir())[0]
+    result = CliRunner().invoke(cli, [
+        "deblur", "--left", str(pair), "--right", str(right / pair.name), "--output",
+        str(tmp_path / "pair.png"), "--checkpoint", str(tiny_checkpoint), "--fuse-frames", "3"])
+    assert result.exit_code == 0 and "every input here is a single pair" in result.output

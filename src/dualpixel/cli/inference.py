@@ -174,6 +174,9 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
                                 precision="fp16" if half else precision, multiscale=multiscale,
                                 fuse_frames=fuse_frames)
     total = sum(len(sequence) for sequence in jobs)
+    if fuse_frames > 1 and all(len(sequence) == 1 for sequence in jobs):
+        click.echo("Warning: --fuse-frames averages the frames of a sequence, and every input "
+                   "here is a single pair: nothing to fuse", err=True)
 
     def report(path: Path, finding) -> None:
         tqdm.write(f"Warning: {path}: {finding.message}", file=sys.stderr)
