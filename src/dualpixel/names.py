@@ -83,15 +83,18 @@ def checkpoint_label(checkpoint: str) -> str:
 
 
 def output_modes_suffix(brightness: str, overshoot: str, *, flips: bool = False,
-                        multiscale: bool = False) -> str:
-    """How results name a model run with these settings: ``+flips`` and ``+multiscale`` for
-    the network's passes, then ``+limited`` for a limited overshoot and ``+tied`` for a tied
-    brightness (the order they are applied in).
+                        multiscale: bool = False, fuse_frames: int = 1) -> str:
+    """How results name a model run with these settings: ``+fuseN`` for views averaged with
+    earlier frames, ``+flips`` and ``+multiscale`` for the network's passes, then ``+limited``
+    for a limited overshoot and ``+tied`` for a tied brightness (the order they are applied in).
 
     >>> output_modes_suffix("tied", "limited"), output_modes_suffix("model", "model", flips=True)
     ('+limited+tied', '+flips')
+    >>> output_modes_suffix("tied", "model", fuse_frames=6)
+    '+fuse6+tied'
     """
-    passes = ("+flips" if flips else "") + ("+multiscale" if multiscale else "")
+    passes = ((f"+fuse{fuse_frames}" if fuse_frames > 1 else "") + ("+flips" if flips else "")
+              + ("+multiscale" if multiscale else ""))
     limited = "+limited" if overshoot == "limited" else ""
     return passes + limited + ("+tied" if brightness == "tied" else "")
 

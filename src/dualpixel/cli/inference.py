@@ -275,7 +275,7 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
                     "flips": deblurrer.flips}
         method = checkpoint_label(str(checkpoint)) + output_modes_suffix(
             settings["brightness"], settings["overshoot"], flips=settings["flips"],
-            multiscale=multiscale) + (f"+fuse{fuse_frames}" if fuse_frames > 1 else "")
+            multiscale=multiscale, fuse_frames=fuse_frames)
         meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, "afresh": afresh,
                 "fuse_frames": fuse_frames,
                 **settings,
