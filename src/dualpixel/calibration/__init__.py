@@ -1,5 +1,6 @@
 """Calibration (supplement S1-S3): patterns, DP PSF estimation, PSF model fit, distortion fit,
-and the camera's DP blur from real pairs (:mod:`dualpixel.calibration.camera`).
+and the camera's DP blur from real pairs, with sharp targets (:mod:`dualpixel.calibration.camera`)
+or from the two views alone (:mod:`dualpixel.calibration.target_free`).
 
 Names are imported on first use, so ``import dualpixel.calibration.camera`` (what ``synth
 --camera`` needs) does not pay for SciPy's signal and optimisation modules.

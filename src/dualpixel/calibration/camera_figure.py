@@ -1,4 +1,4 @@
-"""The figure of ``dualpixel calibrate camera``: what the camera model rests on."""
+"""The figures of ``dualpixel calibrate camera``: what the camera model rests on."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 
 from dualpixel.viz.figures import save_figure
 
-__all__ = ["model_disparity", "render_camera_figure"]
+__all__ = ["model_disparity", "render_camera_figure", "render_views_figure"]
 
 CHANNELS = (("red", "tab:red"), ("green", "tab:green"), ("blue", "tab:blue"))
 
@@ -115,4 +115,47 @@ def render_camera_figure(calibration, path: str | Path, *, kernels_shown: int = 
             if j == 0:
                 sub.set_ylabel(f"r={radius:.1f}", fontsize=8)
     fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def render_views_figure(calibration, pairs, path: str | Path, *, shown: int = 4) -> Path:
+    """The figure of a calibration from views alone: per pair (the first ``shown``), the views'
+    mean beside its blur map, each informative block's CoC radius signed by its side of the
+    focal plane (blocks that tell nothing left blank)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fit = calibration.fit
+    rows = min(shown, len(pairs))
+    reach = max(float(np.max([r[m].max(initial=0.0) for r, m in zip(fit.radius,
+                                                                   fit.informative)])), 1.0)
+    height, width = np.asarray(pairs[0][1]).shape[:2]
+    fig, axes = plt.subplots(rows, 2, figsize=(9.0, 4.2 * rows * height / width + 0.6),
+                             squeeze=False, gridspec_kw={"wspace": 0.04, "hspace": 0.18})
+    for row, (name, left, right, _) in enumerate(pairs[:rows]):
+        combined = np.clip((np.asarray(left) + np.asarray(right)) / 2, 0.0, 1.0)
+        axes[row, 0].imshow(combined[..., 0] if combined.shape[-1] == 1 else combined,
+                            cmap="gray", vmin=0.0, vmax=1.0)
+        axes[row, 0].set_title(Path(name).parent.name or Path(name).name, fontsize=9)
+        signed = np.where(fit.informative[row], fit.side[row] * fit.radius[row], np.nan)
+        centres = calibration.centres[row]
+        step = float(centres[0, 1, 0] - centres[0, 0, 0]) if centres.shape[1] > 1 else 1.0
+        extent = (centres[0, 0, 0] - step / 2, centres[0, -1, 0] + step / 2,
+                  centres[-1, 0, 1] + step / 2, centres[0, 0, 1] - step / 2)
+        image = axes[row, 1].imshow(signed, cmap="coolwarm", vmin=-reach, vmax=reach,
+                                    extent=extent)
+        axes[row, 1].set_xlim(0, combined.shape[1])
+        axes[row, 1].set_ylim(combined.shape[0], 0)
+        axes[row, 1].set_title("CoC radius from the views (px; sign: side of focus)",
+                               fontsize=9)
+        fig.colorbar(image, ax=axes[row, 1], fraction=0.035, pad=0.02)
+        for axis in axes[row]:
+            axis.set_xticks([])
+            axis.set_yticks([])
+    ratios = " / ".join(f"{v:.2f}" for v in calibration.camera.disparity_ratio)
+    fig.suptitle(f"{calibration.camera.name}: disparity ratio {ratios} (R / G / B), light "
+                 f"{calibration.camera.light}, {calibration.camera.blocks} informative blocks",
+                 fontsize=10)
     return save_figure(fig, path)

@@ -156,14 +156,15 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
 @calibrate.command("camera", context_settings=CONTEXT)
 @click.option("--input", "inputs", type=InputPath(file_okay=False, path_type=Path),
               required=True, multiple=True,
-              help="Real DP pairs with sharp targets: a DPDD-layout folder or a folder of scene "
-                   "folders (view0/view1/target.png); repeat for more.")
+              help="Real DP pairs of one camera, with or without sharp targets: a DPDD-layout "
+                   "folder or a folder of scene folders (view0/view1[/target].png); repeat for "
+                   "more.")
 @click.option("--split", default=None, help="Split of DPDD-layout folders [default: test].")
 @click.option("--output", "-o", type=OutputPath(dir_okay=False, path_type=Path), required=True,
               help="camera.json to write (for `dualpixel synth --camera`).")
 @click.option("--figure", type=OutputPath(dir_okay=False, path_type=Path), default=None,
-              help="PNG: the fitted kernels beside the views, and blur against disparity per "
-                   "channel.")
+              help="PNG: with targets, the fitted kernels beside the views and blur against "
+                   "disparity per channel; without, each pair's blur map from its views.")
 @click.option("--name", default=None, help="Label of the camera [default: the input's name].")
 @click.option("--patch", type=click.IntRange(16), default=48, help="Block size in pixels.")
 @click.option("--max-radius", type=click.FloatRange(1.0, 60.0), default=12.0,
@@ -174,13 +175,20 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
 @click.option("--skip-misaligned", is_flag=True,
               help="Leave out (with a warning) pairs whose target is shifted against the views "
                    "by over 1 px, instead of stopping.")
+@click.option("--ignore-targets", is_flag=True,
+              help="Calibrate from the two views alone even where targets exist (what a camera "
+                   "without sharp captures gives); pairs without targets always are.")
 def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
                    figure: Path | None, name: str | None, patch: int, max_radius: float,
-                   psf_grid: str, skip_misaligned: bool) -> None:
-    """Measure a camera's DP blur model from real pairs with targets: per-channel disparity
-    ratio, PSF shape, where the blur happens (linear light or stored values), noise and blur
-    sizes."""
-    from dualpixel.calibration.camera import calibrate_camera, read_calibration_frames
+                   psf_grid: str, skip_misaligned: bool, ignore_targets: bool) -> None:
+    """Measure a camera's DP blur model from real pairs: per-channel disparity ratio, PSF shape,
+    where the blur happens (linear light or stored values), noise and blur sizes. With sharp
+    targets the views are explained by the target blurred; without, by each other (the
+    cross-convolution identity)."""
+    import warnings
+
+    from dualpixel.calibration.target_free import read_calibration_pairs
+    from dualpixel.errors import InputFileError
     from dualpixel.io.atomic import check_writable
     from dualpixel.optics.psf import PSFParams
     from dualpixel.optics.psf_bank import PSF_BANKS
@@ -192,15 +200,31 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
         check_writable(check_figure_path(figure))
     candidates = (list(PSF_BANKS[psf_grid]) if psf_grid in PSF_BANKS
                   else [PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)])
-    import warnings
-
-    frames = read_calibration_frames(inputs, split)
+    pairs = read_calibration_pairs(inputs, split)
+    with_target = [p for p in pairs if p[3] is not None]
+    if with_target and len(with_target) < len(pairs) and not ignore_targets:
+        missing = next(p[0] for p in pairs if p[3] is None)
+        raise InputFileError(missing, "has no target where other pairs have one: give pairs "
+                                      "all with targets or add --ignore-targets")
+    from_views = ignore_targets or not with_target
+    label = name or inputs[0].name
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        calibration = calibrate_camera(frames, name=name or inputs[0].name,
-                                       psf_candidates=candidates, patch=patch,
-                                       max_radius=max_radius, skip_misaligned=skip_misaligned,
-                                       progress=True)
+        if from_views:
+            from dualpixel.calibration.target_free import calibrate_camera_from_views
+
+            click.echo(f"calibrating from the views alone ({len(pairs)} pairs"
+                       f"{', targets unread' if with_target else ''})", err=True)
+            calibration = calibrate_camera_from_views(
+                [p[:3] for p in pairs], name=label, psf_candidates=candidates, patch=patch,
+                max_radius=max_radius, progress=True)
+        else:
+            from dualpixel.calibration.camera import calibrate_camera, read_calibration_frames
+
+            calibration = calibrate_camera(read_calibration_frames(inputs, split), name=label,
+                                           psf_candidates=candidates, patch=patch,
+                                           max_radius=max_radius,
+                                           skip_misaligned=skip_misaligned, progress=True)
     for warning in caught:
         click.echo(f"Warning: {warning.message}", err=True)
     calibration.camera.save(output)
@@ -209,9 +233,14 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
                f"{100 * calibration.linear_share:.0f} % of the blocks better)")
     click.echo(f"wrote {output}")
     if figure is not None:
-        from dualpixel.calibration.camera_figure import render_camera_figure
+        if from_views:
+            from dualpixel.calibration.camera_figure import render_views_figure
 
-        click.echo(f"wrote {render_camera_figure(calibration, figure)}")
+            click.echo(f"wrote {render_views_figure(calibration, pairs, figure)}")
+        else:
+            from dualpixel.calibration.camera_figure import render_camera_figure
+
+            click.echo(f"wrote {render_camera_figure(calibration, figure)}")
 
 
 COMMANDS = (pattern, calibrate)
