@@ -26,7 +26,7 @@ import numpy as np
 
 import dualpixel
 from dualpixel.calibration.camera import view_kernels
-from dualpixel.calibration.target_free import RATIO_GRID, view_energies
+from dualpixel.calibration.target_free import RATIO_GRID, blocks_at_ratios, view_energies
 from dualpixel.data.statistics import block_sums
 from dualpixel.io.images import read_rgb
 from dualpixel.optics.camera import load_camera
@@ -39,20 +39,12 @@ RADII = np.arange(0.25, 12.01, 0.25)
 
 
 def block_blur(left: np.ndarray, right: np.ndarray, camera):
-    """Per block: radius (px), side (+1 / -1) and whether it is informative (best share <= 0.8,
-    radius >= 1.5 px), at the camera's ratios; and the blocks' corner (margin)."""
+    """Per block: radius (px), side (+1 / -1) and whether it is informative, at the camera's
+    ratios; and the blocks' corner (margin)."""
     energies = view_energies(left, right, camera.psf, RADII, RATIO_GRID, patch=PATCH)
-    picks = [int(np.abs(RATIO_GRID - a).argmin()) for a in camera.disparity_ratio]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        share = np.nan_to_num(energies.energy / energies.reference[:, None, None, None], nan=1.0)
-    per_block = sum(share[c, :, :, picks[c]] for c in range(3)) / 3  # (R, 2, rows, cols)
-    flat = per_block.reshape(-1, *per_block.shape[-2:])
-    index = flat.argmin(axis=0)
-    least = flat.min(axis=0)
-    radius, side = RADII[index // 2], np.where(index % 2 == 0, 1, -1)
-    informative = (least <= 0.8) & (radius >= 1.5)
+    fit = blocks_at_ratios([energies], camera.disparity_ratio)
     margin = int(energies.centres[0, 0, 0] - PATCH / 2)
-    return radius, side, informative, margin
+    return fit.radius[0], fit.side[0], fit.informative[0], margin
 
 
 def residual(left, right, candidate, camera, radius, side, informative, margin) -> float:

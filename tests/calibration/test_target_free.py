@@ -10,6 +10,7 @@ from click.testing import CliRunner
 from dualpixel.calibration.camera import view_kernels
 from dualpixel.calibration.target_free import (
     RATIO_GRID,
+    blocks_at_ratios,
     calibrate_camera_from_views,
     view_energies,
 )
@@ -47,6 +48,19 @@ def test_energy_is_least_at_the_kernels_and_ratio_that_made_the_views():
     assert flat.min() < 1e-3  # the views explain each other at the truth
     # the other side of the focal plane (the same kernels mirrored) does not
     assert share[:, RADII.tolist().index(5.0), 1, best[2][0, 0]].min() > 0.5
+
+
+def test_a_known_ratio_gives_the_blur_and_another_trades_radius_for_it():
+    """At the ratio that made the views every block reads the true radius; a larger ratio
+    reads a smaller blur (the views fix the disparity, the ratio and radius's product)."""
+    left, right = _convolved(5.0, 0.8)
+    energies = view_energies(left, right, TRUE_PSF, RADII, RATIO_GRID, patch=48)
+    right_ratio = blocks_at_ratios([energies], (0.8, 0.8, 0.8))
+    assert right_ratio.informative[0].all() and (right_ratio.radius[0] == 5.0).all()
+    larger = blocks_at_ratios([energies], (1.2, 1.2, 1.2))
+    assert (larger.radius[0] < 5.0).all()
+    with pytest.raises(ParameterError, match="one ratio per channel"):
+        blocks_at_ratios([energies], (0.8,))
 
 
 def test_noise_adds_the_same_to_every_candidate():

@@ -45,8 +45,9 @@ from dualpixel.optics.camera import DPCamera
 from dualpixel.optics.psf import PSFParams, dp_psf
 from dualpixel.optics.tone import srgb_to_linear_array
 
-__all__ = ["PooledFit", "TargetFreeCalibration", "ViewEnergies", "calibrate_camera_from_views",
-           "pool_constants", "read_calibration_pairs", "view_energies"]
+__all__ = ["PooledFit", "TargetFreeCalibration", "ViewEnergies", "blocks_at_ratios",
+           "calibrate_camera_from_views", "pool_constants", "read_calibration_pairs",
+           "view_energies"]
 
 #: A block is informative when its best candidate leaves at most this share of the views'
 #: difference, and the candidates' median leaves at least ``1 + MIN_CONTRAST`` times the best.
@@ -164,57 +165,86 @@ class PooledFit:
     total: float
 
 
-def pool_constants(pairs: Sequence[ViewEnergies], *, min_radius: float = 1.5,
-                   sweeps: int = 3) -> PooledFit:
-    """One ratio per channel for all ``pairs`` and each block's radius and side (shared by its
-    channels): coordinate descent on the summed shares (energy over the block's reference) of
-    the informative blocks, starting from the ratio nearest 0.8 in every channel. Informative:
-    the best candidate leaves at most :data:`MAX_SHARE`, stands out of the median one by
-    :data:`MIN_CONTRAST`, and its radius is at least ``min_radius`` px (below it the views
-    tell only the product of ratio and radius)."""
+def _shares(pairs: Sequence[ViewEnergies], min_radius: float,
+            picks: Sequence[int] | None = None):
+    """Per pair the energies as shares of the views' difference and the informative blocks:
+    the best candidate (at the ratio indices ``picks``, one per channel, if given) leaves at
+    most :data:`MAX_SHARE`, stands out of the median one by :data:`MIN_CONTRAST`, and its
+    radius is at least ``min_radius`` px (below it the views tell only the product of ratio
+    and radius)."""
     if not pairs:
         raise ParameterError("no pairs to pool")
-    ratios = pairs[0].ratios
-    channels = pairs[0].energy.shape[0]
     with np.errstate(invalid="ignore", divide="ignore"):
         shares = [np.nan_to_num(p.energy / p.reference[:, None, None, None], nan=1.0,
                                 posinf=1.0) for p in pairs]
     informative = []
     for pair, share in zip(pairs, shares):  # (C, R, 2, A, rows, cols)
-        summed = share.mean(axis=0).reshape(-1, *share.shape[-2:])
+        if picks is None:
+            summed = share.mean(axis=0).reshape(-1, *share.shape[-2:])
+            per_radius = 2 * len(pair.ratios)
+        else:
+            summed = sum(share[c, :, :, j] for c, j in enumerate(picks)) / len(picks)
+            summed = summed.reshape(-1, *share.shape[-2:])
+            per_radius = 2
         best = summed.min(axis=0)
-        radius = pair.radii[summed.argmin(axis=0) // (2 * len(ratios))]
+        radius = pair.radii[summed.argmin(axis=0) // per_radius]
         informative.append((best <= MAX_SHARE) & (radius >= min_radius)
                            & (np.median(summed, axis=0) >= (1 + MIN_CONTRAST) * best))
+    return shares, informative
 
-    def evaluate(picks: Sequence[int]):
-        total, chosen = 0.0, []
-        for share, useful in zip(shares, informative):
-            per_block = sum(share[c, :, :, picks[c]] for c in range(channels)) / channels
-            flat = per_block.reshape(-1, *per_block.shape[-2:])  # (R * 2, rows, cols)
-            index = flat.argmin(axis=0)
-            least = np.take_along_axis(flat, index[None], 0)[0]
-            total += float(least[useful].sum())
-            chosen.append((index, least))
-        return total, chosen
 
-    picks = [int(np.abs(ratios - 0.8).argmin())] * channels
+def _fit(pairs: Sequence[ViewEnergies], shares: list[np.ndarray],
+         informative: list[np.ndarray], picks: Sequence[int]) -> PooledFit:
+    """Each block's radius and side at the ratio indices ``picks`` (one per channel): the
+    candidate of least mean share over the channels."""
+    total, radius, side, least_share = 0.0, [], [], []
+    for pair, share, useful in zip(pairs, shares, informative):
+        per_block = sum(share[c, :, :, j] for c, j in enumerate(picks)) / len(picks)
+        flat = per_block.reshape(-1, *per_block.shape[-2:])  # (R * 2, rows, cols)
+        index = flat.argmin(axis=0)
+        least = np.take_along_axis(flat, index[None], 0)[0]
+        total += float(least[useful].sum())
+        radius.append(pair.radii[index // 2])
+        side.append(np.where(index % 2 == 0, 1, -1))
+        least_share.append(least)
+    return PooledFit(pairs[0].ratios[list(picks)], radius, side, least_share, informative,
+                     total)
+
+
+def pool_constants(pairs: Sequence[ViewEnergies], *, min_radius: float = 1.5,
+                   sweeps: int = 3) -> PooledFit:
+    """One ratio per channel for all ``pairs`` and each block's radius and side (shared by its
+    channels): coordinate descent on the summed shares (energy over the block's reference) of
+    the informative blocks (:func:`blocks_at_ratios`), from the ratio nearest 0.8 in every
+    channel."""
+    shares, informative = _shares(pairs, min_radius)
+    ratios = pairs[0].ratios
+    picks = [int(np.abs(ratios - 0.8).argmin())] * pairs[0].energy.shape[0]
     for _ in range(sweeps):
         before = list(picks)
-        for c in range(channels):
-            scores = [evaluate([j if k == c else p for k, p in enumerate(picks)])[0]
+        for c in range(len(picks)):
+            scores = [_fit(pairs, shares, informative,
+                           [j if k == c else p for k, p in enumerate(picks)]).total
                       for j in range(len(ratios))]
             picks[c] = int(np.argmin(scores))
         if picks == before:
             break
-    total, chosen = evaluate(picks)
-    radii = pairs[0].radii
-    return PooledFit(
-        ratio=ratios[picks],
-        radius=[radii[index // 2] for index, _ in chosen],
-        side=[np.where(index % 2 == 0, 1, -1) for index, _ in chosen],
-        share=[least for _, least in chosen],
-        informative=informative, total=total)
+    return _fit(pairs, shares, informative, picks)
+
+
+def blocks_at_ratios(pairs: Sequence[ViewEnergies], ratios: Sequence[float], *,
+                     min_radius: float = 1.5) -> PooledFit:
+    """Each block's radius and side at known per-channel ``ratios`` (a camera file's, measured
+    with targets): the views fix the product of ratio and radius, so a known ratio gives the
+    camera's own blur. Informative blocks as in :func:`pool_constants`, judged at ``ratios``."""
+    if not pairs:
+        raise ParameterError("no pairs to fit")
+    if len(ratios) != pairs[0].energy.shape[0]:
+        raise ParameterError(f"give one ratio per channel ({pairs[0].energy.shape[0]}), got "
+                             f"{len(ratios)}")
+    picks = [int(np.abs(pairs[0].ratios - a).argmin()) for a in ratios]
+    shares, informative = _shares(pairs, min_radius, picks)
+    return _fit(pairs, shares, informative, picks)
 
 
 @dataclass
