@@ -47,7 +47,13 @@ def block_blur(left: np.ndarray, right: np.ndarray, camera):
     return fit.radius[0], fit.side[0], fit.informative[0], margin
 
 
-def residual(left, right, candidate, camera, radius, side, informative, margin) -> float:
+def residual(left, right, candidate, camera, radius, side, informative, margin,
+             smooth: float = 0.0) -> float:
+    """``smooth``: a Gaussian (px) applied to the views and the blurred candidate alike (the
+    identity holds under any common filter; the views' noise falls faster than their blur)."""
+    if smooth > 0:
+        left, right = (cv2.GaussianBlur(v, (0, 0), smooth) for v in (left, right))
+        candidate = cv2.GaussianBlur(candidate, (0, 0), smooth)
     rows, cols = radius.shape
     inner = (slice(margin, margin + rows * PATCH), slice(margin, margin + cols * PATCH))
     error = np.zeros((rows, cols, 3))
