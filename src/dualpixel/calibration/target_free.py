@@ -292,7 +292,8 @@ def calibrate_camera_from_views(
     or ``(H, W)`` in [0, 1], stored values): see the module docstring. ``light``: "linear"
     (fit the views decoded from sRGB), "encoded" (the stored values) or "auto" (both; linear
     when it leaves the smaller share in most blocks informative in both). Grey views give one
-    ratio, written for all three channels.
+    ratio, written for all three channels; pairs of other widths have their blur sizes scaled
+    to the first pair's.
 
     Raises:
         ParameterError: no pairs, views of different sizes or channel counts (named), or fewer
@@ -366,9 +367,11 @@ def calibrate_camera_from_views(
     ratio = [float(v) for v in fit.ratio]
     if len(ratio) == 1:
         ratio = ratio * 3
-    radius = np.concatenate([r[m] for r, m in zip(fit.radius, fit.informative)])
+    width = int(pairs[0][1].shape[1])  # blur sizes at the first pair's width, as CoC scales
+    radius = np.concatenate([r[m] * width / pair[1].shape[1]
+                             for r, m, pair in zip(fit.radius, fit.informative, pairs)])
     camera = DPCamera(
-        name=name, width=int(pairs[0][1].shape[1]),
+        name=name, width=width,
         disparity_ratio=tuple(ratio),  # type: ignore[arg-type]
         psf=scores[winner][0],
         noise_std=float(np.median([noise_level(left) for _, left, _ in pairs])),
