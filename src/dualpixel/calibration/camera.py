@@ -57,6 +57,8 @@ MIN_TEXTURE = 0.01
 MIN_BLOCKS = 20
 #: Largest shift (px) between the target and the views' mean that counts as aligned.
 MAX_MISALIGNMENT = 1.0
+#: The PSF shape a calibration fits unless given candidates (the Pixel 4 fits' mode).
+DEFAULT_PSF = PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)
 
 
 @dataclass
@@ -221,7 +223,7 @@ def calibrate_camera(
     frames: Iterable[tuple[str, np.ndarray, np.ndarray, np.ndarray]],
     *,
     name: str = "camera",
-    psf_candidates: Sequence[PSFParams] = (PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21),),
+    psf_candidates: Sequence[PSFParams] = (DEFAULT_PSF,),
     patch: int = 48,
     max_radius: float = 12.0,
     radius_step: float | None = None,
@@ -313,21 +315,23 @@ def calibrate_camera(
 
 
 def read_calibration_frames(
-    roots: Sequence[str | Path], split: str | None = None
-) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
-    """``(name, left, right, target)`` of every frame with a target under ``roots`` (DPDD-layout
-    folders or folders of scene folders); a frame without a target is refused by name."""
+    roots: Sequence[str | Path], split: str | None = None, *, require_target: bool = True,
+) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
+    """``(name, left, right, target)`` of every frame under ``roots`` (DPDD-layout folders or
+    folders of scene folders), float ``(H, W, 3)`` in [0, 1]; a frame without a target is
+    refused by name, or with ``require_target=False`` given with ``target`` None."""
     from dualpixel.data.layout import discover_any, read_frame
 
     frames = []
     for root in roots:
-        for sequence in discover_any(root, split, require_target=True):
+        for sequence in discover_any(root, split, require_target=require_target):
             for paths in sequence.frames:
                 images = read_frame(paths)
                 frames.append((str(paths.left), images["left"], images["right"],
-                               images["target"]))
+                               images.get("target")))
     if not frames:
-        raise InputFileError(roots[0], "holds no DP pairs with targets")
+        raise InputFileError(roots[0], "holds no DP pairs with targets" if require_target
+                             else "holds no DP pairs")
     return frames
 
 

@@ -33,20 +33,20 @@ from __future__ import annotations
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import scipy.fft
 import torch
 
+from dualpixel.calibration.camera import DEFAULT_PSF, MIN_BLOCKS
 from dualpixel.data.statistics import block_sums
-from dualpixel.errors import InputFileError, ParameterError, check_range
+from dualpixel.errors import ParameterError, check_range
 from dualpixel.optics.camera import DPCamera
 from dualpixel.optics.psf import PSFParams, dp_psf
 from dualpixel.optics.tone import srgb_to_linear_array
 
 __all__ = ["PooledFit", "TargetFreeCalibration", "ViewEnergies", "blocks_at_ratios",
-           "calibrate_camera_from_views", "pool_constants", "read_calibration_pairs",
+           "calibrate_camera_from_views", "grey_as_one_channel", "pool_constants",
            "view_energies"]
 
 #: A block is informative when its best candidate leaves at most this share of the views'
@@ -281,7 +281,7 @@ def calibrate_camera_from_views(
     pairs: Iterable[tuple[str, np.ndarray, np.ndarray]],
     *,
     name: str = "camera",
-    psf_candidates: Sequence[PSFParams] = (PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21),),
+    psf_candidates: Sequence[PSFParams] = (DEFAULT_PSF,),
     patch: int = 48,
     max_radius: float = 12.0,
     radius_step: float | None = None,
@@ -291,16 +291,15 @@ def calibrate_camera_from_views(
     """Measure a camera's DP model from ``(name, left, right)`` pairs alone (float ``(H, W, C)``
     or ``(H, W)`` in [0, 1], stored values): see the module docstring. ``light``: "linear"
     (fit the views decoded from sRGB), "encoded" (the stored values) or "auto" (both; linear
-    when it leaves the smaller share in most blocks informative in both). Grey views give one
-    ratio, written for all three channels; pairs of other widths have their blur sizes scaled
-    to the first pair's.
+    when it leaves the smaller share in most blocks informative in both). Grey views (one
+    channel; :func:`grey_as_one_channel` for those stored as RGB) give one ratio, written for
+    all three channels; pairs of other widths have their blur sizes scaled to the first pair's.
 
     Raises:
         ParameterError: no pairs, views of different sizes or channel counts (named), or fewer
             than :data:`~dualpixel.calibration.camera.MIN_BLOCKS` informative blocks over all
             pairs (each pair's count named).
     """
-    from dualpixel.calibration.camera import MIN_BLOCKS
     from dualpixel.data.statistics import noise_level
     from dualpixel.progress import progress_bar
 
@@ -325,9 +324,10 @@ def calibrate_camera_from_views(
                                  "camera's pairs at a time")
     radii = np.arange(radius_step, max_radius + radius_step / 2, radius_step)
     spaces = ["encoded", "linear"] if light == "auto" else [light]
-    decoded = {"encoded": pairs,
-               "linear": [(n, srgb_to_linear_array(lv), srgb_to_linear_array(rv))
-                          for n, lv, rv in pairs]}
+    decoded = {"encoded": pairs}
+    if "linear" in spaces:
+        decoded["linear"] = [(n, srgb_to_linear_array(lv), srgb_to_linear_array(rv))
+                             for n, lv, rv in pairs]
     first = "linear" if light == "auto" else light
     bar = progress_bar(total=len(pairs) * (len(psf_candidates) + len(spaces) - 1),
                        desc="calibrating camera from views", enabled=progress)
@@ -419,24 +419,9 @@ def _channels_last(view: np.ndarray) -> np.ndarray:
     return view[..., None] if view.ndim == 2 else view
 
 
-def read_calibration_pairs(
-    roots: Sequence[str | Path], split: str | None = None,
-) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
-    """``(name, left, right, target or None)`` of every pair under ``roots`` (DPDD-layout folders
-    or folders of scene folders), views float ``(H, W, C)`` in [0, 1]; grey pairs (stored as RGB
-    with equal channels) keep one channel."""
-    from dualpixel.data.layout import discover_any, read_frame
-
-    pairs = []
-    for root in roots:
-        for sequence in discover_any(root, split, require_target=False):
-            for paths in sequence.frames:
-                images = read_frame(paths)
-                left, right = images["left"], images["right"]
-                if all(np.array_equal(v[..., 0], v[..., c]) for v in (left, right)
-                       for c in (1, 2)):
-                    left, right = left[..., :1], right[..., :1]
-                pairs.append((str(paths.left), left, right, images.get("target")))
-    if not pairs:
-        raise InputFileError(roots[0], "holds no DP pairs")
-    return pairs
+def grey_as_one_channel(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Views ``(H, W, 3)`` stored as RGB with equal channels (a phone's green-only DP data, as
+    :func:`~dualpixel.io.images.read_rgb` gives them) as one channel; others unchanged."""
+    if left.shape[-1] == 3 and all((v == v[..., :1]).all() for v in (left, right)):
+        return left[..., :1], right[..., :1]
+    return left, right

@@ -187,10 +187,9 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
     cross-convolution identity)."""
     import warnings
 
-    from dualpixel.calibration.target_free import read_calibration_pairs
+    from dualpixel.calibration.camera import DEFAULT_PSF, read_calibration_frames
     from dualpixel.errors import InputFileError
     from dualpixel.io.atomic import check_writable
-    from dualpixel.optics.psf import PSFParams
     from dualpixel.optics.psf_bank import PSF_BANKS
 
     check_writable(output)
@@ -198,9 +197,8 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
         from dualpixel.viz.figures import check_figure_path
 
         check_writable(check_figure_path(figure))
-    candidates = (list(PSF_BANKS[psf_grid]) if psf_grid in PSF_BANKS
-                  else [PSFParams(n=3, alpha=0.45, beta=0.2, kappa=0.21)])
-    pairs = read_calibration_pairs(inputs, split)
+    candidates = list(PSF_BANKS[psf_grid]) if psf_grid in PSF_BANKS else [DEFAULT_PSF]
+    pairs = read_calibration_frames(inputs, split, require_target=False)
     with_target = [p for p in pairs if p[3] is not None]
     if with_target and len(with_target) < len(pairs) and not ignore_targets:
         missing = next(p[0] for p in pairs if p[3] is None)
@@ -211,17 +209,21 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if from_views:
-            from dualpixel.calibration.target_free import calibrate_camera_from_views
+            from dualpixel.calibration.target_free import (
+                calibrate_camera_from_views,
+                grey_as_one_channel,
+            )
 
             click.echo(f"calibrating from the views alone ({len(pairs)} pairs"
                        f"{', targets unread' if with_target else ''})", err=True)
+            pairs = [(n, *grey_as_one_channel(lv, rv), t) for n, lv, rv, t in pairs]
             calibration = calibrate_camera_from_views(
                 [p[:3] for p in pairs], name=label, psf_candidates=candidates, patch=patch,
                 max_radius=max_radius, progress=True)
         else:
-            from dualpixel.calibration.camera import calibrate_camera, read_calibration_frames
+            from dualpixel.calibration.camera import calibrate_camera
 
-            calibration = calibrate_camera(read_calibration_frames(inputs, split), name=label,
+            calibration = calibrate_camera(pairs, name=label,
                                            psf_candidates=candidates, patch=patch,
                                            max_radius=max_radius,
                                            skip_misaligned=skip_misaligned, progress=True)
