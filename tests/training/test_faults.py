@@ -1,6 +1,7 @@
 """A training run killed (SIGKILL) while it writes a checkpoint resumes to the same weights as an
 uninterrupted run."""
 
+import json
 import os
 import signal
 import subprocess
@@ -79,6 +80,93 @@ def test_kill_during_checkpoint_write_resumes_to_the_same_weights(
         torch.testing.assert_close(a[key], b[key], rtol=0, atol=0)
     history = (killed / "history.jsonl").read_text().splitlines()
     assert len(history) == 2
+
+
+# Runs the tiny training with a state written after every iteration (checkpoint_minutes: 0) and
+# SIGKILLs itself once the chosen one (1-based, counted over the run) is in place.
+_CHILD_WITHIN = textwrap.dedent("""
+    import os, signal, sys
+    from dualpixel.training import load_config, train
+    from dualpixel.training import trainer
+
+    kill_after, data, output = int(sys.argv[1]), sys.argv[2], sys.argv[3]
+    real_save_state, written = trainer._save_state, []
+
+    def save_state(path, *args, **kwargs):
+        real_save_state(path, *args, **kwargs)
+        if path.name == trainer.STEP_STATE:
+            written.append(path)
+            if len(written) == kill_after:
+                os.kill(os.getpid(), signal.SIGKILL)
+
+    trainer._save_state = save_state
+    values = dict(model="rdpd", width=0.125, synthetic_data=data, patch_size=32,
+                  sequence_batch=2, sequence_frames=2, epochs=2, iterations_per_epoch=3,
+                  workers=0, learning_rate=1e-3, tensorboard=False, lr_halve_every=1,
+                  threads=1, checkpoint_minutes=0.0)
+    train(load_config(None, values), output, progress=False)
+""")
+
+
+def _kill_within(data, output, kill_after):
+    child = subprocess.run(
+        [sys.executable, "-c", _CHILD_WITHIN, str(kill_after), str(data), str(output)],
+        capture_output=True, text=True, timeout=300,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    assert child.returncode == -signal.SIGKILL, child.stderr
+
+
+def _same_weights(a_folder, b_folder):
+    a = load_model(a_folder / "last.safetensors").state_dict()
+    b = load_model(b_folder / "last.safetensors").state_dict()
+    for key in a:
+        torch.testing.assert_close(a[key], b[key], rtol=0, atol=0)
+
+
+# states are written after iterations 1 and 2 of each 3-iteration epoch: the 1st is within the
+# first epoch (no epoch finished yet), the 3rd within the second
+@pytest.mark.parametrize("kill_after", [1, 3])
+def test_kill_within_an_epoch_resumes_from_there_to_the_same_weights(
+        tiny_synthetic_dataset, tmp_path, kill_after):
+    from dualpixel.training.trainer import STEP_STATE
+
+    config = tiny_config(tiny_synthetic_dataset, lr_halve_every=1, threads=1,
+                         checkpoint_minutes=0.0)
+    straight = train(config, tmp_path / "straight", progress=False)
+    killed = tmp_path / "killed"
+    _kill_within(tiny_synthetic_dataset, killed, kill_after)
+    state = torch.load(killed / STEP_STATE, weights_only=False)
+    assert (state["epoch"], state["iteration"], state["step"]) == (kill_after // 3, 1,
+                                                                    kill_after // 3 * 3 + 1)
+    assert (killed / "last_state.pt").is_file() == (kill_after == 3)
+
+    resumed = train(config, killed, resume=True, progress=False)
+    assert resumed.step == straight.step == 6
+    assert not (killed / STEP_STATE).exists()  # each epoch's checkpoint removes it
+    _same_weights(tmp_path / "straight", killed)
+    history = [json.loads(line) for line in (killed / "history.jsonl").read_text().splitlines()]
+    assert [r["loss"] for r in history] == [r["loss"] for r in straight.history]
+
+
+def test_a_stale_within_epoch_state_is_not_resumed(tiny_synthetic_dataset, tmp_path):
+    """A ``step_state.pt`` of an epoch whose own checkpoint followed it (a kill between the two
+    writes) is removed on resume, not trained from again."""
+    from dualpixel.training.trainer import STEP_STATE
+
+    config = tiny_config(tiny_synthetic_dataset, lr_halve_every=1, threads=1,
+                         checkpoint_minutes=0.0)
+    train(config, tmp_path / "straight", progress=False)
+    killed = tmp_path / "killed"
+    _kill_within(tiny_synthetic_dataset, killed, 2)  # within epoch 1, after its iteration 2
+    stale = (killed / STEP_STATE).read_bytes()
+    one_epoch = tiny_config(tiny_synthetic_dataset, lr_halve_every=1, threads=1,
+                            checkpoint_minutes=0.0, epochs=1)
+    train(one_epoch, killed, resume=True, progress=False)
+    (killed / STEP_STATE).write_bytes(stale)  # as if the kill came before its removal
+    result = train(config, killed, resume=True, progress=False)
+    assert result.step == 6 and not (killed / STEP_STATE).exists()
+    _same_weights(tmp_path / "straight", killed)
 
 
 class _Payload:

@@ -38,11 +38,15 @@ from dualpixel.names import RENDER_ON
 @click.option("--render-on", type=click.Choice(RENDER_ON), default=None,
               help="Where on-the-fly training frames are rendered: the loader processes, or "
                    "the training device, many at once (a GPU) [default: loader].")
+@click.option("--checkpoint-minutes", type=click.FloatRange(0, 1e5), default=None,
+              help="Also save the training state within an epoch this often, so a killed run "
+                   "resumes from there [default: 20].")
 @click.option("--progress/--no-progress", default=True, help="Show progress bars.")
 def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | None,
               dry_run: bool, workers: int, loader_workers: int | None, threads: int | None,
               device: str | None, cache: bool | None, frame_store: Path | None,
-              render_on: str | None, progress: bool) -> None:
+              render_on: str | None, checkpoint_minutes: float | None,
+              progress: bool) -> None:
     """Make a model from its recipe: data, every training phase, export and evaluation.
 
     The recipe says what the model is; how this machine runs it (loader processes, threads,
@@ -64,7 +68,7 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
         return
     machine = {"workers": loader_workers, "threads": threads, "device": device, "cache": cache,
                "frame_store": None if frame_store is None else str(frame_store),
-               "render_on": render_on}
+               "render_on": render_on, "checkpoint_minutes": checkpoint_minutes}
     shipped = run_recipe(recipe, output, until=until, start=start, workers=workers,
                          progress=progress, log=click.echo,
                          machine={k: v for k, v in machine.items() if v is not None})

@@ -29,7 +29,8 @@ LR_SCHEDULES = ("step", "cosine")
 
 #: Settings that say how a machine runs training, not what it makes (every draw is seeded per
 #: item, whatever the loader): a resume may change them, and recipes leave them to the command.
-MACHINE_KEYS = ("workers", "threads", "device", "cache", "frame_store", "render_on")
+MACHINE_KEYS = ("workers", "threads", "device", "cache", "frame_store", "render_on",
+                "checkpoint_minutes")
 
 
 @dataclass
@@ -116,6 +117,10 @@ class TrainConfig:
     channels_last: bool = True  # channels-last weights on CUDA and CPUs
     tensorboard: bool = True
     log_images: int = 2
+    # Within an epoch, the state is also written (``step_state.pt``) when this many minutes
+    # have passed since the last checkpoint, so a run killed mid-epoch (a session or lease that
+    # ends) loses at most that much; None: at the end of each epoch only.
+    checkpoint_minutes: float | None = 20.0
 
     def __post_init__(self) -> None:
         model_spec(self.model)
@@ -142,6 +147,8 @@ class TrainConfig:
             raise ParameterError(f"width must be > 0 and lstm_dropout < 1, got {self.width} and "
                                  f"{self.lstm_dropout}")
         check_seed("seed", self.seed)
+        if self.checkpoint_minutes is not None:
+            check_range("checkpoint_minutes", self.checkpoint_minutes, 0.0, 1e5)
         for name, most in (("workers", 256), ("log_images", 64)):
             if not 0 <= getattr(self, name) <= most:
                 raise ParameterError(f"{name} must be between 0 and {most}, got "

@@ -76,7 +76,8 @@ _DATA_KEYS = ("real_data", "synthetic_data", "val_data", "real_val_data")
 #: every draw are seeded per item, whatever the loader): given to :func:`reproduce`, never in
 #: a recipe. Values: the ``dualpixel reproduce`` option of each.
 MACHINE_SETTINGS = dict(zip(MACHINE_KEYS, ("--loader-workers", "--threads", "--device",
-                                           "--cache", "--frame-store", "--render-on"),
+                                           "--cache", "--frame-store", "--render-on",
+                                           "--checkpoint-minutes"),
                             strict=True))
 
 
@@ -585,8 +586,10 @@ def _epochs_recorded(folder: Path) -> int:
 
 
 def _phase_state(folder: Path, epochs: int) -> str:
+    from dualpixel.training.trainer import has_checkpoint
+
     if not (folder / "last_state.pt").is_file() or not (folder / "history.jsonl").is_file():
-        return "to do"
+        return "under way, within its first epoch" if has_checkpoint(folder) else "to do"
     done = _epochs_recorded(folder)
     return "done" if done >= epochs else f"{done}/{epochs} epochs"
 
@@ -645,7 +648,7 @@ def run_data(recipe: Recipe, output: Path, *, workers: int = 1, progress: bool =
 def run_phase(recipe: Recipe, index: int, output: Path, *, overrides: dict[str, Any] | None = None,
               progress: bool = True, log=print) -> Path:
     """Train phase ``index`` (resuming its folder); returns the folder."""
-    from dualpixel.training.trainer import train
+    from dualpixel.training.trainer import has_checkpoint, train
 
     phase = recipe.phases[index]
     folder = recipe.phase_folder(output, index)
@@ -657,7 +660,7 @@ def run_phase(recipe: Recipe, index: int, output: Path, *, overrides: dict[str, 
         log(f"phase {phase.name}: done ({folder})")
         return folder
     log(f"phase {phase.name}: {state} -> {folder}")
-    train(config, folder, resume=(folder / "last_state.pt").is_file(), progress=progress)
+    train(config, folder, resume=has_checkpoint(folder), progress=progress)
     return folder
 
 

@@ -11,9 +11,11 @@ RNG states; written atomically after every epoch), ``best.safetensors`` (highest
 the run folder, so that a run moved together with its data resumes) and ``tensorboard/``. With
 ``ema_decay`` (ours), an exponential moving average of the weights is kept beside them;
 validation, ``best`` and ``last`` then hold the average, and ``last_state.pt`` both.
-``resume=True`` continues after the last finished epoch and gives the weights an uninterrupted
-run would have. Batches are drawn from seeds derived from ``(seed, epoch, kind)``, so runs are
-reproducible whatever the number of workers.
+Within an epoch, ``step_state.pt`` holds the same state with the iterations done so far, written
+every ``checkpoint_minutes`` (ours; a CPU epoch of a long run takes most of an hour) and removed
+when the epoch's checkpoint is written. ``resume=True`` continues from the latest of the two and
+gives the weights an uninterrupted run would have. Batches are drawn from seeds derived from
+``(seed, epoch, kind)``, so runs are reproducible whatever the number of workers.
 
 Multi-GPU: launch with ``torchrun --nproc-per-node N -m dualpixel train ...``; each
 process takes its share of every global batch and ``DistributedDataParallel`` averages gradients.
@@ -352,6 +354,9 @@ class Trainer:
         self.history: list[dict[str, Any]] = []
         self.writer = None
         self.init_record: dict[str, str] | None = None
+        # where the epoch in progress stands when resumed from ``step_state.pt``
+        self.within: dict[str, Any] | None = None
+        self.last_saved = time.monotonic()
 
     def run(self) -> TrainResult:
         import contextlib
@@ -393,12 +398,12 @@ class Trainer:
         config, output = self.config, self.output
         if config.threads is not None:
             torch.set_num_threads(config.threads)
-        has_run = (output / "last_state.pt").is_file()
+        has_run = has_checkpoint(output)
         if has_run and not self.resume:
             raise ParameterError(
                 f"{output} already holds a training run; pass --resume to continue it")
         if self.resume and not has_run:
-            raise InputFileError(output / "last_state.pt", "nothing to resume (no finished epoch)")
+            raise InputFileError(output / "last_state.pt", "nothing to resume (no checkpoint)")
         if self.resume:
             resumed = _check_resumable(output, config)
             if self.main:
@@ -452,9 +457,33 @@ class Trainer:
 
     def restore(self) -> None:
         """Continue from ``last_state.pt``, the one atomic unit of a checkpoint (weights,
-        optimiser, schedule, RNG): a kill while the derived files were rewritten cannot break it."""
-        path = self.output / "last_state.pt"
-        try:  # tensors and plain containers only: a state file never runs code
+        optimiser, schedule, RNG): a kill while the derived files were rewritten cannot break it.
+        Then from ``step_state.pt`` if it holds the epoch in progress (else, stale, removed)."""
+        path, within = self.output / "last_state.pt", self.output / STEP_STATE
+        if path.is_file():
+            state = self._apply_state(path, self._read_state(path))
+            self.start_epoch, self.step = state["epoch"] + 1, state["step"]
+            self.best, self.history = state["best_psnr"], state["history"]
+            if self.main:
+                _write_derived(self.output, self.averaged, state["epoch"], self.step,
+                               self.history, self.config, self.init_record)
+        if within.is_file():
+            state = self._read_state(within, within=True)
+            if state["epoch"] == self.start_epoch and state["step"] >= self.step:
+                self._apply_state(within, state)
+                self.step, self.best = state["step"], state["best_psnr"]
+                self.history = state["history"]
+                # the RNG again once the epoch's loaders are made (making one draws from it)
+                self.within = {**{k: state[k] for k in _WITHIN_SCHEMA}, "rng": state["rng"]}
+            elif self.main:  # written in an epoch whose own checkpoint followed it
+                within.unlink()
+        if not path.is_file() and self.within is None:
+            raise InputFileError(path, "nothing to resume (no checkpoint)")
+
+    def _read_state(self, path: Path, *, within: bool = False) -> dict[str, Any]:
+        """A state file's content, checked (tensors and plain containers only: it never runs
+        code)."""
+        try:
             state = torch.load(path, map_location="cpu", weights_only=True)
         except (pickle.UnpicklingError, RuntimeError, EOFError, OSError) as error:
             reason = str(error).splitlines()[0][:200]
@@ -463,10 +492,14 @@ class Trainer:
         if isinstance(state, dict) and "epoch" in state and "model" not in state:
             raise InputFileError(path, "written by an older version without the weights; start "
                                        "anew")
-        problem = _state_problem(state)
+        problem = _state_problem(state, within=within)
         if problem:
             raise InputFileError(path, f"is not a training state of this version ({problem}); "
                                        "start anew or remove it")
+        return state
+
+    def _apply_state(self, path: Path, state: dict[str, Any]) -> dict[str, Any]:
+        """Weights, average, optimiser, schedule and RNG from ``state`` (read from ``path``)."""
         try:  # shapes and entries that do not fit this config's network and optimiser
             self.net.load_state_dict(state["model"])  # copied onto the parameters' device
             if self.ema is not None:
@@ -487,11 +520,7 @@ class Trainer:
                 group["lr"] = group["initial_lr"] * factor
         if (self.output / "init.json").is_file():
             self.init_record = read_mapping(self.output / "init.json", "starting weights record")
-        self.start_epoch, self.step = state["epoch"] + 1, state["step"]
-        self.best, self.history = state["best_psnr"], state["history"]
-        if self.main:
-            _write_derived(self.output, self.averaged, state["epoch"], self.step,
-                           self.history, self.config, self.init_record)
+        return state
 
     def start(self) -> None:
         """A new run: initial weights (``init_weights``) and the saved config."""
@@ -522,10 +551,13 @@ class Trainer:
         use_cuda = device.type == "cuda"
         amp = config.amp and fast_numerics(device)
         self.model.train()
+        within, self.within = self.within or {"iteration": 0, "totals": {}, "seconds": 0.0}, None
+        first = within["iteration"]  # iterations of this epoch done before a resume
         loaders = []
         for index, kind in enumerate(kinds):
             count = len(range(index, self.iterations, len(kinds)))
             batches = _epoch_batches(config, index, kind, epoch, count, self.rank, self.world)
+            batches = batches[len(range(index, first, len(kinds))):]  # those not yet trained on
             if config.render_on == "device" and kind.name == "synthetic":
                 # on-the-fly frames rendered here, all of a batch at once, on the device
                 loaders.append(_rendered_batches(kind.dataset, batches, device))
@@ -534,10 +566,13 @@ class Trainer:
                 kind.dataset, batch_sampler=batches, num_workers=config.workers,
                 pin_memory=use_cuda, persistent_workers=False,
             )))
-        totals: dict[str, float] = {}
-        started = time.perf_counter()
-        bar = progress_bar(range(self.iterations), desc=f"epoch {epoch + 1}/{config.epochs}",
-                           enabled=self.progress and self.main, leave=False)
+        if "rng" in within:
+            _set_rng_state(within["rng"])
+        totals: dict[str, float] = dict(within["totals"])
+        started = time.perf_counter() - within["seconds"]
+        bar = progress_bar(range(first, self.iterations), desc=f"epoch {epoch + 1}/{config.epochs}",
+                           enabled=self.progress and self.main, leave=False, initial=first,
+                           total=self.iterations)
         for iteration in bar:
             kind = kinds[iteration % len(kinds)]
             item = {k: v.to(device, non_blocking=True)
@@ -562,6 +597,11 @@ class Trainer:
                     self.writer.add_scalar(f"train/{key}", value, self.step)
                 self.writer.add_scalar("train/learning_rate",
                                        self.optimizer.param_groups[0]["lr"], self.step)
+            if self.main and self._checkpoint_due() and iteration + 1 < self.iterations:
+                _save_state(self.output / STEP_STATE, self, epoch, {
+                    "iteration": iteration + 1, "totals": totals,
+                    "seconds": time.perf_counter() - started})
+                self.last_saved = time.monotonic()
         record: dict[str, Any] = {
             "epoch": epoch + 1, "step": self.step,
             "learning_rate": self.optimizer.param_groups[0]["lr"],
@@ -593,13 +633,19 @@ class Trainer:
             save_model(self.output / "best.safetensors", self.averaged,
                        extra={"epoch": epoch + 1, "step": step, "val_psnr": self.best})
 
+    def _checkpoint_due(self) -> bool:
+        minutes = self.config.checkpoint_minutes
+        return minutes is not None and time.monotonic() - self.last_saved >= 60.0 * minutes
+
     def checkpoint(self, epoch: int, record: dict[str, Any]) -> None:
-        """Append the record and write the checkpoint (state file first, then derived files)."""
+        """Append the record and write the checkpoint (state file first, then derived files,
+        then the epoch's ``step_state.pt`` goes: a kill before that leaves it stale)."""
         self.history.append(record)
-        _save_state(self.output, self.net, self.ema, self.optimizer, self.scheduler, epoch,
-                    self.step, self.best, self.history)
+        _save_state(self.output / "last_state.pt", self, epoch)
         _write_derived(self.output, self.averaged, epoch, self.step, self.history, self.config,
                        self.init_record)
+        (self.output / STEP_STATE).unlink(missing_ok=True)
+        self.last_saved = time.monotonic()
         if self.writer is not None:
             self.writer.flush()
         tqdm.write(json.dumps(record))  # one line per epoch, bars or not (logs of long runs)
@@ -695,11 +741,26 @@ _STATE_SCHEMA: dict[str, type | tuple[type, ...]] = {
     "step": int, "best_psnr": (float, int, type(None)), "history": list, "rng": dict}
 
 
-def _state_problem(state: Any) -> str | None:
+#: What ``step_state.pt`` holds beside :data:`_STATE_SCHEMA` (its ``epoch`` is the one in
+#: progress): iterations done, their summed losses and seconds.
+_WITHIN_SCHEMA: dict[str, type | tuple[type, ...]] = {
+    "iteration": int, "totals": dict, "seconds": (float, int)}
+
+#: The state file of the epoch in progress (see the module docstring).
+STEP_STATE = "step_state.pt"
+
+
+def has_checkpoint(folder: str | Path) -> bool:
+    """Whether a run folder holds a state to resume (an epoch's or one within an epoch)."""
+    return (Path(folder) / "last_state.pt").is_file() or (Path(folder) / STEP_STATE).is_file()
+
+
+def _state_problem(state: Any, *, within: bool = False) -> str | None:
     """What makes ``state`` not a training state of :func:`_save_state`, or None."""
     if not isinstance(state, dict):
         return f"a {type(state).__name__}, not a mapping"
-    for key, kind in _STATE_SCHEMA.items():
+    schema = {**_STATE_SCHEMA, **_WITHIN_SCHEMA} if within else _STATE_SCHEMA
+    for key, kind in schema.items():
         if key not in state:
             return f"no {key!r} entry"
         if not isinstance(state[key], kind) or isinstance(state[key], bool):
@@ -711,18 +772,21 @@ def _state_problem(state: Any) -> str | None:
     return None
 
 
-def _save_state(output: Path, net: DeblurNet, ema: AveragedModel | None, optimizer, scheduler,
-                epoch: int, step: int, best: float | None,
-                history: list[dict[str, Any]]) -> None:
-    """The one atomic checkpoint file (weights, their average, optimiser/schedule/RNG state:
-    ``last_state.pt``), written before the files derived from it (:func:`_write_derived`)."""
-    state = {"model": _cpu_state(net), "ema": None if ema is None else _cpu_state(ema),
-             "optimizer": optimizer.state_dict(), "scheduler": scheduler.state_dict(),
-             "epoch": epoch, "step": step, "best_psnr": best, "history": history,
-             "rng": _rng_state()}
+def _save_state(path: Path, trainer: Trainer, epoch: int,
+                within: dict[str, Any] | None = None) -> None:
+    """One atomic checkpoint file (weights, their average, optimiser/schedule/RNG state):
+    ``last_state.pt`` after epoch ``epoch``, written before the files derived from it
+    (:func:`_write_derived`), or ``step_state.pt`` within it (``within``:
+    :data:`_WITHIN_SCHEMA`)."""
+    ema = trainer.ema
+    state = {"model": _cpu_state(trainer.net), "ema": None if ema is None else _cpu_state(ema),
+             "optimizer": trainer.optimizer.state_dict(),
+             "scheduler": trainer.scheduler.state_dict(), "epoch": epoch, "step": trainer.step,
+             "best_psnr": trainer.best, "history": trainer.history, "rng": _rng_state(),
+             **(within or {})}
     buffer = io.BytesIO()  # serialised in memory: a full disk is then a plain OSError
     torch.save(state, buffer)
-    with atomic_path(output / "last_state.pt") as tmp:
+    with atomic_path(path) as tmp:
         tmp.write_bytes(buffer.getbuffer())
 
 
