@@ -89,6 +89,7 @@ LAYERS = (
     ("evaluation",),
     ("training",),
     ("calibration",),
+    ("adaptation",),
     ("demo", "demo_data"),
     ("api",),
     ("cli", "__main__"),

@@ -9,7 +9,7 @@ import os
 import click
 
 from dualpixel import __version__
-from dualpixel.cli import calibration, demo, inference, reproduce, synthesis, training
+from dualpixel.cli import adaptation, calibration, demo, inference, reproduce, synthesis, training
 from dualpixel.cli.common import CONTEXT, DPGroup
 from dualpixel.memory import reuse_freed_memory
 
@@ -43,7 +43,7 @@ def _silence_progress_bars(ctx: click.Context) -> None:
     ctx.call_on_close(restore)
 
 
-for _module in (synthesis, training, reproduce, inference, calibration, demo):
+for _module in (synthesis, training, reproduce, adaptation, inference, calibration, demo):
     for _command in _module.COMMANDS:
         cli.add_command(_command)
 

@@ -88,6 +88,15 @@ class TrainConfig:
     # A folder of decoded frames, memory-mapped and shared by all loader processes
     # (dualpixel.data.frame_store; ours): PNGs are decoded once, across epochs and runs.
     frame_store: str | None = None
+    # A camera's own DP photographs without targets (the blur-maps file ``dualpixel adapt``
+    # writes: dualpixel.adaptation): every iteration also trains ``views_batch`` crops of them
+    # on the formation loss (the output re-blurred by the camera's PSFs must give back each
+    # view; in-focus blocks must keep the views), weighted by ``formation_weight`` and
+    # ``in_focus_weight``, beside the losses on the data above.
+    views_data: str | None = None
+    views_batch: int = 2
+    formation_weight: float = 1.0
+    in_focus_weight: float = 1.0
     # Where on-the-fly training frames (dualpixel.synthesis.on_the_fly) are rendered: "loader"
     # (the loader's worker processes, CPU) or "device" (in the training process on its device,
     # many frames at once: dualpixel.synthesis.batched_renderer, for GPUs).
@@ -141,7 +150,8 @@ class TrainConfig:
         # every float finite and in its range: a run must not train to NaN and exit 0
         for name, low, high in (("width", 0.0, 16.0), ("lstm_dropout", 0.0, 1.0),
                                 ("learning_rate", 0.0, 1.0), ("lambda_x", 0.0, 1e3),
-                                ("lambda_y", 0.0, 1e3), ("min_sharpness", 0.0, 1.0)):
+                                ("lambda_y", 0.0, 1e3), ("min_sharpness", 0.0, 1.0),
+                                ("formation_weight", 0.0, 1e3), ("in_focus_weight", 0.0, 1e3)):
             check_range(name, getattr(self, name), low, high)
         if self.width <= 0 or self.lstm_dropout >= 1:
             raise ParameterError(f"width must be > 0 and lstm_dropout < 1, got {self.width} and "
@@ -197,6 +207,7 @@ class TrainConfig:
 #: Largest value of each count a config may ask for (work and memory grow with them; an
 #: epoch's batch list is built in memory).
 _COUNT_LIMITS = {"patch_size": 8192, "real_batch": 4096, "sequence_batch": 4096,
+                 "views_batch": 4096,
                  "sequence_frames": 256, "epochs": 100_000, "lr_halve_every": 10_000_000,
                  "iterations_per_epoch": 1_000_000, "val_limit": 10_000_000, "threads": 1024}
 

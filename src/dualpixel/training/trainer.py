@@ -162,6 +162,14 @@ def _epoch_batches(
     return batches
 
 
+def _joined(frames: torch.Tensor, more: torch.Tensor) -> list[torch.Tensor]:
+    """``frames`` and ``more`` ``(B, T, C, h, w)`` as one batch where they differ only in B (one
+    forward), else as two (sequences beside single frames: a forward each)."""
+    if frames.shape[1:] == more.shape[1:]:
+        return [torch.cat([frames, more])]
+    return [frames, more]
+
+
 def _iterations_per_epoch(config: TrainConfig, kinds: list[DataKind]) -> int:
     if config.iterations_per_epoch is not None:
         return config.iterations_per_epoch
@@ -451,6 +459,17 @@ class Trainer:
         self.criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x, config.lambda_y,
                                     config.loss_reduction).to(device)
         self.iterations = _iterations_per_epoch(config, self.kinds)
+        self.views, self.formation = None, None
+        if config.views_data is not None:  # a camera's photographs: the formation loss
+            from dualpixel.data.views import ViewsDataset, read_blur_maps
+            from dualpixel.training.formation import FormationLoss
+
+            maps, camera = read_blur_maps(config.views_data)
+            self.views = ViewsDataset(maps, config.patch_size, flips=config.flips)
+            self.formation = FormationLoss(
+                camera, formation_weight=config.formation_weight,
+                in_focus_weight=config.in_focus_weight,
+                reduction=config.loss_reduction).to(device)
         self.ema = None
         if config.ema_decay > 0:  # starts as a copy of the weights at the first update
             self.ema = weight_average(model, config.ema_decay)
@@ -566,6 +585,14 @@ class Trainer:
                 kind.dataset, batch_sampler=batches, num_workers=config.workers,
                 pin_memory=use_cuda, persistent_workers=False,
             )))
+        views = None
+        if self.views is not None:  # one batch of them with every iteration's
+            rng = np.random.default_rng([config.seed, epoch, len(kinds)])
+            keys = [[(int(rng.integers(len(self.views))), int(rng.integers(2**62)))
+                     for _ in range(config.views_batch)] for _ in range(self.iterations)]
+            views = iter(DataLoader(self.views, batch_sampler=[b[self.rank::self.world] or b[:1]
+                                                               for b in keys[first:]],
+                                    num_workers=config.workers, pin_memory=use_cuda))
         if "rng" in within:
             _set_rng_state(within["rng"])
         totals: dict[str, float] = dict(within["totals"])
@@ -578,9 +605,20 @@ class Trainer:
             item = {k: v.to(device, non_blocking=True)
                     for k, v in next(loaders[iteration % len(kinds)]).items()}
             frames = self.net.spec.make_input(item["left"], item["right"], item["radial"])
+            crops = None
+            batches = [frames]
+            if views is not None:  # single frames of the crop size: one forward for both
+                crops = {k: v.to(device, non_blocking=True) for k, v in next(views).items()}
+                batches = _joined(frames, self.net.spec.make_input(
+                    crops["left"], crops["right"], crops["radial"]))
             with torch.autocast(device.type, dtype=torch.bfloat16, enabled=amp):
-                prediction, _ = self.model(frames)
-            loss, parts = self.criterion(prediction.float(), item["target"])
+                outputs = [self.model(batch)[0].float() for batch in batches]
+            count = item["target"].shape[0]
+            loss, parts = self.criterion(outputs[0][:count], item["target"])
+            if crops is not None:
+                out = outputs[0][count:] if len(outputs) == 1 else outputs[1]
+                extra, more = self.formation(out[:, 0], {k: v[:, 0] for k, v in crops.items()})
+                loss, parts = loss + extra, {**parts, **more}
             self.optimizer.zero_grad(set_to_none=True)
             loss.backward()
             self.optimizer.step()

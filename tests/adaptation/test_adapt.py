@@ -1,0 +1,108 @@
+"""``dualpixel adapt`` end to end on tiny data: a model fine-tuned to a camera from its DP
+pairs alone, resumable, reported, and loadable as a shipped one."""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dualpixel.cli.main import cli
+from dualpixel.io.images import write_png
+from tests.adaptation.test_formation import CAMERA, _views
+from tests.calibration.test_camera import _texture
+
+
+def _pairs(root, count=3, radius=5.0, with_target=False):
+    for n in range(count):
+        sharp = _texture(160, 224, 30 + n)
+        left, right = _views(sharp, radius)
+        folder = root / f"pair{n}"
+        folder.mkdir(parents=True)
+        write_png(folder / "left.png", np.clip(left, 0, 1), bit_depth=8)
+        write_png(folder / "right.png", np.clip(right, 0, 1), bit_depth=8)
+        if with_target:  # ignored (a folder of pairs with targets adapts as one without)
+            write_png(folder / "target.png", np.clip(sharp, 0, 1), bit_depth=8)
+    return root
+
+
+SMALL = ["--scenes", "2", "--epochs", "2", "--iterations", "2", "--threads", "1",
+         "--no-progress"]
+
+
+@pytest.fixture
+def small_settings(monkeypatch):
+    """Crops, batches and scenes of the test's size (the command's defaults are a photo's)."""
+    import importlib
+
+    module = importlib.import_module("dualpixel.adaptation.finetune")
+    real = module.AdaptSettings
+
+    def settings(**values):
+        return real(**{"patch_size": 64, "batch": 1, "views_batch": 1,
+                       "scene_size": (128, 96), **values})
+
+    monkeypatch.setattr(module, "AdaptSettings", settings)
+    return settings
+
+
+def test_adapt_makes_a_model_that_deblurs_like_a_shipped_one(tmp_path, tiny_checkpoint,
+                                                             small_settings, monkeypatch):
+    import dualpixel
+    from dualpixel.models.checkpoint import read_metadata
+
+    monkeypatch.setattr("dualpixel.adaptation.finetune.MIN_BLURRED_BLOCKS", 4)
+    pairs = _pairs(tmp_path / "pairs", with_target=True)
+    camera = CAMERA.save(tmp_path / "camera.json")
+    out = tmp_path / "adapted"
+    args = ["adapt", str(pairs), "--output", str(out), "--model", str(tiny_checkpoint),
+            "--camera", str(camera), *SMALL]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 0, result.output
+    assert "held-out frames of the camera" in result.output
+    report = json.loads((out / "report.json").read_text())
+    assert report["pairs"] == 3 and {r["method"] for r in report["target_free"]} == {
+        "start", "adapted"}
+    for label in ("start", "adapted"):
+        assert np.isfinite(report[label]["camera_val_psnr"])
+        assert report[label]["formation_residual"] > 0
+    history = [json.loads(line) for line in (out / "train" / "history.jsonl").read_text()
+               .splitlines()]
+    assert len(history) == 2 and all("formation" in r for r in history)
+    meta = read_metadata(out / "adapted.safetensors")["extra"]
+    assert meta["adapted_from"]["name"] == str(tiny_checkpoint)
+    assert meta["camera"]["disparity_ratio"] == list(CAMERA.disparity_ratio)
+    # loads and deblurs as any checkpoint does
+    left = np.zeros((64, 96, 3), np.float32) + 0.5
+    output = dualpixel.deblur(left, left, model=str(out / "adapted.safetensors"), device="cpu")
+    assert output.shape == left.shape
+    # a rerun finds everything done and changes nothing; other settings are refused
+    before = (out / "adapted.safetensors").read_bytes()
+    again = CliRunner().invoke(cli, args)
+    assert again.exit_code == 0, again.output
+    assert (out / "adapted.safetensors").read_bytes() == before
+    other = CliRunner().invoke(cli, [*args, "--seed", "5"])
+    assert other.exit_code != 0 and "other settings (seed)" in other.output
+    assert "Traceback" not in other.output
+
+
+def test_adapt_refuses_too_few_pairs_and_pairs_it_cannot_measure(tmp_path, tiny_checkpoint,
+                                                                   small_settings):
+    one = _pairs(tmp_path / "one", count=1)
+    result = CliRunner().invoke(cli, ["adapt", str(one), "-o", str(tmp_path / "a"),
+                                      "--model", str(tiny_checkpoint), *SMALL])
+    assert result.exit_code != 0 and "holds 1 DP pair(s); adapt needs at least 2" in \
+        result.output
+    flat = tmp_path / "flat"
+    for n in range(2):
+        (flat / f"p{n}").mkdir(parents=True)
+        for view in ("left", "right"):
+            write_png(flat / f"p{n}" / f"{view}.png", np.full((160, 224, 3), 0.4), bit_depth=8)
+    camera = CAMERA.save(tmp_path / "camera.json")
+    result = CliRunner().invoke(cli, ["adapt", str(flat), "-o", str(tmp_path / "b"),
+                                      "--model", str(tiny_checkpoint), "--camera", str(camera),
+                                      *SMALL])
+    assert result.exit_code != 0, result.output
+    assert "too few blurred blocks" in result.output and "p0 0" in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "b" / "adapted.safetensors").exists()
