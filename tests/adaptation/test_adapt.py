@@ -2,6 +2,7 @@
 pairs alone, resumable, reported, and loadable as a shipped one."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -93,6 +94,14 @@ def test_adapt_refuses_too_few_pairs_and_pairs_it_cannot_measure(tmp_path, tiny_
                                       "--model", str(tiny_checkpoint), *SMALL])
     assert result.exit_code != 0 and "holds 1 DP pair(s); adapt needs at least 2" in \
         result.output
+    three = _pairs(tmp_path / "three")
+    from dualpixel.adaptation.finetune import read_views
+
+    chosen = read_views(three, ("pair[02]", "other*"))
+    assert [Path(p[0]).parent.name for p in chosen] == ["pair0", "pair2"]
+    result = CliRunner().invoke(cli, ["adapt", str(three), "-o", str(tmp_path / "d"), "--select",
+                                      "pair1", "--model", str(tiny_checkpoint), *SMALL])
+    assert result.exit_code != 0 and "holds 1 DP pair(s) matching pair1" in result.output
     flat = tmp_path / "flat"
     for n in range(2):
         (flat / f"p{n}").mkdir(parents=True)

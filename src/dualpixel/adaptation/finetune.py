@@ -49,6 +49,7 @@ class AdaptSettings:
     synthetic crops and ``views_batch`` crops of the photographs, ``patch_size`` px."""
 
     model: str = "rdpd-light"
+    select: tuple[str, ...] = ()  # name patterns of the pairs to take (none: every pair)
     camera: str | None = None
     photos: str | None = None
     scenes: int = 40
@@ -73,8 +74,9 @@ class AdaptSettings:
             if not isinstance(value, int) or not low <= value <= high:
                 raise ParameterError(f"{name} must be an integer in [{low}, {high}], got "
                                      f"{value!r}")
-        if isinstance(self.scene_size, list):  # from JSON
-            object.__setattr__(self, "scene_size", tuple(self.scene_size))
+        for key in ("scene_size", "select"):  # lists from JSON
+            if isinstance(getattr(self, key), list):
+                object.__setattr__(self, key, tuple(getattr(self, key)))
         if (len(self.scene_size) != 2 or not all(isinstance(v, int) and 64 <= v <= 16384
                                                  for v in self.scene_size)):
             raise ParameterError(f"scene_size must be (width, height) in [64, 16384] px, got "
@@ -94,16 +96,22 @@ class AdaptResult:
     figures: dict[str, Any]
 
 
-def read_views(root: str | Path) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
+def read_views(root: str | Path, select: tuple[str, ...] = ()
+               ) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
     """``(left path, right path, left, right)`` of every pair under ``root`` (folders of
     ``left``/``right`` or ``view0``/``view1``, or the DPDD layout; the first frame of a
-    sequence), views float32 ``(H, W, 3)`` in [0, 1] (grey copied to three channels, as the
-    model sees it). Targets are never read."""
+    sequence) whose name matches one of the ``select`` patterns (``fnmatch``; none: all), views
+    float32 ``(H, W, 3)`` in [0, 1] (grey copied to three channels, as the model sees it).
+    Targets are never read."""
+    from fnmatch import fnmatch
+
     from dualpixel.data.layout import discover_any
     from dualpixel.io.images import read_rgb
 
     pairs = []
     for sequence in discover_any(root, None, require_target=False):
+        if select and not any(fnmatch(sequence.name, pattern) for pattern in select):
+            continue
         frame = sequence.frames[0]
         left, right = read_rgb(frame.left), read_rgb(frame.right)
         if left.shape != right.shape:
@@ -111,8 +119,9 @@ def read_views(root: str | Path) -> list[tuple[str, str, np.ndarray, np.ndarray]
                                               f"view {left.shape[1]}x{left.shape[0]}")
         pairs.append((str(frame.left), str(frame.right), left, right))
     if len(pairs) < MIN_PAIRS:
-        raise InputFileError(root, f"holds {len(pairs)} DP pair(s); adapt needs at least "
-                                   f"{MIN_PAIRS}")
+        chosen = f" matching {', '.join(select)}" if select else ""
+        raise InputFileError(root, f"holds {len(pairs)} DP pair(s){chosen}; adapt needs at "
+                                   f"least {MIN_PAIRS}")
     return pairs
 
 
@@ -281,7 +290,7 @@ def adapt(pairs_root: str | Path, output: str | Path,
 
     pairs_root, output = Path(pairs_root), Path(output)
     start = Path(resolve_checkpoint(settings.model))
-    pairs = read_views(pairs_root)
+    pairs = read_views(pairs_root, settings.select)
     _claim(output, settings, pairs_root)
     with folder_lock(output, "adapt"):
         grey = _is_grey(pairs)
@@ -301,7 +310,7 @@ def adapt(pairs_root: str | Path, output: str | Path,
                          settings, result.best_psnr)
         from dualpixel.adaptation.report import write_report
 
-        figures = write_report(output, pairs_root, start, target, maps, camera, val,
+        figures = write_report(output, pairs, start, target, maps, camera, val,
                                device=device, progress=progress)
     log(f"adapted model: {target}")
     return AdaptResult(target, output / "report.md", figures)

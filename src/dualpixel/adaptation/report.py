@@ -55,27 +55,26 @@ def _val_psnr(checkpoint: str | Path, val: str, device: str) -> float:
     return validate(model, discover_dp_dataset(val, "test"), target)[0]
 
 
-def write_report(output: Path, pairs_root: Path, start: Path, adapted: Path,
-                 maps: Sequence[BlurMap], camera: DPCamera, val: str, *, device: str = "auto",
-                 progress: bool = False) -> dict[str, Any]:
-    """Measure the start and the adapted model (see the module docstring); returns the figures
+def write_report(output: Path, pairs: Sequence[tuple[str, str, np.ndarray, np.ndarray]],
+                 start: Path, adapted: Path, maps: Sequence[BlurMap], camera: DPCamera, val: str,
+                 *, device: str = "auto", progress: bool = False) -> dict[str, Any]:
+    """Measure the start and the adapted model on ``pairs`` (``(left path, right path, left,
+    right)``, :func:`~dualpixel.adaptation.finetune.read_views`; grey views are given to the
+    models and the checks as one channel) and on the held-out set ``val``; returns the figures
     also written to ``output/report.json``."""
-    from dualpixel.evaluation.target_free import (
-        check_deblurred,
-        markdown_table,
-        model_methods,
-        read_pairs,
-    )
+    from dualpixel.calibration.target_free import grey_as_one_channel
+    from dualpixel.evaluation.target_free import check_deblurred, markdown_table, model_methods
     from dualpixel.io.atomic import atomic_path
     from dualpixel.progress import progress_bar
 
     names = {"start": str(start), "adapted": str(adapted)}
     methods = model_methods(names.values(), device=device)
-    pairs = read_pairs(pairs_root)
     rows, residuals = [], {label: [] for label in names}
     steps = progress_bar(total=len(pairs) * len(names), desc="adapt report", enabled=progress)
     with steps:
-        for (pair, left, right), blur in zip(pairs, maps):
+        for (path, _, left, right), blur in zip(pairs, maps):
+            pair = Path(path).parent.name
+            left, right = grey_as_one_channel(left, right)
             for label, checkpoint in names.items():
                 deblurred = methods[checkpoint](left, right)
                 report = check_deblurred(left, right, deblurred)
@@ -95,7 +94,8 @@ def write_report(output: Path, pairs_root: Path, start: Path, adapted: Path,
     with atomic_path(output / "report.json") as tmp:
         tmp.write_text(json.dumps(figures, indent=1, default=float) + "\n")
     lines = [f"# Adaptation to camera {camera.name!r}", "",
-             f"{len(pairs)} DP pairs from `{pairs_root}`; start `{start.name}`, adapted "
+             f"{len(pairs)} DP pairs (`{Path(pairs[0][0]).parent.parent}`); start "
+             f"`{start.name}`, adapted "
              f"`{adapted.name}`.", "",
              "| | held-out synthetic frames of the camera, PSNR dB | formation residual "
              "(x1e4) | in-focus residual (x1e4) |", "|---|---|---|---|"]

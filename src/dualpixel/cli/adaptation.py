@@ -14,6 +14,9 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="Run folder: camera, blur maps, data, training, adapted.safetensors, report "
                    "(a rerun resumes it).")
+@click.option("--select", multiple=True, metavar="PATTERN",
+              help="Take only the pairs whose folder name matches (repeatable; e.g. "
+                   "'pixel-*') [default: every pair].")
 @click.option("--model", default="rdpd-light", show_default=True,
               help="The model to adapt: a registry name or a .safetensors file.")
 @click.option("--camera", default=None,
@@ -35,8 +38,8 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 @click.option("--threads", type=click.IntRange(1, 1024), default=None,
               help="PyTorch CPU threads [default: PyTorch's].")
 @click.option("--progress/--no-progress", default=True, help="Show progress bars.")
-def adapt(pairs: Path, output: Path, model: str, camera: str | None, photos: Path | None,
-          scenes: int, epochs: int, iterations: int, formation_weight: float,
+def adapt(pairs: Path, output: Path, select: tuple[str, ...], model: str, camera: str | None,
+          photos: Path | None, scenes: int, epochs: int, iterations: int, formation_weight: float,
           in_focus_weight: float, seed: int, device: str, threads: int | None,
           progress: bool) -> None:
     """Fine-tune a model to the camera of the DP pairs in PAIRS (folders of left/right views,
@@ -46,7 +49,7 @@ def adapt(pairs: Path, output: Path, model: str, camera: str | None, photos: Pat
     from dualpixel.adaptation.finetune import AdaptSettings
     from dualpixel.adaptation.finetune import adapt as run_adapt
 
-    settings = AdaptSettings(model=model, camera=camera,
+    settings = AdaptSettings(model=model, select=select, camera=camera,
                              photos=None if photos is None else str(photos), scenes=scenes,
                              epochs=epochs, iterations=iterations,
                              formation_weight=formation_weight, in_focus_weight=in_focus_weight,
