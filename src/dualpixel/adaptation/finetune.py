@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -96,9 +96,9 @@ class AdaptResult:
     figures: dict[str, Any]
 
 
-def read_views(root: str | Path, select: tuple[str, ...] = ()
+def read_views(roots: str | Path | Sequence[str | Path], select: tuple[str, ...] = ()
                ) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
-    """``(left path, right path, left, right)`` of every pair under ``root`` (folders of
+    """``(left path, right path, left, right)`` of every pair under ``roots`` (folders of
     ``left``/``right`` or ``view0``/``view1``, or the DPDD layout; the first frame of a
     sequence) whose name matches one of the ``select`` patterns (``fnmatch``; none: all), views
     float32 ``(H, W, 3)`` in [0, 1] (grey copied to three channels, as the model sees it).
@@ -108,8 +108,10 @@ def read_views(root: str | Path, select: tuple[str, ...] = ()
     from dualpixel.data.layout import discover_any
     from dualpixel.io.images import read_rgb
 
+    roots = [roots] if isinstance(roots, (str, Path)) else list(roots)
     pairs = []
-    for sequence in discover_any(root, None, require_target=False):
+    sequences = [s for root in roots for s in discover_any(root, None, require_target=False)]
+    for sequence in sequences:
         if select and not any(fnmatch(sequence.name, pattern) for pattern in select):
             continue
         frame = sequence.frames[0]
@@ -120,8 +122,9 @@ def read_views(root: str | Path, select: tuple[str, ...] = ()
         pairs.append((str(frame.left), str(frame.right), left, right))
     if len(pairs) < MIN_PAIRS:
         chosen = f" matching {', '.join(select)}" if select else ""
-        raise InputFileError(root, f"holds {len(pairs)} DP pair(s){chosen}; adapt needs at "
-                                   f"least {MIN_PAIRS}")
+        named = ", ".join(str(r) for r in roots)
+        raise InputFileError(named, f"holds {len(pairs)} DP pair(s){chosen}; adapt needs at "
+                                    f"least {MIN_PAIRS}")
     return pairs
 
 
@@ -130,11 +133,11 @@ def _is_grey(pairs) -> bool:
                for _, _, left, right in pairs for v in (left, right))
 
 
-def _claim(output: Path, settings: AdaptSettings, pairs_root: Path) -> None:
+def _claim(output: Path, settings: AdaptSettings, roots: list[Path]) -> None:
     """Record the settings in a new folder; refuse a folder adapted otherwise."""
     from dualpixel.io.atomic import atomic_path
 
-    record = json.loads(json.dumps({"pairs": str(pairs_root.resolve()),
+    record = json.loads(json.dumps({"pairs": [str(r.resolve()) for r in roots],
                                     **dataclasses.asdict(settings)}))  # as stored
     path = output / SETTINGS_FILE
     if path.is_file():
@@ -278,20 +281,22 @@ def _export(run: Path, target: Path, start: Path, start_name: str, camera: DPCam
     return target
 
 
-def adapt(pairs_root: str | Path, output: str | Path,
+def adapt(pairs_roots: str | Path | Sequence[str | Path], output: str | Path,
           settings: AdaptSettings = AdaptSettings(), *, device: str = "auto",
           threads: int | None = None, progress: bool = True,
           log: Callable[[str], None] = print) -> AdaptResult:
-    """Adapt ``settings.model`` to the camera of the DP pairs under ``pairs_root`` (see the
+    """Adapt ``settings.model`` to the camera of the DP pairs under ``pairs_roots`` (see the
     module docstring); resumes ``output``. Returns the adapted model's path and the report."""
     from dualpixel.io.lock import folder_lock
     from dualpixel.training.trainer import has_checkpoint, train
     from dualpixel.weights import resolve_checkpoint
 
-    pairs_root, output = Path(pairs_root), Path(output)
+    roots = ([Path(pairs_roots)] if isinstance(pairs_roots, (str, Path))
+             else [Path(r) for r in pairs_roots])
+    output = Path(output)
     start = Path(resolve_checkpoint(settings.model))
-    pairs = read_views(pairs_root, settings.select)
-    _claim(output, settings, pairs_root)
+    pairs = read_views(roots, settings.select)
+    _claim(output, settings, roots)
     with folder_lock(output, "adapt"):
         grey = _is_grey(pairs)
         camera = _camera(output, settings, pairs, grey, log)

@@ -94,7 +94,7 @@ def write_report(output: Path, pairs: Sequence[tuple[str, str, np.ndarray, np.nd
     with atomic_path(output / "report.json") as tmp:
         tmp.write_text(json.dumps(figures, indent=1, default=float) + "\n")
     lines = [f"# Adaptation to camera {camera.name!r}", "",
-             f"{len(pairs)} DP pairs (`{Path(pairs[0][0]).parent.parent}`); start "
+             f"{len(pairs)} DP pairs (in `{Path(pairs[0][0]).parent.parent}`, ...); start "
              f"`{start.name}`, adapted "
              f"`{adapted.name}`.", "",
              "| | held-out synthetic frames of the camera, PSNR dB | formation residual "

@@ -10,7 +10,8 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
-@click.argument("pairs", type=InputPath(file_okay=False, exists=True, path_type=Path))
+@click.argument("pairs", nargs=-1, required=True,
+                type=InputPath(file_okay=False, exists=True, path_type=Path))
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
               help="Run folder: camera, blur maps, data, training, adapted.safetensors, report "
                    "(a rerun resumes it).")
@@ -38,11 +39,11 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 @click.option("--threads", type=click.IntRange(1, 1024), default=None,
               help="PyTorch CPU threads [default: PyTorch's].")
 @click.option("--progress/--no-progress", default=True, help="Show progress bars.")
-def adapt(pairs: Path, output: Path, select: tuple[str, ...], model: str, camera: str | None,
-          photos: Path | None, scenes: int, epochs: int, iterations: int, formation_weight: float,
-          in_focus_weight: float, seed: int, device: str, threads: int | None,
-          progress: bool) -> None:
-    """Fine-tune a model to the camera of the DP pairs in PAIRS (folders of left/right views,
+def adapt(pairs: tuple[Path, ...], output: Path, select: tuple[str, ...], model: str,
+          camera: str | None, photos: Path | None, scenes: int, epochs: int, iterations: int,
+          formation_weight: float, in_focus_weight: float, seed: int, device: str,
+          threads: int | None, progress: bool) -> None:
+    """Fine-tune a model to the camera of the DP pairs in the PAIRS folders (left/right views,
     no targets needed; targets present are ignored), from synthetic data formed like that
     camera and a formation loss on the pairs themselves. Writes OUTPUT/adapted.safetensors and
     OUTPUT/report.md (before and after)."""
