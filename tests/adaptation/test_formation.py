@@ -185,3 +185,23 @@ def test_training_with_the_views_resumes_to_the_same_weights(tiny_synthetic_data
     b = load_model(tmp_path / "resumed" / "last.safetensors").state_dict()
     for key in a:
         torch.testing.assert_close(a[key], b[key], rtol=0, atol=0)
+
+
+def test_a_camera_measured_from_the_pairs_gives_their_maps_without_a_second_pass(tmp_path):
+    from dualpixel.adaptation.blur_maps import maps_from_fit
+    from dualpixel.calibration.target_free import calibrate_camera_from_views
+
+    pairs = []
+    for n in range(3):
+        sharp = _texture(256, 352, 40 + n)
+        left, right = _views(sharp, 4.0 + n)
+        pairs.append((f"p{n}/left.png", f"p{n}/right.png", left, right))
+    measured = calibrate_camera_from_views([(lp, left, right) for lp, _, left, right in pairs],
+                                           light="encoded")
+    assert np.allclose(measured.camera.disparity_ratio, CAMERA.disparity_ratio, atol=0.05)
+    reused = maps_from_fit(pairs, measured.fit, measured.centres, patch=48)
+    again = blur_maps(pairs, measured.camera)
+    for a, b, n in zip(reused, again, range(3)):
+        assert np.array_equal(a.informative, b.informative) and a.margin == b.margin
+        assert np.array_equal(a.radius, b.radius) and np.array_equal(a.side, b.side)
+        assert np.abs(a.radius[a.informative] - (4.0 + n)).max() <= 0.5

@@ -16,6 +16,7 @@ import numpy as np
 
 from dualpixel.calibration.target_free import (
     RATIO_GRID,
+    PooledFit,
     blocks_at_ratios,
     grey_as_one_channel,
     view_energies,
@@ -25,7 +26,7 @@ from dualpixel.errors import ParameterError
 from dualpixel.optics.camera import DPCamera
 from dualpixel.optics.tone import srgb_to_linear_array
 
-__all__ = ["blur_maps"]
+__all__ = ["blur_maps", "maps_from_fit"]
 
 def _camera_ratios(camera: DPCamera, channels: int) -> list[float]:
     if channels == 1:  # a phone's green-only views: its green ratio
@@ -77,9 +78,18 @@ def blur_maps(
     if len(channels) > 1:
         raise ParameterError("pairs mix grey and colour views: map one camera's pairs at a time")
     fit = blocks_at_ratios(energies, _camera_ratios(camera, channels.pop()))
+    return maps_from_fit(pairs, fit, [e.centres for e in energies], patch)
+
+
+def maps_from_fit(pairs: Sequence[tuple[str, str, np.ndarray, np.ndarray]], fit: PooledFit,
+                  centres: Sequence[np.ndarray], patch: int) -> list[BlurMap]:
+    """The :class:`BlurMap` of each pair from a pooled fit at the camera's ratios (as
+    :func:`blur_maps` makes one, or the fit of a camera measured from these very pairs:
+    :attr:`~dualpixel.calibration.target_free.TargetFreeCalibration.fit`, no second pass);
+    ``centres``: each pair's block centres ``(rows, cols, 2)`` (x, y) px."""
     maps = []
-    for i, ((lp, rp, left, right), e) in enumerate(zip(pairs, energies)):
-        margin = round(float(e.centres[0, 0, 0]) - patch / 2)
+    for i, ((lp, rp, left, right), centre) in enumerate(zip(pairs, centres, strict=True)):
+        margin = round(float(centre[0, 0, 0]) - patch / 2)
         in_focus = _in_focus(np.atleast_3d(left), np.atleast_3d(right), fit.radius[i], patch,
                              margin)
         maps.append(BlurMap(str(lp), str(rp), fit.radius[i], fit.side[i].astype(np.int8),

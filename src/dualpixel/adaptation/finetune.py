@@ -154,35 +154,40 @@ def _claim(output: Path, settings: AdaptSettings, roots: list[Path]) -> None:
         tmp.write_text(json.dumps(record, indent=2) + "\n")
 
 
-def _camera(output: Path, settings: AdaptSettings, pairs, grey: bool, log) -> DPCamera:
+def _camera(output: Path, settings: AdaptSettings, pairs, grey: bool, progress: bool, log):
+    """The camera, and the blur maps where measuring it made them (else None)."""
     from dualpixel.optics.camera import load_camera
 
     path = output / "camera.json"
     if path.is_file():
-        return load_camera(path)
+        return load_camera(path), None
+    maps = None
     if settings.camera is not None:
         camera = load_camera(settings.camera)
     else:
+        from dualpixel.adaptation.blur_maps import maps_from_fit
         from dualpixel.calibration.target_free import calibrate_camera_from_views
 
         log(f"measuring the camera from {len(pairs)} pairs' views")
         views = [(name, *_as_calibrated(left, right, grey)) for name, _, left, right in pairs]
-        camera = calibrate_camera_from_views(views, name="adapted").camera
+        measured = calibrate_camera_from_views(views, name="adapted", progress=progress)
+        camera = measured.camera
+        maps = maps_from_fit(pairs, measured.fit, measured.centres, patch=48)
     camera.save(path)
-    return camera
+    return camera, maps
 
 
 def _as_calibrated(left: np.ndarray, right: np.ndarray, grey: bool):
     return (left[..., :1], right[..., :1]) if grey else (left, right)
 
 
-def _blur_maps(output: Path, pairs, camera: DPCamera, progress: bool):
+def _blur_maps(output: Path, pairs, camera: DPCamera, measured, progress: bool):
     from dualpixel.adaptation.blur_maps import blur_maps
     from dualpixel.data.views import read_blur_maps, write_blur_maps
 
     path = output / "views.json"
     if not path.is_file():
-        maps = blur_maps(pairs, camera, progress=progress)
+        maps = measured if measured is not None else blur_maps(pairs, camera, progress=progress)
         counts = [int((m.informative & (m.radius > 1.0)).sum()) for m in maps]
         if sum(counts) < MIN_BLURRED_BLOCKS:
             listed = ", ".join(f"{Path(m.left).parent.name} {c}" for m, c in zip(maps, counts))
@@ -299,8 +304,8 @@ def adapt(pairs_roots: str | Path | Sequence[str | Path], output: str | Path,
     _claim(output, settings, roots)
     with folder_lock(output, "adapt"):
         grey = _is_grey(pairs)
-        camera = _camera(output, settings, pairs, grey, log)
-        maps, views = _blur_maps(output, pairs, camera, progress)
+        camera, measured = _camera(output, settings, pairs, grey, progress, log)
+        maps, views = _blur_maps(output, pairs, camera, measured, progress)
         log(f"camera {camera.name}: ratios {', '.join(f'{a:g}' for a in camera.disparity_ratio)}"
             f", {camera.light} light; {sum(int(m.informative.sum()) for m in maps)} measured "
             f"blocks in {len(maps)} pairs")
