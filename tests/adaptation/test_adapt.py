@@ -115,3 +115,31 @@ def test_adapt_refuses_too_few_pairs_and_pairs_it_cannot_measure(tmp_path, tiny_
     assert "too few blurred blocks" in result.output and "p0 0" in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "b" / "adapted.safetensors").exists()
+
+
+def test_adapt_refuses_a_camera_its_views_do_not_measure(tmp_path, tiny_checkpoint,
+                                                         small_settings):
+    """Views whose disparity ratio the identity cannot tell from their blur (0.45 with our own
+    kernels) stop the run before any training, asking for --camera."""
+    import cv2
+
+    from dualpixel.calibration.camera import view_kernels
+    from tests.calibration.test_camera import TRUE_PSF
+
+    root = tmp_path / "pairs"
+    for n in range(3):
+        sharp = _texture(224, 224, n)
+        k_left, k_right = view_kernels(3.0 + n, TRUE_PSF)
+        own, other = (cv2.filter2D(sharp, -1, k, borderType=cv2.BORDER_REFLECT)
+                      for k in (k_left, k_right))
+        (root / f"p{n}").mkdir(parents=True)
+        for name, view in (("left", 0.725 * own + 0.275 * other),
+                           ("right", 0.725 * other + 0.275 * own)):
+            write_png(root / f"p{n}" / f"{name}.png", np.clip(view, 0, 1), bit_depth=16)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["adapt", str(root), "-o", str(out), "--model",
+                                      str(tiny_checkpoint), *SMALL])
+    assert result.exit_code != 0, result.output
+    assert "the views do not measure this camera" in result.output
+    assert "give --camera" in result.output and "Traceback" not in result.output
+    assert not (out / "train").exists() and not (out / "camera.json").exists()

@@ -173,3 +173,14 @@ def test_command_refuses_pairs_mixing_targets_and_none(tmp_path):
                                       "--max-radius", "10", "--ignore-targets"])
     assert result.exit_code == 0, result.output
     assert "targets unread" in result.output
+
+
+def test_a_ratio_at_the_end_of_the_search_is_reported_unmeasured():
+    """At a low ratio (0.45) the views of our own kernels trade disparity for blur up to the
+    search's end (1.5): the calibration says so rather than passing the ratio off as measured."""
+    pairs = [(f"p{i}", *_convolved(3.0 + i, 0.45)) for i in range(3)]
+    with pytest.warns(UserWarning, match="R, G, B ran to the end of the search"):
+        result = calibrate_camera_from_views(pairs, light="encoded")
+    assert result.unmeasured == ("R", "G", "B")
+    assert calibrate_camera_from_views([(f"p{i}", *_convolved(4.0, 0.8)) for i in range(3)],
+                                       light="encoded").unmeasured == ()

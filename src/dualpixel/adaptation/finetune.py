@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -170,7 +171,17 @@ def _camera(output: Path, settings: AdaptSettings, pairs, grey: bool, progress: 
 
         log(f"measuring the camera from {len(pairs)} pairs' views")
         views = [(name, *_as_calibrated(left, right, grey)) for name, _, left, right in pairs]
-        measured = calibrate_camera_from_views(views, name="adapted", progress=progress)
+        with warnings.catch_warnings():  # the ends of the search are refused below
+            warnings.filterwarnings("ignore", message="the disparity ratio of")
+            measured = calibrate_camera_from_views(views, name="adapted", progress=progress)
+        if measured.unmeasured:
+            raise ParameterError(
+                f"the views do not measure this camera: the disparity ratio of "
+                f"{', '.join(measured.unmeasured)} ran to the end of the search (ratios "
+                f"{', '.join(f'{a:g}' for a in measured.camera.disparity_ratio)}; the blur and "
+                "the disparity trade against each other where the PSF shape is unlike ours); "
+                "give --camera: a camera file measured with targets or PSF patterns "
+                "(calibrate camera, calibrate fit-psf --camera), or the nearest shipped camera")
         camera = measured.camera
         maps = maps_from_fit(pairs, measured.fit, measured.centres, patch=48)
     camera.save(path)

@@ -251,8 +251,9 @@ def blocks_at_ratios(pairs: Sequence[ViewEnergies], ratios: Sequence[float], *,
 class TargetFreeCalibration:
     """A camera measured from its views alone: the camera, per PSF candidate its mean share over
     the blocks informative for every candidate, the pooled fit of the winner (in the light space
-    that won), the pairs' names, their blocks' centres, and the share of blocks linear light
-    explains better."""
+    that won), the pairs' names, their blocks' centres, the share of blocks linear light
+    explains better, and the channels whose ratio ran to an end of :data:`RATIO_GRID` (the
+    views did not measure them: see :func:`calibrate_camera_from_views`)."""
 
     camera: DPCamera
     scores: list[tuple[PSFParams, float]]
@@ -260,6 +261,7 @@ class TargetFreeCalibration:
     names: list[str]
     centres: list[np.ndarray]
     linear_share: float
+    unmeasured: tuple[str, ...] = ()
 
 
 def _pool_per_candidate(
@@ -364,6 +366,15 @@ def calibrate_camera_from_views(
             warnings.warn(f"{pair_name}: no informative block (too flat or in focus); it adds "
                           "nothing", stacklevel=2)
     _warn_odd_pairs([n for n, _, _ in pairs], energies, fit)
+    names = ("R", "G", "B") if len(fit.ratio) == 3 else ("grey",)
+    unmeasured = tuple(c for c, a in zip(names, fit.ratio)
+                       if a <= RATIO_GRID[0] + 1e-9 or a >= RATIO_GRID[-1] - 1e-9)
+    if unmeasured:
+        warnings.warn(f"the disparity ratio of {', '.join(unmeasured)} ran to the end of the "
+                      f"search ({RATIO_GRID[0]:g}-{RATIO_GRID[-1]:g}): these views do not tell "
+                      "the disparity from the blur (a PSF shape unlike the candidates, or too "
+                      "little strong blur), so the camera's ratios and blur sizes are "
+                      "unreliable; calibrate with targets or PSF patterns", stacklevel=2)
     ratio = [float(v) for v in fit.ratio]
     if len(ratio) == 1:
         ratio = ratio * 3
@@ -381,7 +392,7 @@ def calibrate_camera_from_views(
         light="linear" if linear_share > 0.5 else "encoded",
     )
     return TargetFreeCalibration(camera, scores, fit, [n for n, _, _ in pairs],
-                                 [e.centres for e in energies], linear_share)
+                                 [e.centres for e in energies], linear_share, unmeasured)
 
 
 #: A pair's own ratio that departs from the others' median by more than this (or three times
