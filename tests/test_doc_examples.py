@@ -34,7 +34,12 @@ SHARED = ROOT.parent / "shared" / "data"
 #: Commands whose documented use needs what this folder does not hold (a finished run: the
 #: recipes run as --dry-run here), with what the refusal must name (a clean error, no
 #: traceback).
-REFUSED = {"dualpixel release runs/rdpd-light --tag rdpd-light.v12": "runs/rdpd-light"}
+REFUSED = {"dualpixel release runs/rdpd-light --tag rdpd-light.v12": "runs/rdpd-light",
+           # the stand-in dp-real-nogt holds one Pixel 4 pair
+           "dualpixel adapt ../shared/data/dp-real-nogt --select pixel-gif-0? --select "
+           "pixel-mp4-0? -o runs/adapt-pixel4 --camera pixel4 --scenes 2 --epochs 1 "
+           "--iterations 2 --patch-size 64 --scene-size 128x96 --threads 1 --no-progress":
+           "adapt needs at least 2"}
 #: Canon scenes (by number) whose 480x288 middles `calibrate camera` takes.
 CALIBRATED = [2, 5]
 #: A training run of two iterations on 64-px crops, whatever the config says.
@@ -58,6 +63,9 @@ def tiny(line: str) -> list[list[str]]:
     line = line.replace("--device cuda", "--device cpu")
     if line.startswith("dualpixel train"):
         line += TINY_TRAINING
+    if line.startswith("dualpixel adapt"):  # two steps on tiny crops and scenes
+        line += (" --scenes 2 --epochs 1 --iterations 2 --patch-size 64 --scene-size 128x96"
+                 " --threads 1 --no-progress")
     if line.startswith("dualpixel reproduce") and "--dry-run" not in line:
         line += " --dry-run"  # hours of training: the plan, every step and phase checked
     optional = re.findall(r"\[([^\]]*)\]", line)

@@ -13,7 +13,7 @@ SHARED=../shared/data
 THREADS=${THREADS:-2}
 mkdir -p "$OUT"
 [ -f "$OUT/pixel4/report.md" ] || $DP adapt "$SHARED/dp-real-nogt" --select 'pixel-gif-0?' \
-  --select 'pixel-mp4-*' --camera pixel4 -o "$OUT/pixel4" --threads "$THREADS" --no-progress
+  --select 'pixel-mp4-0?' --camera pixel4 -o "$OUT/pixel4" --threads "$THREADS" --no-progress
 [ -f "$OUT/canon/report.md" ] || $DP adapt "$SHARED/canon-dp-real" "$SHARED/canon-dp-real-hd" \
   -o "$OUT/canon" --threads "$THREADS" --no-progress
 for data in canon-dp-real canon-dp-real-hd; do

@@ -56,7 +56,7 @@ def test_adapt_makes_a_model_that_deblurs_like_a_shipped_one(tmp_path, tiny_chec
     pairs = _pairs(tmp_path / "pairs", with_target=True)
     camera = CAMERA.save(tmp_path / "camera.json")
     out = tmp_path / "adapted"
-    args = ["adapt", str(pairs), "--output", str(out), "--model", str(tiny_checkpoint),
+    args = ["adapt", str(pairs), "--output", str(out), "--checkpoint", str(tiny_checkpoint),
             "--camera", str(camera), *SMALL]
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 0, result.output
@@ -91,7 +91,7 @@ def test_adapt_refuses_too_few_pairs_and_pairs_it_cannot_measure(tmp_path, tiny_
                                                                    small_settings):
     one = _pairs(tmp_path / "one", count=1)
     result = CliRunner().invoke(cli, ["adapt", str(one), "-o", str(tmp_path / "a"),
-                                      "--model", str(tiny_checkpoint), *SMALL])
+                                      "--checkpoint", str(tiny_checkpoint), *SMALL])
     assert result.exit_code != 0 and "holds 1 DP pair(s); adapt needs at least 2" in \
         result.output
     three = _pairs(tmp_path / "three")
@@ -100,7 +100,7 @@ def test_adapt_refuses_too_few_pairs_and_pairs_it_cannot_measure(tmp_path, tiny_
     chosen = read_views(three, ("pair[02]", "other*"))
     assert [Path(p[0]).parent.name for p in chosen] == ["pair0", "pair2"]
     result = CliRunner().invoke(cli, ["adapt", str(three), "-o", str(tmp_path / "d"), "--select",
-                                      "pair1", "--model", str(tiny_checkpoint), *SMALL])
+                                      "pair1", "--checkpoint", str(tiny_checkpoint), *SMALL])
     assert result.exit_code != 0 and "holds 1 DP pair(s) matching pair1" in result.output
     flat = tmp_path / "flat"
     for n in range(2):
@@ -109,7 +109,7 @@ def test_adapt_refuses_too_few_pairs_and_pairs_it_cannot_measure(tmp_path, tiny_
             write_png(flat / f"p{n}" / f"{view}.png", np.full((160, 224, 3), 0.4), bit_depth=8)
     camera = CAMERA.save(tmp_path / "camera.json")
     result = CliRunner().invoke(cli, ["adapt", str(flat), "-o", str(tmp_path / "b"),
-                                      "--model", str(tiny_checkpoint), "--camera", str(camera),
+                                      "--checkpoint", str(tiny_checkpoint), "--camera", str(camera),
                                       *SMALL])
     assert result.exit_code != 0, result.output
     assert "too few blurred blocks" in result.output and "p0 0" in result.output
@@ -137,7 +137,7 @@ def test_adapt_refuses_a_camera_its_views_do_not_measure(tmp_path, tiny_checkpoi
                            ("right", 0.725 * other + 0.275 * own)):
             write_png(root / f"p{n}" / f"{name}.png", np.clip(view, 0, 1), bit_depth=16)
     out = tmp_path / "out"
-    result = CliRunner().invoke(cli, ["adapt", str(root), "-o", str(out), "--model",
+    result = CliRunner().invoke(cli, ["adapt", str(root), "-o", str(out), "--checkpoint",
                                       str(tiny_checkpoint), *SMALL])
     assert result.exit_code != 0, result.output
     assert "the views do not measure this camera" in result.output

@@ -68,15 +68,17 @@ def write_report(output: Path, pairs: Sequence[tuple[str, str, np.ndarray, np.nd
     from dualpixel.progress import progress_bar
 
     names = {"start": str(start), "adapted": str(adapted)}
-    methods = model_methods(names.values(), device=device)
+    # one method per checkpoint, each with the output settings it carries
+    methods = dict(zip(names, model_methods(names.values(), device=device).values(),
+                       strict=True))
     rows, residuals = [], {label: [] for label in names}
     steps = progress_bar(total=len(pairs) * len(names), desc="adapt report", enabled=progress)
     with steps:
         for (path, _, left, right), blur in zip(pairs, maps):
             pair = Path(path).parent.name
             left, right = grey_as_one_channel(left, right)
-            for label, checkpoint in names.items():
-                deblurred = methods[checkpoint](left, right)
+            for label, method in methods.items():
+                deblurred = method(left, right)
                 report = check_deblurred(left, right, deblurred)
                 rows.append({"pair": pair, "method": label, **report.as_dict()})
                 residuals[label].append(formation_residual(deblurred, left, right, blur, camera))

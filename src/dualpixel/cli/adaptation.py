@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
+from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath, parse_size
 
 
 @click.command(cls=DPCommand, context_settings=CONTEXT)
@@ -18,7 +18,7 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 @click.option("--select", multiple=True, metavar="PATTERN",
               help="Take only the pairs whose folder name matches (repeatable; e.g. "
                    "'pixel-*') [default: every pair].")
-@click.option("--model", default="rdpd-light", show_default=True,
+@click.option("--checkpoint", default="rdpd-light", show_default=True,
               help="The model to adapt: a registry name or a .safetensors file.")
 @click.option("--camera", default=None,
               help="The camera's file (or a shipped camera's name) [default: measured from the "
@@ -30,6 +30,10 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 @click.option("--epochs", type=click.IntRange(1, 10_000), default=3, show_default=True)
 @click.option("--iterations", type=click.IntRange(1, 1_000_000), default=200, show_default=True,
               help="Training steps per epoch.")
+@click.option("--patch-size", type=click.IntRange(64, 8192), default=192, show_default=True,
+              help="Training crops (px) of the synthetic frames and of the pairs.")
+@click.option("--scene-size", default="840x560", show_default=True, callback=parse_size,
+              help="Synthetic scenes' size WIDTHxHEIGHT.")
 @click.option("--formation-weight", type=click.FloatRange(0, 1e3), default=1.0,
               show_default=True, help="Weight of the formation loss on the photographs.")
 @click.option("--in-focus-weight", type=click.FloatRange(0, 1e3), default=1.0,
@@ -39,10 +43,11 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 @click.option("--threads", type=click.IntRange(1, 1024), default=None,
               help="PyTorch CPU threads [default: PyTorch's].")
 @click.option("--progress/--no-progress", default=True, help="Show progress bars.")
-def adapt(pairs: tuple[Path, ...], output: Path, select: tuple[str, ...], model: str,
+def adapt(pairs: tuple[Path, ...], output: Path, select: tuple[str, ...], checkpoint: str,
           camera: str | None, photos: Path | None, scenes: int, epochs: int, iterations: int,
-          formation_weight: float, in_focus_weight: float, seed: int, device: str,
-          threads: int | None, progress: bool) -> None:
+          patch_size: int, scene_size: tuple[int, int], formation_weight: float,
+          in_focus_weight: float, seed: int, device: str, threads: int | None,
+          progress: bool) -> None:
     """Fine-tune a model to the camera of the DP pairs in the PAIRS folders (left/right views,
     no targets needed; targets present are ignored), from synthetic data formed like that
     camera and a formation loss on the pairs themselves. Writes OUTPUT/adapted.safetensors and
@@ -50,9 +55,10 @@ def adapt(pairs: tuple[Path, ...], output: Path, select: tuple[str, ...], model:
     from dualpixel.adaptation.finetune import AdaptSettings
     from dualpixel.adaptation.finetune import adapt as run_adapt
 
-    settings = AdaptSettings(model=model, select=select, camera=camera,
+    settings = AdaptSettings(model=checkpoint, select=select, camera=camera,
                              photos=None if photos is None else str(photos), scenes=scenes,
-                             epochs=epochs, iterations=iterations,
+                             epochs=epochs, iterations=iterations, patch_size=patch_size,
+                             scene_size=scene_size,
                              formation_weight=formation_weight, in_focus_weight=in_focus_weight,
                              seed=seed)
     result = run_adapt(pairs, output, settings, device=device, threads=threads,
