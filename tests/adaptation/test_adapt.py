@@ -28,7 +28,7 @@ def _pairs(root, count=3, radius=5.0, with_target=False):
 
 
 SMALL = ["--scenes", "2", "--epochs", "2", "--iterations", "2", "--threads", "1",
-         "--no-progress"]
+         "--no-progress", "--formation-weight", "1", "--in-focus-weight", "1"]
 
 
 @pytest.fixture

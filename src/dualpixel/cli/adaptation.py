@@ -34,10 +34,10 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath, pars
               help="Training crops (px) of the synthetic frames and of the pairs.")
 @click.option("--scene-size", default="840x560", show_default=True, callback=parse_size,
               help="Synthetic scenes' size WIDTHxHEIGHT.")
-@click.option("--formation-weight", type=click.FloatRange(0, 1e3), default=1.0,
-              show_default=True, help="Weight of the formation loss on the photographs.")
-@click.option("--in-focus-weight", type=click.FloatRange(0, 1e3), default=1.0,
-              show_default=True, help="Weight of keeping their in-focus blocks.")
+@click.option("--formation-weight", type=click.FloatRange(0, 1e3), default=0.0,
+              show_default=True, help="Weight of the formation loss on the pairs (0: off).")
+@click.option("--in-focus-weight", type=click.FloatRange(0, 1e3), default=0.0,
+              show_default=True, help="Weight of keeping their in-focus blocks (0: off).")
 @click.option("--seed", type=click.IntRange(0, 2**31 - 1), default=0, show_default=True)
 @click.option("--device", default="auto", show_default=True, help="auto, cpu, cuda, ...")
 @click.option("--threads", type=click.IntRange(1, 1024), default=None,
