@@ -28,20 +28,20 @@ def _pairs(root, count=3, radius=5.0, with_target=False):
 
 
 SMALL = ["--scenes", "2", "--epochs", "2", "--iterations", "2", "--threads", "1",
-         "--no-progress", "--formation-weight", "1", "--in-focus-weight", "1"]
+         "--no-progress", "--formation-weight", "1", "--in-focus-weight", "1",
+         "--patch-size", "64", "--scene-size", "128x96"]
 
 
 @pytest.fixture
 def small_settings(monkeypatch):
-    """Crops, batches and scenes of the test's size (the command's defaults are a photo's)."""
+    """Batches of the test's size (the command's defaults are a photo's)."""
     import importlib
 
     module = importlib.import_module("dualpixel.adaptation.finetune")
     real = module.AdaptSettings
 
     def settings(**values):
-        return real(**{"patch_size": 64, "batch": 1, "views_batch": 1,
-                       "scene_size": (128, 96), **values})
+        return real(**{"batch": 1, "views_batch": 1, **values})
 
     monkeypatch.setattr(module, "AdaptSettings", settings)
     return settings
