@@ -42,7 +42,7 @@ from dualpixel.calibration.camera import DEFAULT_PSF, MIN_BLOCKS
 from dualpixel.data.statistics import block_sums
 from dualpixel.errors import ParameterError, check_range
 from dualpixel.optics.camera import DPCamera
-from dualpixel.optics.psf import PSFParams, dp_psf
+from dualpixel.optics.psf import PSFParams, view_spectra
 from dualpixel.optics.tone import srgb_to_linear_array
 
 __all__ = ["PooledFit", "TargetFreeCalibration", "ViewEnergies", "blocks_at_ratios",
@@ -69,19 +69,6 @@ class ViewEnergies:
     radii: np.ndarray
     ratios: np.ndarray
     centres: np.ndarray
-
-
-def _kernel_spectra(radius: float, params: PSFParams, shape: tuple[int, int]):
-    """``H_c`` and ``H_d`` ``(H, W // 2 + 1)``: the rfft2 at ``shape`` of the half sum and half
-    difference of the left and right kernels (each summing to 1), centred on the origin."""
-    kernels = dp_psf(float(radius), params)
-    size = kernels.left.shape[-1]
-    spectra = []
-    for kernel in (kernels.left, kernels.right):
-        full = np.zeros(shape)
-        full[:size, :size] = 2.0 * kernel.double().numpy()
-        spectra.append(scipy.fft.rfft2(np.roll(full, (-(size // 2), -(size // 2)), (0, 1))))
-    return (spectra[0] + spectra[1]) / 2, (spectra[0] - spectra[1]) / 2
 
 
 def view_energies(
@@ -131,7 +118,7 @@ def view_energies(
     energy = np.empty((channels, len(radii), 2, len(ratios), rows, cols))
     a = ratios[:, None, None, None]
     for i, radius in enumerate(radii):
-        hc, hd = _kernel_spectra(radius, params, shape)
+        hc, hd = (h.numpy() for h in view_spectra(radius, params, shape))
         whiten = 1.0 / np.sqrt(2 * np.abs(hc) ** 2 + 2 * prior_ratio**2 * np.abs(hd) ** 2
                                + regularisation)
         gc, gd = hc * whiten, hd * whiten

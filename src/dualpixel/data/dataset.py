@@ -26,7 +26,7 @@ from dualpixel.errors import ParameterError
 from dualpixel.filters import gradient_magnitude, sharpness
 
 __all__ = ["ConcatPatches", "DPPatchDataset", "PatchConfig", "flip_horizontal",
-           "gradient_magnitude", "items_of", "sharpness"]
+           "gradient_magnitude", "items_of", "random_flips", "sharpness"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,17 @@ def flip_horizontal(item: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
     flipped = {key: value.flip(-1) for key, value in item.items()}
     flipped["left"], flipped["right"] = flipped["right"], flipped["left"]
     return flipped
+
+
+def random_flips(item: dict[str, torch.Tensor], rng: np.random.Generator
+                 ) -> dict[str, torch.Tensor]:
+    """``item`` mirrored left-right (:func:`flip_horizontal`) and upside down, each with
+    probability 1/2 drawn from ``rng`` in that order."""
+    if rng.random() < 0.5:
+        item = flip_horizontal(item)
+    if rng.random() < 0.5:
+        item = {k: v.flip(-2) for k, v in item.items()}
+    return item
 
 
 class DPPatchDataset(Dataset):
@@ -140,10 +151,7 @@ class DPPatchDataset(Dataset):
         radial = radial_distance(h, w, full_size=(height, width), top=top, left=left)
         item["radial"] = torch.from_numpy(radial)[None, None].expand(len(frames), 1, h, w).clone()
         if self.config.flips:
-            if rng.random() < 0.5:
-                item = flip_horizontal(item)
-            if rng.random() < 0.5:
-                item = {k: v.flip(-2) for k, v in item.items()}
+            item = random_flips(item, rng)
         return item
 
 

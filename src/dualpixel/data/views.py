@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from dualpixel.data.dataset import flip_horizontal
+from dualpixel.data.dataset import random_flips
 from dualpixel.data.radial import radial_distance
 from dualpixel.errors import InputFileError
 from dualpixel.io.images import image_size, read_rgb
@@ -57,19 +57,25 @@ class BlurMap:
     patch: int
     margin: int
 
-    def pixel_maps(self, height: int, width: int) -> tuple[np.ndarray, ...]:
-        """``(radius, side, blurred, in_focus)`` ``(height, width)`` float32 per pixel of the
-        views: the block's values, 0 outside every block; ``blurred`` marks informative blocks
-        beyond :data:`IN_FOCUS_RADIUS`, ``in_focus`` the in-focus ones."""
-        rows, cols = self.radius.shape
-        maps = np.zeros((4, height, width), np.float32)
+    def pixel_maps(self, height: int, width: int,
+                   window: tuple[int, int, int, int] | None = None) -> tuple[np.ndarray, ...]:
+        """``(radius, side, blurred, in_focus)`` float32 per pixel of the ``height x width``
+        views, or of their ``window`` ``(top, left, rows, cols)`` alone: the block's values, 0
+        outside every block; ``blurred`` marks informative blocks beyond
+        :data:`IN_FOCUS_RADIUS`, ``in_focus`` the in-focus ones."""
+        top, left, rows, cols = window or (0, 0, height, width)
         values = np.stack([self.radius, self.side,
                            self.informative & (self.radius > IN_FOCUS_RADIUS),
                            self.in_focus]).astype(np.float32)
-        grid = np.repeat(np.repeat(values, self.patch, axis=1), self.patch, axis=2)
-        inner = (slice(self.margin, self.margin + rows * self.patch),
-                 slice(self.margin, self.margin + cols * self.patch))
-        maps[(slice(None), *inner)] = grid
+
+        def blocks(start: int, count: int, blocks: int) -> tuple[np.ndarray, np.ndarray]:
+            index = (np.arange(start, start + count) - self.margin) // self.patch
+            inside = (index >= 0) & (index < blocks)
+            return np.clip(index, 0, blocks - 1), inside
+
+        by, in_y = blocks(top, rows, self.radius.shape[0])
+        bx, in_x = blocks(left, cols, self.radius.shape[1])
+        maps = values[:, by][:, :, bx] * (in_y[:, None] & in_x[None, :])
         return tuple(maps)
 
 
@@ -139,24 +145,20 @@ class ViewsDataset(Dataset):
         index, seed = key
         rng = np.random.default_rng(seed)
         blur, (height, width) = self.maps[index], self.sizes[index]
-        maps = blur.pixel_maps(height, width)
         size = self.patch_size
         for _ in range(TRIES):
             top, left = int(rng.integers(height - size + 1)), int(rng.integers(width - size + 1))
-            window = (slice(top, top + size), slice(left, left + size))
-            labelled = (maps[2][window] + maps[3][window]) > 0
-            if labelled.mean() >= MIN_LABELLED:
+            maps = blur.pixel_maps(height, width, (top, left, size, size))
+            if ((maps[2] + maps[3]) > 0).mean() >= MIN_LABELLED:
                 break
+        window = (slice(top, top + size), slice(left, left + size))
         views = [read_rgb(path)[window] for path in (blur.left, blur.right)]
         item = {name: torch.from_numpy(np.ascontiguousarray(view)).permute(2, 0, 1)[None]
                 for name, view in zip(("left", "right"), views)}
         radial = radial_distance(size, size, full_size=(height, width), top=top, left=left)
         item["radial"] = torch.from_numpy(radial)[None, None]
         for name, values in zip(("radius", "side", "blurred", "in_focus"), maps):
-            item[name] = torch.from_numpy(np.ascontiguousarray(values[window]))[None]
+            item[name] = torch.from_numpy(np.ascontiguousarray(values))[None]
         if self.flips:
-            if rng.random() < 0.5:
-                item = flip_horizontal(item)
-            if rng.random() < 0.5:
-                item = {k: v.flip(-2) for k, v in item.items()}
+            item = random_flips(item, rng)
         return {k: v.contiguous() for k, v in item.items()}

@@ -45,6 +45,7 @@ __all__ = [
     "mix_butterworth_terms",
     "punnappurath_left_psf",
     "split_views",
+    "view_spectra",
 ]
 
 PSFModel = Literal["ours", "punnappurath", "disk", "gaussian"]
@@ -341,3 +342,19 @@ def dp_psf(
     if scalar:
         kernels = DPKernels(kernels.left[0], kernels.right[0])
     return kernels
+
+
+def view_spectra(radius: float, params: PSFParams | None,
+                 shape: tuple[int, int]) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(H_c, H_d)`` ``(H, W // 2 + 1)`` complex128: the rfft2 at ``shape`` of the half sum and
+    half difference of :func:`dp_psf`'s left and right kernels at CoC radius ``radius`` (each
+    scaled to sum to 1), centred on the origin. A pair of views of a sharp image ``S`` with
+    disparity ratio ``a`` is then ``S * (H_c +- a H_d)`` (circular convolution)."""
+    kernels = dp_psf(float(radius), params)
+    size = kernels.left.shape[-1]
+    spectra = []
+    for kernel in (kernels.left, kernels.right):
+        full = torch.zeros(shape, dtype=torch.float64)
+        full[:size, :size] = 2.0 * kernel.double()
+        spectra.append(torch.fft.rfft2(torch.roll(full, (-(size // 2), -(size // 2)), (0, 1))))
+    return (spectra[0] + spectra[1]) / 2, (spectra[0] - spectra[1]) / 2

@@ -18,7 +18,7 @@ from torch import nn
 
 from dualpixel.errors import ParameterError
 from dualpixel.optics.camera import DPCamera
-from dualpixel.optics.psf import dp_psf
+from dualpixel.optics.psf import view_spectra
 from dualpixel.optics.tone import srgb_to_linear
 
 __all__ = ["FormationLoss"]
@@ -48,18 +48,11 @@ class FormationLoss(nn.Module):
         self._spectra: dict[tuple[float, int, int], tuple[torch.Tensor, torch.Tensor]] = {}
 
     def _kernel_spectra(self, radius: float, shape: tuple[int, int], device: torch.device):
-        """rfft2 of ``H_c`` and ``H_d`` at ``radius`` (side +1), centred on the origin."""
+        """:func:`~dualpixel.optics.psf.view_spectra` at ``radius`` (side +1), kept per size."""
         key = (radius, *shape)
         if key not in self._spectra:
-            kernels = dp_psf(radius, self.camera.psf)
-            size = kernels.left.shape[-1]
-            spectra = []
-            for kernel in (kernels.left, kernels.right):
-                full = torch.zeros(shape, dtype=torch.float32)
-                full[:size, :size] = 2.0 * kernel.float()
-                full = torch.roll(full, (-(size // 2), -(size // 2)), (0, 1))
-                spectra.append(torch.fft.rfft2(full))
-            self._spectra[key] = ((spectra[0] + spectra[1]) / 2, (spectra[0] - spectra[1]) / 2)
+            self._spectra[key] = tuple(h.to(torch.complex64)
+                                       for h in view_spectra(radius, self.camera.psf, shape))
         hc, hd = self._spectra[key]
         return hc.to(device), hd.to(device)
 

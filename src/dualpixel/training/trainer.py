@@ -39,7 +39,7 @@ import torch
 import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
 from torch.optim.swa_utils import AveragedModel
-from torch.utils.data import DataLoader
+from torch.utils.data import DataLoader, Dataset
 from tqdm import tqdm
 
 from dualpixel.data.dataset import DPPatchDataset, PatchConfig
@@ -68,7 +68,7 @@ class DataKind:
     """One source of training batches."""
 
     name: str
-    dataset: DPPatchDataset
+    dataset: Dataset  # DPPatchDataset, or the views of dualpixel.data.views
     batch: int
 
 
@@ -465,7 +465,8 @@ class Trainer:
             from dualpixel.training.formation import FormationLoss
 
             maps, camera = read_blur_maps(config.views_data)
-            self.views = ViewsDataset(maps, config.patch_size, flips=config.flips)
+            self.views = DataKind("views", ViewsDataset(maps, config.patch_size,
+                                                        flips=config.flips), config.views_batch)
             self.formation = FormationLoss(
                 camera, formation_weight=config.formation_weight,
                 in_focus_weight=config.in_focus_weight,
@@ -587,11 +588,9 @@ class Trainer:
             )))
         views = None
         if self.views is not None:  # one batch of them with every iteration's
-            rng = np.random.default_rng([config.seed, epoch, len(kinds)])
-            keys = [[(int(rng.integers(len(self.views))), int(rng.integers(2**62)))
-                     for _ in range(config.views_batch)] for _ in range(self.iterations)]
-            views = iter(DataLoader(self.views, batch_sampler=[b[self.rank::self.world] or b[:1]
-                                                               for b in keys[first:]],
+            batches = _epoch_batches(config, len(kinds), self.views, epoch, self.iterations,
+                                     self.rank, self.world)
+            views = iter(DataLoader(self.views.dataset, batch_sampler=batches[first:],
                                     num_workers=config.workers, pin_memory=use_cuda))
         if "rng" in within:
             _set_rng_state(within["rng"])
