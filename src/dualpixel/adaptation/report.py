@@ -32,8 +32,8 @@ def formation_residual(output: np.ndarray, left: np.ndarray, right: np.ndarray,
     height, width = left.shape[:2]
 
     def tensor(image: np.ndarray) -> torch.Tensor:
-        image = np.broadcast_to(np.atleast_3d(image), (height, width, 3))
-        return torch.from_numpy(np.ascontiguousarray(image, np.float32)).permute(2, 0, 1)[None]
+        image = np.broadcast_to(np.atleast_3d(image), (height, width, 3))  # a read-only view
+        return torch.tensor(image, dtype=torch.float32).permute(2, 0, 1)[None]
 
     maps = blur.pixel_maps(height, width)
     item = {"left": tensor(left), "right": tensor(right),
