@@ -1,0 +1,97 @@
+"""Two-arm fine-tune from rdpd-light.v16: training views as written, or lossily coded as the dev
+and unseen Canon views are (GIF frames at 840 px, H.264 at 1620; issue #77, item 3).
+
+Both arms train alike on the photographic recipe's seven on-the-fly cameras (the same crops and
+draws, from the v17 run's data folder): 2 epochs of 300 iterations, learning rate 1e-4 cosine.
+In the ``coded`` arm each display-encoded training crop is, with probability 1/2, stored as a
+GIF frame (its own palette of 32-256 colours, Floyd-Steinberg dither) or a JPEG of quality
+50-95, each view on its own; targets stay clean, raw (linear) views are never coded.
+
+    python experiments/scripts/coded_training.py ARM OUT [--data runs/rdpd-light-photographs]
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+from PIL import Image
+
+from dualpixel.data.dataset import DPPatchDataset
+from dualpixel.training import load_config, train
+
+
+def gif_frame(image: np.ndarray, colours: int) -> np.ndarray:
+    """``(H, W, C)`` uint8 through a GIF frame: its own palette, error-diffusion dither."""
+    grey = image.shape[2] == 1
+    picture = Image.fromarray(image[..., 0] if grey else image)
+    coded = picture.quantize(colours, method=Image.Quantize.MEDIANCUT if not grey else None,
+                             dither=Image.Dither.FLOYDSTEINBERG)
+    buffer = io.BytesIO()
+    coded.save(buffer, format="GIF")
+    out = np.asarray(Image.open(buffer).convert("L" if grey else "RGB"))
+    return out[..., None] if grey else out
+
+
+def jpeg(image: np.ndarray, quality: int) -> np.ndarray:
+    _, data = cv2.imencode(".jpg", image[..., ::-1] if image.shape[2] == 3 else image,
+                            [cv2.IMWRITE_JPEG_QUALITY, quality])
+    out = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    return out[..., None] if out.ndim == 2 else out[..., ::-1]
+
+
+def coded(view: torch.Tensor, rng: np.random.Generator, codec: str) -> torch.Tensor:
+    """A ``(T, 3, H, W)`` view in [0, 1] coded frame by frame (grey views as one channel)."""
+    frames = []
+    grey = bool(torch.equal(view[:, 0], view[:, 1]) and torch.equal(view[:, 1], view[:, 2]))
+    colours, quality = int(rng.integers(32, 257)), int(rng.integers(50, 96))
+    for frame in view:
+        image = (frame.permute(1, 2, 0).numpy() * 255 + 0.5).clip(0, 255).astype(np.uint8)
+        image = image[..., 1:2] if grey else np.ascontiguousarray(image)
+        out = gif_frame(image, colours) if codec == "gif" else jpeg(image, quality)
+        out = np.repeat(out, 3, axis=2) if grey else out
+        frames.append(torch.from_numpy(out.astype(np.float32) / 255).permute(2, 0, 1))
+    return torch.stack(frames)
+
+
+def code_training_views() -> None:
+    """Make every display-encoded training crop coded with probability 1/2 (by its key)."""
+    plain = DPPatchDataset.__getitem__
+
+    def getitem(self, key):
+        item = plain(self, key)
+        if getattr(self, "raw_black_level", None) is not None or not isinstance(key, tuple):
+            return item
+        rng = np.random.default_rng((int(key[0]), int(key[1]) % 2**62, 77))
+        if rng.uniform() < 0.5:
+            codec = "gif" if rng.uniform() < 0.5 else "jpeg"
+            for name in ("left", "right"):
+                item[name] = coded(item[name], rng, codec)
+        return item
+
+    DPPatchDataset.__getitem__ = getitem
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("arm", choices=("plain", "coded"))
+    parser.add_argument("output", type=Path)
+    parser.add_argument("--data", type=Path, default=Path("runs/rdpd-light-photographs"))
+    parser.add_argument("--threads", type=int, default=1)
+    args = parser.parse_args()
+    family = args.data / "phases" / "family" / "config.yaml"
+    config = load_config(family, {
+        "epochs": 2, "iterations_per_epoch": 300, "learning_rate": 1e-4, "lr_schedule": "cosine",
+        "val_data": str(args.data / "data" / "canon-840-test"), "val_limit": 4,
+        "threads": args.threads, "checkpoint_minutes": 10, "tensorboard": False})
+    if args.arm == "coded":
+        code_training_views()
+    train(config, args.output, resume=(args.output / "config.yaml").exists(), progress=False)
+
+
+if __name__ == "__main__":
+    main()
