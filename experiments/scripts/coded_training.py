@@ -13,35 +13,14 @@ GIF frame (its own palette of 32-256 colours, Floyd-Steinberg dither) or a JPEG 
 from __future__ import annotations
 
 import argparse
-import io
 from pathlib import Path
 
-import cv2
 import numpy as np
 import torch
-from PIL import Image
+from coded_views import code  # this folder's GIF and JPEG round trips
 
 from dualpixel.data.dataset import DPPatchDataset
 from dualpixel.training import load_config, train
-
-
-def gif_frame(image: np.ndarray, colours: int) -> np.ndarray:
-    """``(H, W, C)`` uint8 through a GIF frame: its own palette, error-diffusion dither."""
-    grey = image.shape[2] == 1
-    picture = Image.fromarray(image[..., 0] if grey else image)
-    coded = picture.quantize(colours, method=Image.Quantize.MEDIANCUT if not grey else None,
-                             dither=Image.Dither.FLOYDSTEINBERG)
-    buffer = io.BytesIO()
-    coded.save(buffer, format="GIF")
-    out = np.asarray(Image.open(buffer).convert("L" if grey else "RGB"))
-    return out[..., None] if grey else out
-
-
-def jpeg(image: np.ndarray, quality: int) -> np.ndarray:
-    _, data = cv2.imencode(".jpg", image[..., ::-1] if image.shape[2] == 3 else image,
-                            [cv2.IMWRITE_JPEG_QUALITY, quality])
-    out = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
-    return out[..., None] if out.ndim == 2 else out[..., ::-1]
 
 
 def coded(view: torch.Tensor, rng: np.random.Generator, codec: str) -> torch.Tensor:
@@ -51,9 +30,9 @@ def coded(view: torch.Tensor, rng: np.random.Generator, codec: str) -> torch.Ten
     colours, quality = int(rng.integers(32, 257)), int(rng.integers(50, 96))
     for frame in view:
         image = (frame.permute(1, 2, 0).numpy() * 255 + 0.5).clip(0, 255).astype(np.uint8)
-        image = image[..., 1:2] if grey else np.ascontiguousarray(image)
-        out = gif_frame(image, colours) if codec == "gif" else jpeg(image, quality)
-        out = np.repeat(out, 3, axis=2) if grey else out
+        image = np.ascontiguousarray(image[..., 1] if grey else image[..., ::-1])  # grey, BGR
+        out = code(image, "gif" if codec == "gif" else f"jpeg{quality}", colours)
+        out = np.repeat(out[..., None], 3, axis=2) if grey else out[..., ::-1]
         frames.append(torch.from_numpy(out.astype(np.float32) / 255).permute(2, 0, 1))
     return torch.stack(frames)
 

@@ -16,13 +16,18 @@ import numpy as np
 from PIL import Image
 
 
-def code(image: np.ndarray, codec: str) -> np.ndarray:
-    """``image`` (8-bit, grey ``(H, W)`` or BGR ``(H, W, 3)``) through ``codec`` and back."""
+def code(image: np.ndarray, codec: str, colours: int = 256) -> np.ndarray:
+    """``image`` (8-bit, grey ``(H, W)`` or BGR ``(H, W, 3)``) through ``codec`` and back; a
+    GIF's palette holds ``colours`` colours."""
     if codec == "gif":
-        if image.ndim == 2:  # 256 grey levels: a GIF keeps every one
-            return image
+        if image.ndim == 2:
+            if colours >= 256:  # 256 grey levels: a GIF keeps every one
+                return image
+            paletted = Image.fromarray(image).quantize(colours,
+                                                       dither=Image.Dither.FLOYDSTEINBERG)
+            return np.asarray(paletted.convert("L")).copy()
         rgb = Image.fromarray(image[..., ::-1])
-        paletted = rgb.quantize(256, method=Image.Quantize.MEDIANCUT,
+        paletted = rgb.quantize(colours, method=Image.Quantize.MEDIANCUT,
                                 dither=Image.Dither.FLOYDSTEINBERG)
         return np.asarray(paletted.convert("RGB"))[..., ::-1].copy()
     quality = int(codec.removeprefix("jpeg"))
