@@ -44,26 +44,6 @@ def test_in_focus_plane_gives_identical_views_and_target():
         assert float(frame.defocus.abs().max()) == 0.0
 
 
-@pytest.mark.parametrize("light", ["encoded", "linear"])
-def test_a_window_of_the_sharp_target_is_that_window_of_the_whole_one(light):
-    """The target rendered for a window alone (where on-the-fly crops are placed) equals the
-    window of the whole target: exactly without distortion, to float rounding with it (the
-    positions are mapped in another precision), at the frame's edges too."""
-    from dualpixel.synthesis.frame import sharp_target
-
-    rgb = textured(3).permute(1, 2, 0).numpy()
-    depth = np.full((H, W), 1.0, np.float32)
-    for distortion in (False, True):
-        draw = draw_sequence(4, "set0", noise=False, distortion=distortion, light=light)
-        whole = sharp_target(rgb, depth, draw)
-        for top, left, rows, cols in ((0, 0, 40, 56), (17, 9, 33, 20), (H - 25, W - 31, 25, 31)):
-            part = sharp_target(rgb, depth, draw, window=(top, left, rows, cols))
-            expected = whole[:, top : top + rows, left : left + cols]
-            assert part.shape == expected.shape
-            bound = 1e-5 if distortion else 0.0
-            assert float((part - expected).abs().max()) <= bound, (distortion, top, left)
-
-
 def horizontal_shift(reference: torch.Tensor, moved: torch.Tensor) -> float:
     """Sub-pixel x displacement of ``moved`` relative to ``reference`` (phase correlation)."""
     a = reference.mean(0).double().numpy()

@@ -341,14 +341,13 @@ def render_job(job: FrameJob, fmt: InputFormat, config: SynthConfig, device: str
     return _stored(result, job, config)
 
 
-def render_target(job: FrameJob, config: SynthConfig, scene: tuple[np.ndarray, np.ndarray],
-                  window: tuple[int, int, int, int] | None = None) -> np.ndarray:
+def render_target(job: FrameJob, config: SynthConfig, scene: tuple[np.ndarray, np.ndarray]
+                  ) -> np.ndarray:
     """The stored ``target`` of :func:`render_job` of ``scene`` (the job's RGB and depth), alone:
-    no views rendered; ``window`` ``(top, left, height, width)``: that window alone
-    (:func:`~dualpixel.synthesis.frame.sharp_target`)."""
+    no views rendered."""
     from dualpixel.synthesis.frame import sharp_target
 
-    target = _quantise(sharp_target(*scene, job.draw, window=window), config.bit_depth)
+    target = _quantise(sharp_target(*scene, job.draw), config.bit_depth)
     return target[..., 1] if config.grey else target
 
 

@@ -354,28 +354,12 @@ def render_region(coc: torch.Tensor, draw: SequenceDraw, window: tuple[int, int,
 
 
 def sharp_target(rgb: np.ndarray | torch.Tensor, depth: np.ndarray | torch.Tensor,
-                 draw: SequenceDraw, *, device: str | torch.device = "cpu",
-                 window: tuple[int, int, int, int] | None = None) -> torch.Tensor:
+                 draw: SequenceDraw, *, device: str | torch.device = "cpu") -> torch.Tensor:
     """The frame's sharp target ``(3, H, W)`` in [0, 1] as :func:`synthesize_frame` makes it
-    (distorted, in the views' encoding), without rendering the views. ``window`` ``(top, left,
-    height, width)`` px: that window alone, from the pixels its distortion reads (where a
-    training crop is placed on the fly), equal to the window of the whole target to float
-    rounding where the distortion moves it, exactly where none does."""
-    if window is None:
-        image, scene, _ = _prepared(rgb, depth, draw, device)
-        target = scene if draw.distortion is None else distort_image(scene, draw.distortion)
-        return _encoded_target(image, target, draw).clamp(0.0, 1.0)
-    image = _as_image(rgb, device)
-    frame = tuple(image.shape[1:])
-    top, left, rows, cols = _checked_window(window, frame)
-    row0, row1, col0, col1 = (top, top + rows, left, left + cols) if draw.distortion is None \
-        else window_sources(draw.distortion, frame, (top, left, rows, cols))
-    image = image[:, row0:row1, col0:col1]
-    scene = srgb_to_linear(image) if draw.light == "linear" else image
-    if draw.distortion is not None:
-        scene = distort_window(scene, draw.distortion, frame, (row0, col0),
-                               (top, left, rows, cols))
-    return _encoded_target(image, scene, draw).clamp(0.0, 1.0)
+    (distorted, in the views' encoding), without rendering the views."""
+    image, scene, _ = _prepared(rgb, depth, draw, device)
+    target = scene if draw.distortion is None else distort_image(scene, draw.distortion)
+    return _encoded_target(image, target, draw).clamp(0.0, 1.0)
 
 
 def _encoded_target(image: torch.Tensor, target: torch.Tensor, draw: SequenceDraw
@@ -422,15 +406,11 @@ def synthesize_frames(
             for (image, scene, coc), pair, draw, seed in zip(prepared, views, draws, noise_seeds)]
 
 
-def _as_image(rgb: np.ndarray | torch.Tensor, device) -> torch.Tensor:
-    """An ``(H, W, 3)`` NumPy or ``(3, H, W)`` torch image as float32 ``(3, H, W)``."""
-    image = torch.as_tensor(rgb, dtype=torch.float32, device=device)
-    return image.permute(2, 0, 1) if isinstance(rgb, np.ndarray) else image
-
-
 def _prepared(rgb, depth, draw: SequenceDraw, device) -> tuple[torch.Tensor, ...]:
     """``(image (3, H, W), scene (3, H, W) in the light the lens blurs, coc (H, W) px)``."""
-    image = _as_image(rgb, device)
+    image = torch.as_tensor(rgb, dtype=torch.float32, device=device)
+    if isinstance(rgb, np.ndarray):
+        image = image.permute(2, 0, 1)
     depth_t = torch.as_tensor(depth, dtype=torch.float32, device=device)
     if image.ndim != 3 or image.shape[0] != 3 or depth_t.shape != image.shape[1:]:
         raise ParameterError(

@@ -156,9 +156,8 @@ class OnTheFlyDataset(DPPatchDataset):
         return plan_jobs([self.scenes[sequence.scene]], config, self.source.fmt)[frame]
 
     def _frames(self, index: int, start: int, rng: np.random.Generator) -> list:
-        """The frames' draws, each with its sharp target computed where it is looked at (what
-        the crop's place is chosen on): the views are rendered for the crop alone
-        (:meth:`_cut`)."""
+        """The frames' draws, each with its whole sharp target (what the crop's place is chosen
+        on): the views are rendered for the crop alone (:meth:`_cut`)."""
         seed = int(rng.integers(2**62))
         frames = range(start, start + self.config.frames)
         if self._rendered is not None:  # rendered beforehand, all at once (render_items)
@@ -166,26 +165,29 @@ class OnTheFlyDataset(DPPatchDataset):
         return [self._pending(self.job(index, seed, k)) for k in frames]
 
     def _pending(self, job) -> _Pending:
+        from dualpixel.synthesis.dataset import render_target
         from dualpixel.synthesis.inputs import load_frame
 
         config = self.source.config
         scene = load_frame(job.frame, self.source.fmt, max_depth=config.max_depth,
                            depth_scale=config.depth_scale)
-        return _Pending(job, scene, config)
+        target = _as_read(render_target(job, config, scene), config.bit_depth)
+        return _Pending(job, scene, target)
 
     def _cut(self, frame, top: int, left: int, height: int, width: int
              ) -> dict[str, np.ndarray]:
-        """The crop's views and target rendered with their blur margin alone (the same region
-        of the whole frame's render to float rounding)."""
+        """The crop's views rendered with their blur margin alone (the same region of the whole
+        frame's render to float rounding), the target cut from the frame's."""
         if not isinstance(frame, _Pending):
             return super()._cut(frame, top, left, height, width)
         from dualpixel.synthesis.dataset import render_job
 
-        whole = (top, left, height, width) == (0, 0, *frame.scene[1].shape[:2])
+        whole = (top, left, height, width) == (0, 0, *frame.target.shape[:2])
         stored = render_job(frame.job, self.source.fmt, self.source.config, scene=frame.scene,
                             window=None if whole else (top, left, height, width))
         bits = self.source.config.bit_depth
-        return {role: _as_read(stored[role], bits) for role in ("left", "right", "target")}
+        return {"left": _as_read(stored["left"], bits), "right": _as_read(stored["right"], bits),
+                "target": frame.target[top : top + height, left : left + width]}
 
     _rendered: dict | None = None
 
@@ -226,41 +228,17 @@ class OnTheFlyDataset(DPPatchDataset):
 
 @dataclass(frozen=True)
 class _Pending:
-    """A frame whose views are not rendered yet: its job, RGB and depth, and its sharp target
-    (``pending["target"]``, as read) for the choice of the crop, computed only where it is
-    sliced: a frame's crop places cost their windows, not the whole frame."""
+    """A frame whose views are not rendered yet: its job, RGB and depth, and its whole sharp
+    target (as read) for the choice of the crop."""
 
     job: object  # FrameJob
     scene: tuple[np.ndarray, np.ndarray]
-    config: object  # SynthConfig
+    target: np.ndarray
 
-    def __getitem__(self, key: str) -> _TargetWindows:
+    def __getitem__(self, key: str) -> np.ndarray:
         if key != "target":
             raise KeyError(key)
-        return _TargetWindows(self)
-
-
-@dataclass(frozen=True)
-class _TargetWindows:
-    """A pending frame's sharp target as read, float32 ``(H, W, 3)``: ``[rows, cols]`` (slices
-    of step 1) renders that window alone
-    (:func:`~dualpixel.synthesis.dataset.render_target`)."""
-
-    frame: _Pending
-
-    @property
-    def shape(self) -> tuple[int, int, int]:
-        return (*self.frame.scene[1].shape[:2], 3)
-
-    def __getitem__(self, key: tuple[slice, slice]) -> np.ndarray:
-        from dualpixel.synthesis.dataset import render_target
-
-        height, width = self.shape[:2]
-        (top, bottom, _), (left, right, _) = key[0].indices(height), key[1].indices(width)
-        window = (top, left, bottom - top, right - left)
-        config = self.frame.config
-        return _as_read(render_target(self.frame.job, config, self.frame.scene, window),
-                        config.bit_depth)
+        return self.target
 
 
 def _as_read(image: np.ndarray, bit_depth: int) -> np.ndarray:
