@@ -47,13 +47,18 @@ def main() -> None:
                         metavar=("TOP", "BOTTOM", "LEFT", "RIGHT"))
     parser.add_argument("--model", default="rdpd-light")
     parser.add_argument("--camera", default="canon-840-linear")
+    parser.add_argument("--fit-margin", type=int, default=40,
+                        help="px around the crop the radius is fitted on (0: the crop alone)")
+    parser.add_argument("--figure", help="write target | outputs on the real views, ours at "
+                        "the fitted radius, ours 0.75 px smaller | published DPDNet here")
     args = parser.parse_args()
     torch.set_num_threads(2)
     left, right, target = (read_rgb(os.path.join(args.scene, f"{n}.png"))
                            for n in ("view0", "view1", "target"))
     top, bottom, x0, x1 = args.crop
     crop = (slice(top, bottom), slice(x0, x1))
-    margin = (slice(max(top - 40, 0), bottom + 40), slice(max(x0 - 40, 0), x1 + 40))
+    pad = args.fit_margin
+    margin = (slice(max(top - pad, 0), bottom + pad), slice(max(x0 - pad, 0), x1 + pad))
     params = load_camera(args.camera).psf
     light = srgb_to_linear_array(target)
 
@@ -69,10 +74,20 @@ def main() -> None:
     radius = min(np.arange(1.0, 8.01, 0.25), key=error)
     ours_left, ours_right = render(radius)
 
+    def deblurred(view_left: np.ndarray, view_right: np.ndarray) -> np.ndarray:
+        return dualpixel.deblur(np.clip(view_left, 0, 1), np.clip(view_right, 0, 1),
+                                model=args.model, device="cpu")
+
     def score(view_left: np.ndarray, view_right: np.ndarray) -> float:
-        output = dualpixel.deblur(np.clip(view_left, 0, 1), np.clip(view_right, 0, 1),
-                                  model=args.model, device="cpu")
-        return psnr(output[crop], target[crop])
+        return psnr(deblurred(view_left, view_right)[crop], target[crop])
+
+    if args.figure:
+        panels = [target, deblurred(left, right), deblurred(ours_left, ours_right),
+                  deblurred(*render(radius - 0.75)),
+                  read_rgb(os.path.join(args.scene, "dpdnet.png"))]
+        strip = np.concatenate([np.clip(p[crop], 0, 1) for p in panels], axis=1)
+        strip = cv2.resize(strip, None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
+        cv2.imwrite(args.figure, (strip[..., ::-1] * 255).round().astype(np.uint8))
 
     res_left, res_right = left - ours_left, right - ours_right
     common, opposite = (res_left + res_right) / 2, (res_left - res_right) / 2

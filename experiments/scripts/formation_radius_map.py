@@ -1,0 +1,346 @@
+"""Issue #77 item 3: the dev scenes rendered by our formation at their own fitted blur, beside
+the real views: where does the default model lose more on the real views than on ours?
+
+Each dev scene's target (linear light) is blurred by the Canon camera's left and right kernels
+at every radius of a grid; per ``--tile``-px tile the radius whose views best match the real
+views (sRGB, both views, the tile and a margin) is kept, and the per-radius renders are blended
+by the smoothed tile choice: our formation with the scene's own blur map, its views 8-bit. The
+default model deblurs both; per tile (textured ones) its gain over the views' mean, by the
+tile's radius and side of the frame, on real and on our views, with the published DPDNet
+output's gain beside (``--toned``, ``--registered``: each image's tone and sub-pixel position
+matched to the target per tile first, so the f/22 target's other exposure and registration
+count against no one). Our views can be coded as the dev views were (``--coded``: the 840-px
+GIF frames' own palettes; ``--h264 CRF``: an H.264 animation, as the 1620-px views), and their
+disparity ratio can change across the frame (``--ratio-profile``).
+
+    python experiments/scripts/formation_radius_map.py ../shared/data/canon-dp-real \
+        --coded --toned --registered
+    python experiments/scripts/formation_radius_map.py ../shared/data/canon-dp-real-hd \
+        --camera canon-hd-linear --max-radius 20 --tile 64 --margin 16 --toned --registered \
+        [--h264 23] [--ratio-profile 1.234 0.572]
+
+``--disparity`` measures instead how far apart the real views lie against ours (per textured
+tile blurred by at least a quarter of ``--max-radius``: the best horizontal shift of one view
+onto the other), by the tile's place across the frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import itertools
+import os
+
+import cv2
+import numpy as np
+import torch
+from PIL import Image
+
+import dualpixel
+from dualpixel.calibration.camera import view_kernels
+from dualpixel.io.images import read_rgb
+from dualpixel.optics.camera import load_camera
+from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
+
+BINS = ((0.0, 2.0), (2.0, 4.5), (4.5, 9.0), (9.0, 20.1))
+
+
+def renders(target: np.ndarray, radii: np.ndarray, camera: str,
+            profile: tuple[float, float] = (1.0, 0.0)) -> np.ndarray:
+    """``(len(radii), 2, H, W, C)`` left and right views (sRGB, 8-bit levels kept as floats):
+    the camera's kernels and its per-channel disparity ratio, in linear light; the ratio times
+    ``profile[0] - profile[1] * x**2`` with ``x`` from -1 (left edge) to 1 (right edge)."""
+    light = srgb_to_linear_array(target)
+    model = load_camera(camera)
+    width = light.shape[1]
+    across = (np.arange(width, dtype=np.float32) + 0.5) / width * 2 - 1  # -1 at the left edge
+    field = profile[0] - profile[1] * across**2  # the disparity ratio's change across the field
+    ratio = np.asarray(model.disparity_ratio, np.float32)[None, None, :] * field[None, :, None]
+    keep, swap = (1 + ratio) / 2, (1 - ratio) / 2  # the camera's crosstalk, per channel
+    out = []
+    for radius in radii:
+        if radius < 0.5:
+            pair = (light, light)
+        else:
+            left, right = (cv2.filter2D(light, -1, k, borderType=cv2.BORDER_REFLECT)
+                           for k in view_kernels(radius, model.psf))
+            pair = (keep * left + swap * right, keep * right + swap * left)
+        out.append([np.round(np.clip(linear_to_srgb_array(v), 0, 1) * 255) / 255 for v in pair])
+    return np.asarray(out, np.float32)
+
+
+def tile_choice(real: tuple[np.ndarray, np.ndarray], rendered: np.ndarray, tile: int,
+                margin: int, channel: int | None = None) -> np.ndarray:
+    """Per tile, the index of the radius whose rendered views best match the real ones (in
+    every channel, or in ``channel`` alone)."""
+    pick = slice(None) if channel is None else slice(channel, channel + 1)
+    error = sum(((rendered[:, i, ..., pick] - real[i][None, ..., pick]) ** 2).mean(axis=-1)
+                for i in (0, 1))
+    size = tile + 2 * margin
+    boxed = np.stack([cv2.boxFilter(e, -1, (size, size), borderType=cv2.BORDER_REFLECT)
+                      for e in error])
+    rows, cols = real[0].shape[0] // tile, real[0].shape[1] // tile
+    centres = boxed[:, tile // 2 : rows * tile : tile, tile // 2 : cols * tile : tile]
+    return np.argmin(centres, axis=0)
+
+
+def blend(rendered: np.ndarray, choice: np.ndarray, tile: int, sigma: float) -> np.ndarray:
+    """The renders blended per pixel by the smoothed one-hot of each tile's choice."""
+    height, width = rendered.shape[2:4]
+    weights = []
+    for index in range(rendered.shape[0]):
+        onehot = np.kron((choice == index).astype(np.float32), np.ones((tile, tile), np.float32))
+        onehot = np.pad(onehot, ((0, height - onehot.shape[0]), (0, width - onehot.shape[1])),
+                        mode="edge")
+        weights.append(cv2.GaussianBlur(onehot, (0, 0), sigma))
+    weights = np.asarray(weights)
+    weights /= weights.sum(axis=0, keepdims=True)
+    return np.einsum("rhw,rvhwc->vhwc", weights, rendered)
+
+
+def with_palette_of(view: np.ndarray, real: np.ndarray) -> np.ndarray:
+    """``view`` (RGB in [0, 1]) coded as a GIF frame with ``real``'s own colours (its palette,
+    Floyd-Steinberg dither): the dev views' coding, applied to ours."""
+    colours = np.unique((real * 255).round().astype(np.uint8).reshape(-1, 3), axis=0)
+    if len(colours) > 256:
+        raise SystemExit("--coded: the real views are not GIF frames (more than 256 colours)")
+    palette = Image.new("P", (1, 1))
+    palette.putpalette(colours.reshape(-1).tolist() + [0] * (768 - colours.size))
+    image = Image.fromarray((np.clip(view, 0, 1) * 255).round().astype(np.uint8))
+    coded = image.quantize(palette=palette, dither=Image.Dither.FLOYDSTEINBERG)
+    return np.asarray(coded.convert("RGB"), np.float32) / 255
+
+
+def toned(image: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``image`` after the per-channel gain and offset that best match ``target`` (least
+    squares): what is left once the f/22 target's other exposure is taken out."""
+    out = np.empty_like(image)
+    for c in range(image.shape[-1]):
+        a = np.stack([image[..., c].ravel(), np.ones(image[..., c].size)], axis=1)
+        coef = np.linalg.lstsq(a, target[..., c].ravel(), rcond=None)[0]
+        out[..., c] = image[..., c] * coef[0] + coef[1]
+    return out
+
+
+TONED = False
+SHIFTS = [(dx, dy) for dx in (-0.5, -0.25, 0.0, 0.25, 0.5) for dy in (-0.5, -0.25, 0.0, 0.25, 0.5)]
+
+
+def shifted_copies(image: np.ndarray) -> list[np.ndarray]:
+    """``image`` moved by each of ``SHIFTS`` (px; bicubic)."""
+    height, width = image.shape[:2]
+    return [cv2.warpAffine(image, np.float32([[1, 0, dx], [0, 1, dy]]), (width, height),
+                           flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+            for dx, dy in SHIFTS]
+
+
+def best_shift(copies: list[np.ndarray], box: tuple[slice, slice],
+               target: np.ndarray) -> np.ndarray:
+    """The copy whose ``box`` is closest to ``target[box]``: the tile's local registration."""
+    return min((c[box] for c in copies), key=lambda c: float(((c - target[box]) ** 2).mean()))
+
+
+def jpeg(view: np.ndarray, quality: int) -> np.ndarray:
+    """``view`` (RGB in [0, 1]) through JPEG at ``quality`` (a DCT coder like the H.264 of the
+    1620-px dev views: small coefficients quantised away)."""
+    bgr = (np.clip(view, 0, 1)[..., ::-1] * 255).round().astype(np.uint8)
+    ok, data = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:
+        raise RuntimeError("JPEG encoding failed")
+    return cv2.imdecode(data, cv2.IMREAD_COLOR)[..., ::-1].astype(np.float32) / 255
+
+
+def band_energy(image: np.ndarray, sigma: float = 1.0) -> float:
+    """Mean square of ``image``'s detail finer than a Gaussian of ``sigma`` px (grey)."""
+    grey = image.mean(axis=-1)
+    return float(((grey - cv2.GaussianBlur(grey, (0, 0), sigma)) ** 2).mean()) + 1e-12
+
+
+def h264(views: np.ndarray, crf: int, hold: int = 10, loops: int = 3) -> np.ndarray:
+    """The two views coded as the 1620-px dev views were: an H.264 animation (libx264 through
+    PyAV, ``pip install av``; 4:2:0) showing each view ``hold`` frames, looped; each view back
+    as the mean of its frames after the first loop."""
+    import io
+
+    try:
+        import av
+    except ImportError:
+        raise SystemExit("--h264 needs PyAV: pip install av") from None
+    height, width = views.shape[1:3]
+    stream_buffer = io.BytesIO()
+    container = av.open(stream_buffer, "w", format="mp4")
+    stream = container.add_stream("libx264", rate=25)
+    stream.width, stream.height, stream.pix_fmt = width, height, "yuv420p"
+    stream.options = {"crf": str(crf), "preset": "medium"}
+    frames = [(np.clip(v, 0, 1) * 255).round().astype(np.uint8) for v in views]
+    for _ in range(loops):
+        for frame in frames:
+            for _ in range(hold):
+                for packet in stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")):
+                    container.mux(packet)
+    for packet in stream.encode():
+        container.mux(packet)
+    container.close()
+    stream_buffer.seek(0)
+    decoded = [f.to_ndarray(format="rgb24").astype(np.float32) / 255
+               for f in av.open(stream_buffer, "r").decode(video=0)]
+    count = len(frames)
+    return np.stack([np.mean([d for j, d in enumerate(decoded)
+                              if (j // hold) % count == i and j >= count * hold], axis=0)
+                     for i in range(count)])
+
+
+def tile_disparity(left: np.ndarray, right: np.ndarray, tile: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per tile: the horizontal shift (px, 0.25 steps) that best moves ``right`` onto ``left``,
+    and the squared error it leaves as a share of the unshifted one (low: a clear match)."""
+    a, b = left.mean(axis=-1).astype(np.float32), right.mean(axis=-1).astype(np.float32)
+    shifts = np.arange(-10, 10.01, 0.25)
+    errors = []
+    for dx in shifts:
+        moved = cv2.warpAffine(b, np.float32([[1, 0, dx], [0, 1, 0]]), b.shape[::-1],
+                               flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+        errors.append(cv2.boxFilter((a - moved) ** 2, -1, (tile, tile))[tile // 2 :: tile,
+                                                                          tile // 2 :: tile])
+    errors = np.asarray(errors)
+    return shifts[errors.argmin(axis=0)], errors.min(axis=0) / (errors[len(shifts) // 2] + 1e-12)
+
+
+def disparity_across(rows: list[tuple[float, ...]]) -> None:
+    """Print the real views' disparity over ours by the tile's place across the frame, and the
+    fit ``ratio = p0 - p2 x**2`` (``x`` -1 at the left edge, 1 at the right)."""
+    across, ratio = np.asarray(rows).T
+    print("\n| across the frame (x) | tiles | real / our views' disparity (median) |")
+    print("|---|---|---|")
+    for low in (-1.0, -0.6, -0.2, 0.2, 0.6):
+        pick = (across >= low) & (across < low + 0.4 + 1e-6)
+        print(f"| {low:+.1f} to {low + 0.4:+.1f} | {pick.sum()} | {np.median(ratio[pick]):.2f} |")
+    design = np.stack([np.ones_like(across), -across**2], axis=1)
+    p0, p2 = np.linalg.lstsq(design, ratio, rcond=None)[0]
+    spread = np.median(np.abs(ratio - design @ [p0, p2]))
+    print(f"fit: {p0:.3f} - {p2:.3f} x^2 (median absolute residual {spread:.3f}); "
+          f"--ratio-profile {p0:.3f} {p2:.3f}")
+
+
+def gain(output: np.ndarray, reference: np.ndarray, target: np.ndarray) -> float:
+    """Gain of ``output`` over ``reference`` against ``target`` (dB); both toned first with
+    ``--toned``."""
+    if TONED:
+        output, reference = toned(output, target), toned(reference, target)
+    return 10 * np.log10(((reference - target) ** 2).mean() / ((output - target) ** 2).mean())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("root", help="a folder of dev scenes: view0, view1, target, dpdnet")
+    parser.add_argument("--model", default="rdpd-light")
+    parser.add_argument("--camera", default="canon-840-linear")
+    parser.add_argument("--max-radius", type=float, default=10.0,
+                        help="the largest CoC radius fitted, px (20 for 1620-px views)")
+    parser.add_argument("--tile", type=int, default=32)
+    parser.add_argument("--margin", type=int, default=8)
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--coded", action="store_true",
+                        help="code our views with the real views' GIF palettes")
+    parser.add_argument("--ratio-profile", type=float, nargs=2, default=(1.0, 0.0),
+                        metavar=("P0", "P2"), help="disparity ratio times P0 - P2 x^2 across "
+                        "the frame (x from -1 to 1)")
+    parser.add_argument("--disparity", action="store_true",
+                        help="only measure the views' disparity against ours across the frame")
+    parser.add_argument("--h264", type=int, default=0, metavar="CRF",
+                        help="code our views as an H.264 animation at CRF (needs PyAV)")
+    parser.add_argument("--jpeg", type=int, default=0, metavar="QUALITY",
+                        help="code our views as JPEG at QUALITY")
+    parser.add_argument("--scenes", type=int, nargs="*", help="only these scene numbers")
+    parser.add_argument("--per-channel", action="store_true",
+                        help="fit and render each colour channel's blur on its own")
+    parser.add_argument("--registered", action="store_true",
+                        help="per tile, move each image by its best sub-pixel shift first")
+    parser.add_argument("--toned", action="store_true",
+                        help="per tile, match each image's tone to the target before scoring")
+    args = parser.parse_args()
+    global TONED
+    TONED = args.toned
+    torch.set_num_threads(args.threads)
+    radii = np.concatenate([[0.0], np.arange(0.75, 10.01, 0.25),
+                            np.arange(10.5, args.max_radius + 0.01, 0.5)])
+    rows = []  # radius, real gain, ours gain, dpdnet gain, scene, detail ratio, |x|
+    disparities = []  # x across the frame, real / our disparity
+    for number, scene in enumerate(sorted(glob.glob(os.path.join(args.root, "scene_*")))):
+        if args.scenes and number not in args.scenes:
+            continue
+        coding = float("inf")
+        left, right, target, published = (read_rgb(os.path.join(scene, f"{n}.png"))
+                                          for n in ("view0", "view1", "target", "dpdnet"))
+        rendered = renders(target, radii, args.camera, tuple(args.ratio_profile))
+        choice = tile_choice((left, right), rendered, args.tile, args.margin)
+        if args.per_channel:
+            ours = np.concatenate([
+                blend(rendered[..., c : c + 1],
+                      tile_choice((left, right), rendered, args.tile, args.margin, c),
+                      args.tile, args.tile / 4) for c in range(3)], axis=-1)
+        else:
+            ours = blend(rendered, choice, args.tile, args.tile / 4)
+        if args.coded:
+            ours = np.stack([with_palette_of(o, r) for o, r in zip(ours, (left, right))])
+        if args.jpeg or args.h264:
+            clean = ours
+            ours = (h264(ours, args.h264) if args.h264
+                    else np.stack([jpeg(o, args.jpeg) for o in ours]))
+            coding = 10 * np.log10(1 / ((ours - clean) ** 2).mean())
+        if args.disparity:
+            grey = target.mean(axis=-1)
+            detail = cv2.boxFilter((grey - cv2.GaussianBlur(grey, (0, 0), 2)) ** 2, -1,
+                                   (args.tile, args.tile))[args.tile // 2 :: args.tile,
+                                                           args.tile // 2 :: args.tile]
+            (real, real_fit), (mine, my_fit) = (tile_disparity(*pair, args.tile)
+                                                for pair in ((left, right), ours))
+            for (row, col), index in np.ndenumerate(choice):
+                if (row < real.shape[0] and col < real.shape[1] and detail[row, col] > 1e-4
+                        and radii[index] >= args.max_radius / 4 and abs(mine[row, col]) > 0.5
+                        and real_fit[row, col] < 0.6 and my_fit[row, col] < 0.6):
+                    disparities.append(((col + 0.5) * args.tile / target.shape[1] * 2 - 1,
+                                        real[row, col] / mine[row, col]))
+            continue
+        real_out = dualpixel.deblur(left, right, model=args.model, device="cpu")
+        ours_out = dualpixel.deblur(ours[0], ours[1], model=args.model, device="cpu")
+        real_in, ours_in = (left + right) / 2, (ours[0] + ours[1]) / 2
+        images = (real_out, real_in, ours_out, ours_in, published)
+        copies = [shifted_copies(i) if args.registered else [i] for i in images]
+        t = args.tile
+        for (row, col), index in np.ndenumerate(choice):
+            box = (slice(row * t, row * t + t), slice(col * t, col * t + t))
+            grey = target[box].mean(axis=-1)
+            if (grey - cv2.GaussianBlur(grey, (0, 0), 2)).std() < 0.01:
+                continue  # flat tiles say nothing about blur
+            if radii[index] < 0.5:
+                continue  # our views equal the target there
+            ro, ri, oo, oi, po = (best_shift(c, box, target) for c in copies)
+            bands = [band_energy(v[box]) for v in (left, ours[0])]
+            rows.append((radii[index], gain(ro, ri, target[box]), gain(oo, oi, target[box]),
+                         gain(po, ri, target[box]), number, bands[0] / bands[1],
+                         abs((col + 0.5) * t / target.shape[1] * 2 - 1)))
+        whole = [gain(o, i, target) for o, i in ((real_out, real_in), (ours_out, ours_in))]
+        print(f"{os.path.basename(scene)}: whole-frame gain real {whole[0]:+.2f}, ours "
+              f"{whole[1]:+.2f} dB; views' match rms "
+              f"{np.sqrt(((ours - np.stack([left, right])) ** 2).mean()) * 255:.2f} levels; "
+              f"our views' coding {coding:.1f} dB",
+              flush=True)
+    if args.disparity:
+        disparity_across(disparities)
+        return
+    table = np.asarray(rows)
+    print("\n| fitted radius | tiles | real views | ours at the fitted blur | DPDNet (published) "
+          "| real / our views' fine detail (median) |")
+    print("|---|---|---|---|---|---|")
+    for (low, high), (near, far) in itertools.product(BINS, ((0.0, 0.6), (0.6, 1.01))):
+        pick = ((table[:, 0] >= low) & (table[:, 0] < high) & (table[:, 6] >= near)
+                & (table[:, 6] < far))
+        if pick.any():
+            print(f"| {low:g}-{high:g} px, |x| {near:g}-{min(far, 1):g} | {pick.sum()} | "
+                  f"{table[pick, 1].mean():+.2f} | {table[pick, 2].mean():+.2f} | "
+                  f"{table[pick, 3].mean():+.2f} | "
+                  f"{np.median(table[pick, 5]):.2f} |")
+
+
+if __name__ == "__main__":
+    main()
