@@ -1,5 +1,8 @@
-"""Two-arm fine-tune from rdpd-light.v16: training views as written, or lossily coded as the dev
-and unseen Canon views are (GIF frames at 840 px, H.264 at 1620; issue #77, item 3).
+"""Fine-tune arms from rdpd-light.v16 that differ in how the training views are formed (issue
+#77, item 3): as written (``plain``), lossily coded as the dev and unseen Canon views are (GIF
+frames at 840 px, H.264 at 1620; ``coded``), or with the Canon cameras' disparity ratio falling
+towards the frame's sides as measured on the dev pairs (``falloff``: ``calibrate camera
+--falloff`` gives 0.35 at 840 px and 0.58 at 1620; ``docs/formation.md``).
 
 Both arms train alike on the photographic recipe's seven on-the-fly cameras (the same crops and
 draws, from the v17 run's data folder): 2 epochs of 300 iterations, learning rate 1e-4 cosine.
@@ -55,9 +58,31 @@ def code_training_views() -> None:
     DPPatchDataset.__getitem__ = getitem
 
 
+#: ``dualpixel calibrate camera --falloff`` on the dev Canon pairs (840 px; 1620 px with
+#: ``--max-radius 24 --skip-misaligned``).
+FALLOFF = {"canon-840-linear": 0.354, "canon-840": 0.354, "canon-hd-linear": 0.585}
+
+
+def fall_off_towards_the_sides() -> None:
+    """Give the Canon cameras of every training set their measured disparity falloff."""
+    import dataclasses
+
+    from dualpixel.synthesis.dataset import SynthConfig
+
+    plain = SynthConfig.dp_camera
+
+    def dp_camera(self):
+        camera = plain(self)
+        if camera is not None and camera.name in FALLOFF:
+            camera = dataclasses.replace(camera, disparity_falloff=FALLOFF[camera.name])
+        return camera
+
+    SynthConfig.dp_camera = dp_camera
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("arm", choices=("plain", "coded"))
+    parser.add_argument("arm", choices=("plain", "coded", "falloff"))
     parser.add_argument("output", type=Path)
     parser.add_argument("--data", type=Path, default=Path("runs/rdpd-light-photographs"))
     parser.add_argument("--threads", type=int, default=1)
@@ -69,6 +94,8 @@ def main() -> None:
         "threads": args.threads, "checkpoint_minutes": 10, "tensorboard": False})
     if args.arm == "coded":
         code_training_views()
+    if args.arm == "falloff":
+        fall_off_towards_the_sides()
     train(config, args.output, resume=(args.output / "config.yaml").exists(), progress=False)
 
 

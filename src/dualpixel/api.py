@@ -277,6 +277,7 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
         known = ", ".join([*PAPER_LENS_SETS, *DEFOCUS_PROFILES])
         raise ParameterError(f"lens_set must be one of {known}, got {lens_set!r}")
     draw = draw_sequence(seed, lens, bank=bank, disparity_ratio=disparity_ratio,
+                         disparity_falloff=0.0 if camera is None else camera.disparity_falloff,
                          light=light_space, distortion=distortion,
                          noise=noise, noise_model=noise_model, noise_sigmas=noise_sigmas)
     frame = synthesize_frame(images[0], depth_map, draw, noise_seed=seed,

@@ -34,16 +34,20 @@ def _texture(height: int, width: int, seed: int) -> np.ndarray:
     return np.clip(image, 0.0, 1.0)
 
 
-def _pair(seed: int, ratio=RATIO, params=TRUE_PSF, size=(192, 288), light="encoded"):
-    """A rendered DP pair of a slanted plane (CoC from -6 to +8 px across the frame)."""
+def _pair(seed: int, ratio=RATIO, params=TRUE_PSF, size=(192, 288), light="encoded",
+          falloff=0.0, flat=False):
+    """A rendered DP pair of a slanted plane (CoC from -6 to +8 px across the frame), or of a
+    plane blurred alike everywhere (``flat``)."""
     height, width = size
     target = _texture(height, width, seed)
     depth = np.tile(np.linspace(1.3, 8.0, width, dtype=np.float32), (height, 1))
+    if flat:
+        depth = np.full_like(depth, 4.0)
     lens = ThinLens(0.05, 2.0, 2.0, pixel_pitch=1.0)
     camera = ThinLens(0.05, 2.0, 2.0, pixel_pitch=lens.coc_scale / 10.0,
                       max_coc_radius=9.0)
     draw = SequenceDraw(lens=camera, psf=params, distortion=None, noise_sigma=None,
-                            disparity_ratio=ratio, light=light)
+                            disparity_ratio=ratio, light=light, disparity_falloff=falloff)
     frame = synthesize_frame(target, depth, draw)
     hwc = [t.permute(1, 2, 0).numpy() for t in (frame.left, frame.right, frame.target)]
     return (f"pair{seed}", *hwc)
@@ -63,6 +67,32 @@ def test_crosstalk_scales_the_disparity_and_keeps_the_sum(ratio):
     after = _centroid_x(mixed_right[1]) - _centroid_x(mixed_left[1])
     assert after == pytest.approx(ratio * before, abs=1e-5)
     torch.testing.assert_close(mixed_left + mixed_right, left + right)
+
+
+def test_a_disparity_falloff_narrows_the_views_towards_the_sides():
+    """The ratio is ``a (1 - f x^2) / (1 - f / 3)`` across the frame (x -1 to 1): largest in the
+    middle, its mean over the width ``a``; a window's columns take the frame's values there."""
+    from dualpixel.optics.crosstalk import field_ratio
+
+    kernels = dp_psf(7.0, TRUE_PSF)
+    size = kernels.left.shape[-1]
+    before = _centroid_x(kernels.right) - _centroid_x(kernels.left)
+    width = 9 * size  # nine copies of the kernel pair side by side: one per place in the frame
+    left, right = (k.repeat(1, 9)[None].expand(3, -1, -1) for k in (kernels.left, kernels.right))
+    mixed_left, mixed_right = apply_crosstalk(left, right, (0.8,) * 3, falloff=0.45)
+    torch.testing.assert_close(mixed_left + mixed_right, left + right)
+    separations = [(_centroid_x(mixed_right[1][:, i * size:(i + 1) * size])
+                    - _centroid_x(mixed_left[1][:, i * size:(i + 1) * size])) / before
+                   for i in range(9)]
+    assert separations[4] == pytest.approx(max(separations))  # the middle keeps the most
+    assert separations[0] == pytest.approx(separations[8], rel=1e-3)
+    assert separations[0] < 0.75 * separations[4]
+    ratio = field_ratio((0.8,) * 3, 0.45, width)
+    assert float(ratio.mean()) == pytest.approx(0.8, rel=1e-3)
+    part = field_ratio((0.8,) * 3, 0.45, 20, first_column=33, frame_width=width)
+    torch.testing.assert_close(part, ratio[..., 33:53])
+    with pytest.raises(ParameterError, match="disparity_falloff"):
+        apply_crosstalk(left, right, (0.8,) * 3, falloff=0.95)
 
 
 def test_crosstalk_refuses_bad_ratios():
@@ -88,6 +118,15 @@ def test_calibration_recovers_known_ratios_and_psf_shape():
     # the shape matters: the wrong one explains the pairs worse
     scores = dict((p, s) for p, s in result.scores)
     assert scores[TRUE_PSF] < scores[OTHER_PSF]
+
+
+@pytest.mark.parametrize("falloff", [0.0, 0.5])
+def test_calibration_measures_the_disparity_falloff_when_asked(falloff):
+    frames = [_pair(seed, ratio=(0.9, 0.9, 0.9), falloff=falloff, flat=True) for seed in (1, 2)]
+    camera = calibrate_camera(frames, patch=32, max_radius=10.0, falloff=True).camera
+    assert camera.disparity_falloff == pytest.approx(falloff, abs=0.12)
+    np.testing.assert_allclose(camera.disparity_ratio, (0.9,) * 3, atol=0.08)
+    assert calibrate_camera(frames, patch=32, max_radius=10.0).camera.disparity_falloff == 0.0
 
 
 @pytest.mark.parametrize("light", ["encoded", "linear"])
@@ -126,12 +165,15 @@ def test_camera_file_round_trip_and_bad_fields(tmp_path):
     path = camera.save(tmp_path / "camera.json")
     assert load_camera(path) == camera
     assert "light" not in json.loads(path.read_text())  # files from before it read the same
-    linear = DPCamera("test", 840, (0.7, 0.95, 1.0), TRUE_PSF, light="linear")
+    assert "disparity_falloff" not in json.loads(path.read_text())
+    linear = DPCamera("test", 840, (0.7, 0.95, 1.0), TRUE_PSF, light="linear",
+                      disparity_falloff=0.3)
     assert load_camera(linear.save(tmp_path / "linear.json")) == linear
     data = json.loads(path.read_text())
     for change, message in (({"disparity_ratio": [1.0, 1.0]}, "one value per channel"),
                             ({"light": "log"}, "light must be one of encoded, linear"),
                             ({"psf": {"n": 3}}, "psf must hold"),
+                            ({"disparity_falloff": 1.2}, "disparity_falloff must be"),
                             ({"colour": 1}, "unknown camera field.*colour"),
                             ({"format": "x"}, "not a dualpixel camera file")):
         bad = tmp_path / "bad.json"

@@ -338,6 +338,8 @@ def test_the_old_names_of_a_sequence_draw_still_import_with_a_warning():
     ("set0", {}, 1e-4),  # distortion, noise: positions mapped in float64 against float32
     ("set4", {}, 1e-4),  # large blur: layers at 1/2 .. 1/8 resolution
     ("set2", {"light": "linear", "disparity_ratio": (0.7, 0.9, 0.95)}, 1e-4),
+    ("set2", {"disparity_ratio": (0.7, 0.9, 0.95), "disparity_falloff": 0.4,
+              "distortion": False}, 1e-6),
     ("set1", {"light": "linear", "raw_black_level": 0.0625, "distortion": False}, 1e-6),
     ("set3", {"distortion": False}, 1e-6),
     # blur of 40 px, layers at 1/8: a margin without the reduced resolutions' reach is 7e-6 off

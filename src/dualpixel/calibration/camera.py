@@ -44,6 +44,7 @@ __all__ = [
     "CameraCalibration",
     "DPCamera",
     "calibrate_camera",
+    "disparity_falloff",
     "fit_blocks",
     "linear_light_share",
     "load_camera",
@@ -219,6 +220,29 @@ def check_alignment(left: np.ndarray, right: np.ndarray, target: np.ndarray,
                                      "the views: pairs must be aligned to calibrate")
 
 
+def disparity_falloff(fits: Sequence[BlockFits], usable: Sequence[np.ndarray],
+                      width: int) -> float:
+    """How the blocks' green disparity ratio falls from the middle of the frame to its left and
+    right sides (:mod:`dualpixel.optics.crosstalk`): ``ratio = a - b x^2`` fitted to the median
+    ratio of the blocks in each fifth of ``|x|`` (``x`` -1 to 1 across ``width``; single blocks'
+    ratios have long tails), weighted by their counts; ``b / a`` clipped to [0, 0.9]. 0 where
+    fewer than a quarter of the blocks lie in the outer halves of the width."""
+    x = np.concatenate([f.centres[..., 0][u] for f, u in zip(fits, usable)]) / width * 2 - 1
+    ratio = np.abs(np.concatenate([f.ratio[..., 1][u] for f, u in zip(fits, usable)]))
+    if len(x) < MIN_BLOCKS or np.mean(np.abs(x) > 0.5) < 0.25:
+        return 0.0
+    bins = np.minimum((np.abs(x) * 5).astype(int), 4)
+    rows = [(np.mean(x[bins == b] ** 2), np.median(ratio[bins == b]), np.sum(bins == b))
+            for b in range(5) if np.sum(bins == b) >= 5]
+    if len(rows) < 3:
+        return 0.0
+    square, median, count = (np.asarray(v, np.float64) for v in zip(*rows))
+    weight = np.sqrt(count)
+    design = np.stack([np.ones_like(square), -square], axis=1) * weight[:, None]
+    level, slope = np.linalg.lstsq(design, median * weight, rcond=None)[0]
+    return float(np.clip(slope / level, 0.0, 0.9)) if level > 0 else 0.0
+
+
 def calibrate_camera(
     frames: Iterable[tuple[str, np.ndarray, np.ndarray, np.ndarray]],
     *,
@@ -229,10 +253,13 @@ def calibrate_camera(
     radius_step: float | None = None,
     min_radius: float = 2.0,
     skip_misaligned: bool = False,
+    falloff: bool = False,
     progress: bool = False,
 ) -> CameraCalibration:
     """Measure a camera's DP model from ``(name, left, right, target)`` frames (float
     ``(H, W, 3)`` in [0, 1], views at the combined image's brightness); see the module docstring.
+    With ``falloff`` the disparity ratio's fall towards the frame's sides is measured too
+    (:func:`disparity_falloff`; otherwise the camera keeps one ratio everywhere).
 
     Raises:
         InputFileError: a frame whose target is misaligned with its views (named); with
@@ -310,6 +337,8 @@ def calibrate_camera(
                          for p in (10, 25, 50, 75, 90)},
         blocks=count,
         light=light,
+        disparity_falloff=(disparity_falloff(fits, usable, int(frames[0][1].shape[1]))
+                           if falloff else 0.0),
     )
     return CameraCalibration(camera, scores, fits, usable, frames, share)
 

@@ -175,12 +175,16 @@ def fit_distortion_command(capture: Path, pattern_path: Path, working_width: int
 @click.option("--skip-misaligned", is_flag=True,
               help="Leave out (with a warning) pairs whose target is shifted against the views "
                    "by over 1 px, instead of stopping.")
+@click.option("--falloff", is_flag=True,
+              help="Also measure how the disparity ratio falls towards the frame's left and "
+                   "right sides (with targets; the camera file's disparity_falloff).")
 @click.option("--ignore-targets", is_flag=True,
               help="Calibrate from the two views alone even where targets exist (what a camera "
                    "without sharp captures gives); pairs without targets always are.")
 def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
                    figure: Path | None, name: str | None, patch: int, max_radius: float,
-                   psf_grid: str, skip_misaligned: bool, ignore_targets: bool) -> None:
+                   psf_grid: str, skip_misaligned: bool, falloff: bool,
+                   ignore_targets: bool) -> None:
     """Measure a camera's DP blur model from real pairs: per-channel disparity ratio, PSF shape,
     where the blur happens (linear light or stored values), noise and blur sizes. With sharp
     targets the views are explained by the target blurred; without, by each other (the
@@ -205,6 +209,9 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
         raise InputFileError(missing, "has no target where other pairs have one: give pairs "
                                       "all with targets or add --ignore-targets")
     from_views = ignore_targets or not with_target
+    if falloff and from_views:
+        raise click.UsageError("--falloff needs pairs with targets (the views alone fix the "
+                               "product of disparity ratio and blur, not the ratio)")
     label = name or inputs[0].name
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -226,7 +233,8 @@ def camera_command(inputs: tuple[Path, ...], split: str | None, output: Path,
             calibration = calibrate_camera(pairs, name=label,
                                            psf_candidates=candidates, patch=patch,
                                            max_radius=max_radius,
-                                           skip_misaligned=skip_misaligned, progress=True)
+                                           skip_misaligned=skip_misaligned, falloff=falloff,
+                                           progress=True)
     for warning in caught:
         click.echo(f"Warning: {warning.message}", err=True)
     calibration.camera.save(output)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from dualpixel.errors import InputFileError, ParameterError, check_integer, check_range
 from dualpixel.io.documents import read_mapping
-from dualpixel.optics.crosstalk import check_disparity_ratio
+from dualpixel.optics.crosstalk import check_disparity_falloff, check_disparity_ratio
 from dualpixel.optics.psf import PSFParams
 from dualpixel.optics.tone import check_light
 
@@ -36,6 +36,8 @@ class DPCamera:
         blocks: how many blocks the estimate rests on.
         light: where the views are blurred (:mod:`dualpixel.optics.tone`): "linear" (linear
             light, then the sRGB curve) or "encoded" (the stored values, the paper's model).
+        disparity_falloff: how the disparity ratio falls from the middle of the frame to its
+            left and right sides (:mod:`dualpixel.optics.crosstalk`; 0: the same everywhere).
     """
 
     name: str
@@ -46,11 +48,13 @@ class DPCamera:
     coc_percentiles: dict[str, float] = field(default_factory=dict)
     blocks: int = 0
     light: str = "encoded"
+    disparity_falloff: float = 0.0
 
     def __post_init__(self) -> None:
         check_light(self.light)
         check_range("width", self.width, 1)
         check_disparity_ratio(self.disparity_ratio)
+        check_disparity_falloff(self.disparity_falloff)
         check_range("noise_std", self.noise_std, 0.0, 1.0)
 
     def to_dict(self) -> dict:
@@ -58,7 +62,9 @@ class DPCamera:
                 "disparity_ratio": [round(float(v), 4) for v in self.disparity_ratio],
                 "psf": self.psf.as_dict(), "noise_std": round(float(self.noise_std), 6),
                 "coc_percentiles": self.coc_percentiles, "blocks": self.blocks,
-                **({} if self.light == "encoded" else {"light": self.light})}
+                **({} if self.light == "encoded" else {"light": self.light}),
+                **({} if not self.disparity_falloff
+                   else {"disparity_falloff": round(float(self.disparity_falloff), 4)})}
 
     def save(self, path: str | Path) -> Path:
         """Write ``camera.json`` atomically."""
@@ -78,7 +84,8 @@ class DPCamera:
         missing = [k for k in required if k not in data]
         if missing:
             raise InputFileError(source, f"camera field(s) missing: {', '.join(missing)}")
-        known = {"format", *required, "noise_std", "coc_percentiles", "blocks", "light"}
+        known = {"format", *required, "noise_std", "coc_percentiles", "blocks", "light",
+                 "disparity_falloff"}
         unknown = sorted(set(data) - known)
         if unknown:
             raise InputFileError(source, f"unknown camera field(s): {', '.join(unknown)}")
@@ -100,7 +107,9 @@ class DPCamera:
                        coc_percentiles={str(k): check_range(f"coc_percentiles.{k}", v, 0.0)
                                         for k, v in percentiles.items()},
                        blocks=check_integer("blocks", data.get("blocks", 0)),
-                       light=str(data.get("light", "encoded")))
+                       light=str(data.get("light", "encoded")),
+                       disparity_falloff=check_disparity_falloff(
+                           data.get("disparity_falloff", 0.0)))
         except (ParameterError, TypeError, ValueError) as error:
             raise InputFileError(source, f"bad camera field: {error}") from None
 

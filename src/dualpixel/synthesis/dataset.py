@@ -286,6 +286,8 @@ def plan_jobs(
     """Every output frame, with the draw of its sequence drawn from the seed."""
     jobs = []
     bank, disparity_ratio, light = config.draw_settings()
+    camera = config.dp_camera()
+    falloff = camera.disparity_falloff if camera is not None else 0.0
     for set_index, lens_set in enumerate(config.lens_sets):
         for seq_index, sequence in enumerate(sequences):
             number = set_index * len(sequences) + seq_index + 1
@@ -297,7 +299,7 @@ def plan_jobs(
                 lens = _profile_lens(DEFOCUS_PROFILES[lens_set], sequence, fmt, config, seed)
             draw = draw_sequence(
                 seed, lens, psf_model=config.psf_model, bank=bank,
-                disparity_ratio=disparity_ratio, light=light,
+                disparity_ratio=disparity_ratio, disparity_falloff=falloff, light=light,
                 distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
                 max_layers=config.max_layers, render_mode=config.render_mode,

@@ -15,7 +15,11 @@ import torch
 
 from dualpixel.errors import ParameterError
 from dualpixel.names import PSF_SHAPE_SOURCES
-from dualpixel.optics.crosstalk import apply_crosstalk, check_disparity_ratio
+from dualpixel.optics.crosstalk import (
+    apply_crosstalk,
+    check_disparity_falloff,
+    check_disparity_ratio,
+)
 from dualpixel.optics.distortion import (
     DISTORTION_PRESETS,
     DivisionDistortion,
@@ -68,6 +72,8 @@ class SequenceDraw:
     # Ours: per channel, the fraction of the model's disparity the camera's views keep
     # (dualpixel.optics.crosstalk; a calibrated camera); None: the paper's model (1, 1, 1).
     disparity_ratio: tuple[float, ...] | None = None
+    # Ours: how that ratio falls towards the frame's left and right sides (a calibrated camera).
+    disparity_falloff: float = 0.0
     # Ours: "linear" blurs in linear light and encodes the views and target as sRGB after
     # (dualpixel.optics.tone; a calibrated camera); "encoded": the paper's, the stored values.
     light: Light = "encoded"
@@ -79,6 +85,8 @@ class SequenceDraw:
     def __post_init__(self) -> None:
         if self.disparity_ratio is not None:
             check_disparity_ratio(self.disparity_ratio)
+        if check_disparity_falloff(self.disparity_falloff) and self.disparity_ratio is None:
+            raise ParameterError("a disparity falloff needs a disparity ratio (a camera)")
         check_light(self.light)
         if self.raw is not None:
             check_raw_storage(self.raw[0], (self.raw[1], self.raw[1]))
@@ -114,6 +122,8 @@ class SequenceDraw:
             "render_mode": self.render_mode,
             **({} if self.disparity_ratio is None
                else {"disparity_ratio": list(self.disparity_ratio)}),
+            **({} if not self.disparity_falloff
+               else {"disparity_falloff": self.disparity_falloff}),
             **({} if self.light == "encoded" else {"light": self.light}),
             **({} if self.raw is None
                else {"raw": {"black_level": self.raw[0], "gain": self.raw[1]}}),
@@ -183,6 +193,7 @@ def draw_sequence(
     max_layers: int = 500,
     render_mode: str = "fast",
     disparity_ratio: tuple[float, ...] | None = None,
+    disparity_falloff: float = 0.0,
     light: Light = "encoded",
     raw_black_level: float | None = None,
     raw_gains: tuple[float, float] = (1.0, 1.0),
@@ -225,6 +236,7 @@ def draw_sequence(
         max_layers=max_layers,
         render_mode=render_mode,
         disparity_ratio=disparity_ratio,
+        disparity_falloff=disparity_falloff,
         light=light,
         raw=raw,
     )
@@ -430,7 +442,9 @@ def _finished(image: torch.Tensor, scene: torch.Tensor, coc: torch.Tensor, left:
     region of a frame and the result is that window of it."""
     linear = draw.light == "linear"
     if draw.disparity_ratio is not None:
-        left, right = apply_crosstalk(left, right, draw.disparity_ratio)
+        left, right = apply_crosstalk(
+            left, right, draw.disparity_ratio, draw.disparity_falloff,
+            *((0, None) if window is None else (window.origin[1], window.frame[1])))
     target, defocus = scene, coc
     if draw.distortion is not None:
         # one warp for all planes: the inverse-distortion grid is computed once per frame
