@@ -231,6 +231,11 @@ def test_calibrate_and_synth_refuse_bad_input(tmp_path):
                                  "--output", str(tmp_path / "c.json"), "--patch", "32"])
     assert result.exit_code == 1 and "scene_a" in result.output and "shifted" in result.output
     assert "Traceback" not in result.output
+    result = runner.invoke(cli, ["calibrate", "camera", "--input", str(tmp_path / "real"),
+                                 "--output", str(tmp_path / "c.json"), "--falloff",
+                                 "--ignore-targets"])
+    assert result.exit_code == 2 and "--falloff needs pairs with targets" in result.output
+    assert not (tmp_path / "c.json").exists()
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"format": "dualpixel-camera-1", "name": "x"}))
     result = runner.invoke(cli, ["synth", "--input", str(tmp_path / "nothing"), "--output",
