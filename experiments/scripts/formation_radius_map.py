@@ -34,12 +34,14 @@ import os
 import cv2
 import numpy as np
 import torch
+from coded_views import code  # this folder's GIF and JPEG round trips
 from PIL import Image
 
 import dualpixel
 from dualpixel.calibration.camera import view_kernels
 from dualpixel.io.images import read_rgb
 from dualpixel.optics.camera import load_camera
+from dualpixel.optics.crosstalk import apply_crosstalk
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 BINS = ((0.0, 2.0), (2.0, 4.5), (4.5, 9.0), (9.0, 20.1))
@@ -52,19 +54,20 @@ def renders(target: np.ndarray, radii: np.ndarray, camera: str,
     ``profile[0] - profile[1] * x**2`` with ``x`` from -1 (left edge) to 1 (right edge)."""
     light = srgb_to_linear_array(target)
     model = load_camera(camera)
-    width = light.shape[1]
-    across = (np.arange(width, dtype=np.float32) + 0.5) / width * 2 - 1  # -1 at the left edge
-    field = profile[0] - profile[1] * across**2  # the disparity ratio's change across the field
-    ratio = np.asarray(model.disparity_ratio, np.float32)[None, None, :] * field[None, :, None]
-    keep, swap = (1 + ratio) / 2, (1 - ratio) / 2  # the camera's crosstalk, per channel
+    # profile[0] - profile[1] x^2 is the package's falloff f = profile[1] / profile[0] on a ratio
+    # scaled by profile[0] (1 - f / 3): the camera's crosstalk, per channel (optics.crosstalk)
+    falloff = profile[1] / profile[0]
+    ratio = [r * profile[0] * (1 - falloff / 3) for r in model.disparity_ratio]
     out = []
     for radius in radii:
         if radius < 0.5:
             pair = (light, light)
         else:
-            left, right = (cv2.filter2D(light, -1, k, borderType=cv2.BORDER_REFLECT)
-                           for k in view_kernels(radius, model.psf))
-            pair = (keep * left + swap * right, keep * right + swap * left)
+            left, right = (torch.from_numpy(cv2.filter2D(light, -1, k,
+                                                         borderType=cv2.BORDER_REFLECT))
+                           .permute(2, 0, 1) for k in view_kernels(radius, model.psf))
+            pair = tuple(v.permute(1, 2, 0).numpy()
+                         for v in apply_crosstalk(left, right, ratio, falloff))
         out.append([np.round(np.clip(linear_to_srgb_array(v), 0, 1) * 255) / 255 for v in pair])
     return np.asarray(out, np.float32)
 
@@ -144,10 +147,7 @@ def jpeg(view: np.ndarray, quality: int) -> np.ndarray:
     """``view`` (RGB in [0, 1]) through JPEG at ``quality`` (a DCT coder like the H.264 of the
     1620-px dev views: small coefficients quantised away)."""
     bgr = (np.clip(view, 0, 1)[..., ::-1] * 255).round().astype(np.uint8)
-    ok, data = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
-    if not ok:
-        raise RuntimeError("JPEG encoding failed")
-    return cv2.imdecode(data, cv2.IMREAD_COLOR)[..., ::-1].astype(np.float32) / 255
+    return code(np.ascontiguousarray(bgr), f"jpeg{quality}")[..., ::-1].astype(np.float32) / 255
 
 
 def band_energy(image: np.ndarray, sigma: float = 1.0) -> float:

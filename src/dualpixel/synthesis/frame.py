@@ -442,9 +442,10 @@ def _finished(image: torch.Tensor, scene: torch.Tensor, coc: torch.Tensor, left:
     region of a frame and the result is that window of it."""
     linear = draw.light == "linear"
     if draw.disparity_ratio is not None:
-        left, right = apply_crosstalk(
-            left, right, draw.disparity_ratio, draw.disparity_falloff,
-            *((0, None) if window is None else (window.origin[1], window.frame[1])))
+        columns = {} if window is None else {"first_column": window.origin[1],
+                                              "frame_width": window.frame[1]}
+        left, right = apply_crosstalk(left, right, draw.disparity_ratio, draw.disparity_falloff,
+                                      **columns)
     target, defocus = scene, coc
     if draw.distortion is not None:
         # one warp for all planes: the inverse-distortion grid is computed once per frame
