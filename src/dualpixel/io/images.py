@@ -210,17 +210,25 @@ def max_level(bits: int) -> float:
     return 65535.0 if bits == 16 else 255.0
 
 
-def read_rgb_with_depth(path: str | Path) -> tuple[np.ndarray, int]:
-    """Like :func:`read_rgb`, also returning the file's bit depth (8 or 16)."""
-    path = Path(path)
-    data = _imread(path)
+def _bits(data: np.ndarray) -> int:
+    return 16 if data.dtype == np.uint16 else 8
+
+
+def _rgb(path: Path, data: np.ndarray) -> np.ndarray:
+    """Decoded pixels (OpenCV's order) as float32 RGB ``(H, W, 3)`` in [0, 1]."""
     if data.ndim == 2:  # a grey image: the same value in R, G and B
         data = cv2.merge([data, data, data])
     if data.ndim != 3 or data.shape[2] not in (3, 4):
         shape = "x".join(map(str, data.shape))
         raise InputFileError(path, f"expected an RGB image with 3 channels, got shape {shape}")
-    image = _unit_range(path, cv2.cvtColor(data[:, :, :3], cv2.COLOR_BGR2RGB))
-    return image, 16 if data.dtype == np.uint16 else 8
+    return _unit_range(path, cv2.cvtColor(data[:, :, :3], cv2.COLOR_BGR2RGB))
+
+
+def read_rgb_with_depth(path: str | Path) -> tuple[np.ndarray, int]:
+    """Like :func:`read_rgb`, also returning the file's bit depth (8 or 16)."""
+    path = Path(path)
+    data = _imread(path)
+    return _rgb(path, data), _bits(data)
 
 
 def read_view(path: str | Path) -> tuple[np.ndarray, int]:
@@ -232,8 +240,8 @@ def read_view(path: str | Path) -> tuple[np.ndarray, int]:
     if data.ndim == 3 and data.shape[2] == 1:
         data = data[:, :, 0]
     if data.ndim == 2:
-        return _unit_range(path, data)[:, :, None], 16 if data.dtype == np.uint16 else 8
-    return read_rgb_with_depth(path)
+        return _unit_range(path, data)[:, :, None], _bits(data)
+    return _rgb(path, data), _bits(data)
 
 
 def read_views(left: str | Path, right: str | Path
