@@ -265,8 +265,7 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
         elif not isinstance(camera, DPCamera):
             raise ParameterError("camera must be a shipped camera's name, a camera.json path "
                                  f"or a DPCamera, got {type(camera).__name__}")
-    bank, disparity_ratio, light_space = camera_settings(
-        camera, PSF_BANKS[psf_bank], psf_shapes=psf_shapes, light=light)
+    settings = camera_settings(camera, PSF_BANKS[psf_bank], psf_shapes=psf_shapes, light=light)
     if lens_set in DEFOCUS_PROFILES:
         focus = focus_from_depth(depth_map)
         lens = DEFOCUS_PROFILES[lens_set].lens(np.random.default_rng(seed), focus,
@@ -276,9 +275,7 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
     else:
         known = ", ".join([*PAPER_LENS_SETS, *DEFOCUS_PROFILES])
         raise ParameterError(f"lens_set must be one of {known}, got {lens_set!r}")
-    draw = draw_sequence(seed, lens, bank=bank, disparity_ratio=disparity_ratio,
-                         disparity_falloff=0.0 if camera is None else camera.disparity_falloff,
-                         light=light_space, distortion=distortion,
+    draw = draw_sequence(seed, lens, **settings.draw_options(), distortion=distortion,
                          noise=noise, noise_model=noise_model, noise_sigmas=noise_sigmas)
     frame = synthesize_frame(images[0], depth_map, draw, noise_seed=seed,
                              device=resolve_device(device))

@@ -55,7 +55,7 @@ from dualpixel.io.run_folder import differing_settings, locate, same_location
 from dualpixel.names import renamed_keys
 from dualpixel.optics.noise import PAPER_NOISE_SIGMAS, NoiseModel, check_noise_sigmas
 from dualpixel.optics.psf import PSFModel, check_psf_model
-from dualpixel.optics.psf_bank import PSF_BANKS, PSFBank
+from dualpixel.optics.psf_bank import PSF_BANKS
 from dualpixel.optics.thin_lens import (
     DEFOCUS_PROFILES,
     PAPER_LENS_SETS,
@@ -67,6 +67,7 @@ from dualpixel.optics.tone import check_encoding, check_raw_storage
 from dualpixel.parallel import completed
 from dualpixel.progress import progress_bar
 from dualpixel.synthesis.frame import (
+    CameraSettings,
     SequenceDraw,
     camera_settings,
     draw_sequence,
@@ -153,7 +154,7 @@ class SynthConfig:
         check_seed("seed", self.seed)
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
-        light = self.draw_settings()[2]  # refuses a bad camera, light or psf_shapes now
+        light = self.draw_settings().light  # refuses a bad camera, light or psf_shapes now
         if check_encoding(self.encoding) == "linear":
             check_raw_storage(self.black_level, self.raw_gains)
             if light != "linear":
@@ -163,8 +164,8 @@ class SynthConfig:
             raise ParameterError("black_level and raw_gains are for encoding 'linear' (raw "
                                  "values); sRGB-encoded images have neither")
 
-    def draw_settings(self) -> tuple[PSFBank, tuple[float, ...] | None, str]:
-        """``(bank, disparity_ratio, light)`` of every sequence: :func:`camera_settings`."""
+    def draw_settings(self) -> CameraSettings:
+        """The camera's settings of every sequence: :func:`camera_settings`."""
         return camera_settings(self.dp_camera(), PSF_BANKS[self.psf_bank],
                                psf_shapes=self.psf_shapes, light=self.light)
 
@@ -285,9 +286,7 @@ def plan_jobs(
 ) -> list[FrameJob]:
     """Every output frame, with the draw of its sequence drawn from the seed."""
     jobs = []
-    bank, disparity_ratio, light = config.draw_settings()
-    camera = config.dp_camera()
-    falloff = camera.disparity_falloff if camera is not None else 0.0
+    settings = config.draw_settings()
     for set_index, lens_set in enumerate(config.lens_sets):
         for seq_index, sequence in enumerate(sequences):
             number = set_index * len(sequences) + seq_index + 1
@@ -298,8 +297,7 @@ def plan_jobs(
             if lens_set in DEFOCUS_PROFILES:
                 lens = _profile_lens(DEFOCUS_PROFILES[lens_set], sequence, fmt, config, seed)
             draw = draw_sequence(
-                seed, lens, psf_model=config.psf_model, bank=bank,
-                disparity_ratio=disparity_ratio, disparity_falloff=falloff, light=light,
+                seed, lens, psf_model=config.psf_model, **settings.draw_options(),
                 distortion=distortion, noise=config.noise,
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
                 max_layers=config.max_layers, render_mode=config.render_mode,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import torch
@@ -52,8 +52,8 @@ from dualpixel.synthesis.renderer import render_dp_views
 if TYPE_CHECKING:
     from dualpixel.optics.camera import DPCamera
 
-__all__ = ["DPFrame", "SequenceDraw", "camera_settings", "draw_sequence", "render_region",
-           "sharp_target", "synthesize_frame", "synthesize_frames"]
+__all__ = ["CameraSettings", "DPFrame", "SequenceDraw", "camera_settings", "draw_sequence",
+           "render_region", "sharp_target", "synthesize_frame", "synthesize_frames"]
 
 
 @dataclass(frozen=True)
@@ -151,19 +151,32 @@ def _init_with_old_names(init):
 SequenceDraw.__init__ = _init_with_old_names(SequenceDraw.__init__)  # type: ignore[method-assign]
 
 
+class CameraSettings(NamedTuple):
+    """What a calibrated camera sets for :func:`draw_sequence` (:func:`camera_settings`)."""
+
+    bank: PSFBank
+    disparity_ratio: tuple[float, ...] | None  # per channel; None: the paper's views
+    disparity_falloff: float  # across the frame (:func:`~dualpixel.optics.crosstalk.field_ratio`)
+    light: Light
+
+    def draw_options(self) -> dict[str, Any]:
+        """The keywords of :func:`draw_sequence` these settings fill."""
+        return self._asdict()
+
+
 def camera_settings(
     camera: DPCamera | None,
     bank: PSFBank = PAPER_PSF_BANK,
     *,
     psf_shapes: str | None = None,
     light: str | None = None,
-) -> tuple[PSFBank, tuple[float, ...] | None, Light]:
-    """What a calibrated camera (``dualpixel calibrate camera``) sets for :func:`draw_sequence`:
-    ``(bank, disparity_ratio, light)``.
+) -> CameraSettings:
+    """What a calibrated camera (``dualpixel calibrate camera``) sets for :func:`draw_sequence`.
 
     The camera's fitted PSF shape replaces ``bank`` unless ``psf_shapes`` is "bank"; its
-    per-channel disparity ratio is applied; ``light`` overrides the camera's light space.
-    Without a camera: ``bank``, the paper's views (None) and ``light`` or "encoded".
+    per-channel disparity ratio and its falloff across the frame are applied; ``light``
+    overrides the camera's light space. Without a camera: ``bank``, the paper's views and
+    ``light`` or "encoded".
     """
     if psf_shapes is not None:
         if psf_shapes not in PSF_SHAPE_SOURCES:
@@ -175,9 +188,10 @@ def camera_settings(
     if light is not None:
         check_light(light)
     if camera is None:
-        return bank, None, light or "encoded"
+        return CameraSettings(bank, None, 0.0, light or "encoded")  # type: ignore[arg-type]
     shapes = bank if psf_shapes == "bank" else PSFBank([camera.psf])
-    return shapes, camera.disparity_ratio, light or camera.light  # type: ignore[return-value]
+    return CameraSettings(shapes, camera.disparity_ratio, camera.disparity_falloff,
+                          light or camera.light)  # type: ignore[arg-type]
 
 
 def draw_sequence(
