@@ -122,11 +122,12 @@ def block_disparity_map(
     if width <= 2 * max_shift + 1:
         raise ParameterError(f"images must be wider than {2 * max_shift + 1} px, got {width + 1}")
     core = slice(max_shift, width - max_shift)
+    right_core, diff = gr[:, core], np.empty_like(gr[:, core])
     costs = []
     for shift in range(-max_shift, max_shift + 1):
         # R(x) = L(x - d): compare R at x with L at x - d
-        diff = gr[:, core] - gl[:, max_shift - shift : width - max_shift - shift]
-        costs.append(block_sums(diff * diff, patch))
+        np.subtract(right_core, gl[:, max_shift - shift : width - max_shift - shift], out=diff)
+        costs.append(block_sums(np.multiply(diff, diff, out=diff), patch))
     cost = np.stack(costs)  # (S, rows, cols)
     best = cost.argmin(axis=0)
     inner = np.clip(best, 1, cost.shape[0] - 2)

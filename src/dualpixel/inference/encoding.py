@@ -260,7 +260,7 @@ def encoding_findings(left: np.ndarray, right: np.ndarray, encoding: str) -> lis
     """A warning when views ``(H, W, C)`` in [0, 1] look linear (raw) but are declared
     display-encoded, or the reverse; empty when they look as declared."""
     values = combined_image(left, right, light="encoded")  # the stored values, as declared
-    median, p99 = float(np.median(values)), float(np.percentile(values, 99))
+    median, p99 = (float(v) for v in np.percentile(values, (50, 99)))
     if encoding == "srgb" and median < LINEAR_MEDIAN and p99 < LINEAR_P99:
         return [ViewFinding("looks-linear", (
             f"the views look linear (raw): half their values lie below {100 * median:.1f} % "
