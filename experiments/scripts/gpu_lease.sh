@@ -26,6 +26,12 @@
 #                               on written and on-the-fly data (loader and device rendering)
 #   tests                       issue #76's CUDA-path tests (tests/gpu) into $OUT/tests_gpu.txt
 #
+# Photographic recipes (rdpd-light-photographs*.yaml) read ../shared/data/photographs (54 MB for
+# train/), which does not travel: a call sends the repository alone, at most 64 MiB with its
+# tracked files (57 MB on 2026-12-03, 44 MB of them the three shipped weights; a fourth would put
+# the tree itself over the limit). Such a run needs fewer weights in the package first, then the
+# photographs carried in parts (an ignored folder each call, copied on the warm machine to
+# ../shared/data/photographs) before `start`; a run without them stops at its first data step.
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
 command=${1:?start, wait, stop, collect, kit, figures, synthesis or tests}; shift
