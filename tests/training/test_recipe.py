@@ -346,3 +346,56 @@ def test_an_evaluation_of_raw_views_reaches_eval_with_their_encoding(tmp_path, m
                              log=lambda line: None)
     assert seen["raw"].linear and (seen["raw"].black_level, seen["raw"].white_level) == (16, 255)
     assert not seen["display"].linear
+
+
+def test_a_start_tag_that_no_longer_ships_comes_from_a_file_given_for_it(tmp_path):
+    """A phase's ``init: TAG`` whose weights left the package names the recipe that remakes
+    them and takes a file for the tag (``--tag-file TAG=PATH``); the phase then starts from
+    that file, and the run says whether it is the released one."""
+    runner = CliRunner()
+    start_run = tmp_path / "start"
+    result = runner.invoke(cli, ["reproduce", str(_tiny_recipe(tmp_path / "a")), "--output",
+                                 str(start_run), "--until", "first", "--no-progress",
+                                 *MACHINE_OPTIONS])
+    assert result.exit_code == 0, result.output
+    weights = start_run / "phases/first/last.safetensors"
+    retired = _tiny_recipe(tmp_path / "b", phases=[{"name": "first", "init": "rdpd-wide.v2"}])
+    out = tmp_path / "run"
+    refused = runner.invoke(cli, ["reproduce", str(retired), "--output", str(out), "--dry-run"])
+    assert refused.exit_code == 1 and "Traceback" not in refused.output
+    assert "rdpd-wide.v2 no longer ships" in refused.output
+    assert "recipes/rdpd-wide.yaml --output DIR --until canon-both" in refused.output
+    assert "DIR/phases/canon-both/last.safetensors" in refused.output
+    assert "--tag-file rdpd-wide.v2=PATH" in refused.output
+    given = ["--tag-file", f"rdpd-wide.v2={weights}"]
+    result = runner.invoke(cli, ["reproduce", str(retired), "--output", str(out), *given,
+                                 "--no-progress", *MACHINE_OPTIONS])
+    assert result.exit_code == 0, result.output
+    assert f"rdpd-wide.v2: {weights} (no released sha256" in result.output
+    init = read_metadata(out / "phases/first/last.safetensors")["extra"]["init"]
+    assert init["name"] == str(weights)
+    for options, message in [
+        (["--tag-file", f"rdpd-light.v16={weights}"], "starts from no tag 'rdpd-light.v16'"),
+        (["--tag-file", f"rdpd-wide.v2={tmp_path / 'none.safetensors'}"],
+         "none.safetensors: weights for rdpd-wide.v2 not found"),
+        (["--tag-file", "rdpd-wide.v2"], "expected TAG=PATH"),
+    ]:
+        bad = runner.invoke(cli, ["reproduce", str(retired), "--output", str(tmp_path / "x"),
+                                  "--dry-run", *options])
+        assert bad.exit_code in (1, 2) and "Traceback" not in bad.output, bad.output
+        assert message in bad.output, bad.output
+        assert not (tmp_path / "x").exists()
+
+
+def test_a_copy_of_a_shipped_start_is_named_the_released_file(tmp_path):
+    from dualpixel.weights import WEIGHTS
+
+    copy = tmp_path / "copy.safetensors"
+    shutil.copyfile(WEIGHTS["rdpd-light.v16"].path, copy)
+    path = _tiny_recipe(tmp_path, phases=[{"name": "first", "init": "rdpd-light.v16"}])
+    result = CliRunner().invoke(cli, ["reproduce", str(path), "--output", str(tmp_path / "run"),
+                                      "--dry-run", "--tag-file", f"rdpd-light.v16={copy}"])
+    assert result.exit_code == 0, result.output
+    assert f"rdpd-light.v16: {copy}, the released file" in result.output
+    assert load_recipe(path, tag_files={"rdpd-light.v16": copy}).tag_files == {
+        "rdpd-light.v16": str(copy)}

@@ -67,6 +67,7 @@ def _release(run: Path, weights: Path, results: Path, *extra: str, recipes: Path
 
 def test_release_writes_the_file_header_row_deprecation_and_results(finished_run, tmp_path):
     weights = _weights_folder(tmp_path, finished_run)
+    old_sha256 = file_sha256(weights / "rdpd-light-base.v6.safetensors")
     result = _release(finished_run, weights, tmp_path / "results", "--tag", TAG, "--alias",
                       "base", "--default", "--replaces", "rdpd-light-base.v6")
     assert result.exit_code == 0, result.output
@@ -87,9 +88,10 @@ def test_release_writes_the_file_header_row_deprecation_and_results(finished_run
                    "doc": "a tiny model", "metrics": extra["metrics"],
                    "output": {"brightness": "tied"}}
     assert set(row["metrics"]["synth"]) == {"psnr", "ssim", "input_psnr"}
-    # the replaced tag is retired with what remakes it, and so are its other aliases
+    # the replaced tag is retired with what remakes it and its file's hash (a recipe that starts
+    # from it can tell the released file from a remade one), and so are its other aliases
     retired = {"recipe": "old.yaml", "phase": "last", "note": f"replaced by {TAG}",
-               "use": "base"}
+               "use": "base", "sha256": old_sha256}
     assert registry["deprecated"] == {"rdpd-light-base.v6": retired, "old": retired}
     assert registry["aliases"] == {"base": TAG} and registry["default"] == "base"
     assert not (weights / "rdpd-light-base.v6.safetensors").exists()

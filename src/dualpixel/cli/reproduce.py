@@ -11,6 +11,16 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 from dualpixel.names import RENDER_ON
 
 
+def _tag_files(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
+    files = {}
+    for item in values:
+        tag, sep, path = item.partition("=")
+        if not sep or not tag.strip() or not path:
+            raise click.BadParameter(f"expected TAG=PATH, got {item!r}")
+        files[tag.strip()] = Path(path)
+    return files
+
+
 @click.command(cls=DPCommand, context_settings=CONTEXT)
 @click.argument("recipe_path", metavar="RECIPE", type=InputPath(dir_okay=False, path_type=Path))
 @click.option("--output", "-o", type=OutputPath(file_okay=False, path_type=Path), required=True,
@@ -20,6 +30,10 @@ from dualpixel.names import RENDER_ON
 @click.option("--from", "start", default=None, metavar="PHASE",
               help="Start at this phase; the one before it comes from OUTPUT or, where it "
                    "ships, from its tagged weights.")
+@click.option("--tag-file", "tag_files", multiple=True, callback=_tag_files, metavar="TAG=PATH",
+              help="Weights for a tag a phase starts from (init: TAG), in place of the shipped "
+                   "file: a tag that no longer ships, remade by its recipe, or a copy; "
+                   "repeatable.")
 @click.option("--dry-run", is_flag=True, help="Check every step and phase and print the plan.")
 @click.option("--workers", type=click.IntRange(1), default=2,
               help="Parallel processes for the data steps (the data do not depend on it).")
@@ -43,7 +57,8 @@ from dualpixel.names import RENDER_ON
                    "resumes from there [default: 20].")
 @click.option("--progress/--no-progress", default=True, help="Show progress bars.")
 def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | None,
-              dry_run: bool, workers: int, loader_workers: int | None, threads: int | None,
+              tag_files: dict[str, Path], dry_run: bool, workers: int,
+              loader_workers: int | None, threads: int | None,
               device: str | None, cache: bool | None, frame_store: Path | None,
               render_on: str | None, checkpoint_minutes: float | None,
               progress: bool) -> None:
@@ -53,16 +68,18 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
     device, caches) are the options here: they change the time a run takes, not its result.
     On a 2-core CPU: --loader-workers 0 --threads 2 --cache; on a GPU with 16 cores:
     --workers 14 --loader-workers 12 --frame-store runs/frame-store."""
-    from dualpixel.training.recipe import check_recipe, load_recipe, plan_text
+    from dualpixel.training.recipe import check_recipe, load_recipe, plan_text, tag_file_notes
     from dualpixel.training.recipe import reproduce as run_recipe
 
-    recipe = load_recipe(recipe_path)
+    recipe = load_recipe(recipe_path, tag_files=tag_files)
     if until is not None:
         recipe.phase_index(until)
     if start is not None:
         recipe.phase_index(start)
     if dry_run:
         check_recipe(recipe, output)
+        for note in tag_file_notes(recipe):
+            click.echo(note)
         click.echo(plan_text(recipe, output, until))
         click.echo("plan checked: every data step, phase and start resolves")
         return

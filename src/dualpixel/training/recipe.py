@@ -23,8 +23,9 @@ with phases inside it) holds:
 - ``phases``: each ``{name, set: {...}, init: ...}`` names only what changes; it starts from the
   previous phase's weights (``init: previous``, the default after the first phase), from
   nothing (``init: none``, the first phase's default) or from a shipped tag
-  (``init: rdpd-light.v12``, checked by its sha256). A phase trains in
-  ``OUTPUT/phases/NN-NAME`` and resumes there;
+  (``init: rdpd-light.v12``, checked by its sha256; a tag that no longer ships, or another copy
+  of one, comes from a file given for it: :func:`load_recipe`'s ``tag_files``, ``reproduce
+  --tag-file TAG=PATH``). A phase trains in ``OUTPUT/phases/NN-NAME`` and resumes there;
 - ``ship``: ``{tag, phase, doc, output}``: what the recipe ships: the tag its weights get
   (``ARCHITECTURE.vN``, see :mod:`dualpixel.weights`), the phase they come from (default the
   last), a one-line doc and the output settings the model runs with by default
@@ -111,6 +112,15 @@ class Recipe:
     phases: list[Phase]
     ship: dict[str, Any]
     evaluate: list[dict[str, Any]] = field(default_factory=list)
+    #: Files for tags the phases start from (tag -> path), in place of the shipped ones: where
+    #: this machine keeps weights, not part of what the recipe makes (:func:`load_recipe`).
+    tag_files: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def start_tags(self) -> list[str]:
+        """The tags the phases start from (``init: TAG``), in order."""
+        return list(dict.fromkeys(p.init for p in self.phases
+                                  if p.init not in ("none", "previous")))
 
     def phase_folder(self, output: Path, index: int) -> Path:
         return output / "phases" / self.phases[index].name
@@ -271,9 +281,13 @@ def _raw_recipe(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     return merged
 
 
-def load_recipe(path: str | Path) -> Recipe:
+def load_recipe(path: str | Path, *, tag_files: dict[str, str | Path] | None = None
+                ) -> Recipe:
     """Read and check a recipe's structure (the settings are checked by :func:`check_recipe`);
-    ``extends: BASE.yaml`` starts from another recipe (:func:`_raw_recipe`)."""
+    ``extends: BASE.yaml`` starts from another recipe (:func:`_raw_recipe`). ``tag_files``:
+    a weights file for each tag named that the phases start from (``init: TAG``), used instead
+    of the shipped file: a tag that no longer ships, remade by its recipe, or a copy
+    (:func:`tag_file_notes` says whether each is the released file)."""
     path = Path(path)
     raw = _raw_recipe(path)
     for key in ("name", "phases"):
@@ -332,8 +346,43 @@ def load_recipe(path: str | Path) -> Recipe:
     train = _no_machine_settings(path, "train", train)
     recipe = Recipe(path, _plain(path, "recipe", raw["name"]), str(raw.get("description", "")),
                     steps, train, phases, ship, evaluate)
+    recipe.tag_files = _checked_tag_files(recipe, tag_files or {})
     check_recipe(recipe)
     return recipe
+
+
+def _checked_tag_files(recipe: Recipe, tag_files: dict[str, str | Path]) -> dict[str, str]:
+    """``tag_files`` with each tag one the phases start from and each path a file."""
+    checked = {}
+    for tag, path in tag_files.items():
+        if tag not in recipe.start_tags:
+            raise ParameterError(f"recipe {recipe.path} starts from no tag {tag!r} (the tags its "
+                                 f"phases start from: {', '.join(recipe.start_tags) or 'none'})")
+        if not Path(path).is_file():
+            raise InputFileError(Path(path), f"weights for {tag} not found")
+        checked[tag] = str(path)
+    return checked
+
+
+def tag_file_notes(recipe: Recipe) -> list[str]:
+    """One line per file given for a tag: whether it is the file the registry released under
+    that tag (the same sha256), or other weights (the run then differs from the one that made
+    the shipped model)."""
+    from dualpixel.weights import DEPRECATED, WEIGHTS, file_sha256
+
+    notes = []
+    for tag, path in recipe.tag_files.items():
+        released = WEIGHTS[tag].sha256 if tag in WEIGHTS else DEPRECATED.get(tag, {}).get("sha256")
+        digest = file_sha256(path)
+        if released is None:
+            notes.append(f"{tag}: {path} (no released sha256 to compare it with)")
+        elif digest == released:
+            notes.append(f"{tag}: {path}, the released file (sha256 {digest[:16]}...)")
+        else:
+            notes.append(f"{tag}: {path} is not the released file (sha256 {digest[:16]}... "
+                         f"against {released[:16]}...): the phases from it start from other "
+                         "weights than the shipped model's did")
+    return notes
 
 
 # -- resolving -------------------------------------------------------------------------------
@@ -492,8 +541,7 @@ def phase_start(recipe: Recipe, index: int, output: Path, *, must_exist: bool = 
     if phase.init == "none":
         return None
     if phase.init != "previous":
-        resolve_tag(phase.init)
-        return phase.init
+        return _tag_start(recipe, phase.init)
     previous = recipe.phases[index - 1].name
     weights = recipe.phase_folder(output, index - 1) / "last.safetensors"
     if weights.is_file() or not must_exist:
@@ -502,6 +550,22 @@ def phase_start(recipe: Recipe, index: int, output: Path, *, must_exist: bool = 
     if tag is None:
         raise ParameterError(f"phase {phase.name} starts from phase {previous}, which is "
                              f"neither in {output} nor shipped; run that phase first")
+    resolve_tag(tag)
+    return tag
+
+
+def _tag_start(recipe: Recipe, tag: str) -> str:
+    """A start tag's weights: the file given for it, else the shipped tag (checked by its
+    sha256); a tag that no longer ships says how to make it and how to give its file."""
+    from dualpixel.weights import DEPRECATED, deprecation, resolve_tag
+
+    if tag in recipe.tag_files:
+        return recipe.tag_files[tag]
+    if tag in DEPRECATED:
+        phase = DEPRECATED[tag].get("phase")
+        made = f"DIR/phases/{phase}/last.safetensors" if phase else "its weights"
+        raise ParameterError(f"{deprecation(tag)}; then give {made} for it: --tag-file "
+                             f"{tag}=PATH (tag_files in load_recipe)")
     resolve_tag(tag)
     return tag
 
@@ -779,6 +843,8 @@ def reproduce(recipe: Recipe, output: str | Path, *, until: str | None = None,
     output = Path(output)
     machine = check_machine(machine)
     check_recipe(recipe, output)
+    for note in tag_file_notes(recipe):
+        log(note)
     first = recipe.phase_index(start) if start else 0
     last = recipe.phase_index(until) if until else len(recipe.phases) - 1
     if first > last:

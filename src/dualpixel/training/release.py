@@ -253,7 +253,7 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
     if replaces is not None:  # retired with its aliases (but --alias), saying what remakes it
         old = registry["weights"].pop(replaces)
         retired = {"recipe": old["recipe"], "phase": old["phase"], "note": f"replaced by {tag}",
-                   "use": alias or tag}
+                   "use": alias or tag, "sha256": old["sha256"]}
         registry["deprecated"][replaces] = retired
         for name in [a for a, t in registry["aliases"].items() if t == replaces]:
             del registry["aliases"][name]

@@ -28,9 +28,9 @@ from dualpixel.errors import InputFileError, ParameterError
 
 __all__ = [
     "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "OUTPUT_KEY", "WEIGHTS", "Weights",
-    "carried_settings", "file_output_settings", "file_sha256", "list_models", "model_card",
-    "model_info", "output_settings", "phase_weights",
-    "resolve_checkpoint", "resolve_tag", "run_settings", "weights_folder",
+    "carried_settings", "deprecation", "file_output_settings", "file_sha256", "list_models",
+    "model_card", "model_info", "output_settings", "phase_weights", "resolve_checkpoint",
+    "resolve_tag", "run_settings", "weights_folder",
 ]
 
 
@@ -75,7 +75,8 @@ DEPRECATED: dict[str, dict[str, str]] = dict(_REGISTRY["deprecated"])
 DEFAULT_CHECKPOINT: str = _REGISTRY["default"]
 
 
-def _deprecation(name: str) -> str:
+def deprecation(name: str) -> str:
+    """Why ``name`` no longer ships and what makes it again (its recipe and phase)."""
     entry = DEPRECATED[name]
     parts = [f"{name} no longer ships ({entry.get('note', 'retired')})"]
     if entry.get("use"):
@@ -96,7 +97,7 @@ def resolve_checkpoint(name_or_path: str | Path) -> Path:
             raise InputFileError(path, f"shipped weights {tag!r} are missing from the package")
         return path
     if text in DEPRECATED:
-        raise InputFileError(text, f"retired checkpoint: {_deprecation(text)}")
+        raise InputFileError(text, f"retired checkpoint: {deprecation(text)}")
     path = Path(name_or_path)
     if not path.is_file():
         known = ", ".join([*ALIASES, *WEIGHTS])
