@@ -371,7 +371,7 @@ def test_a_start_tag_that_no_longer_ships_comes_from_a_file_given_for_it(tmp_pat
     result = runner.invoke(cli, ["reproduce", str(retired), "--output", str(out), *given,
                                  "--no-progress", *MACHINE_OPTIONS])
     assert result.exit_code == 0, result.output
-    assert f"rdpd-wide.v2: {weights} (no released sha256" in result.output
+    assert f"rdpd-wide.v2: {weights} is not the released file" in result.output
     init = read_metadata(out / "phases/first/last.safetensors")["extra"]["init"]
     assert init["name"] == str(weights)
     for options, message in [
