@@ -26,12 +26,16 @@ paired: both in one process, passes alternating, the median of the per-pair rati
 ``--profile CASE`` prints where one pass of that case spends its time instead. ``--command``:
 the whole ``dualpixel deblur`` command (start-up, loading, reading, deblurring, writing) on one
 1680x1120 pair of 8-bit PNGs, each run a fresh process, best of ``--repeats``, with its peak
-memory (targets: 3.0 s and 2 GiB on 2 CPU cores). ``--sequence N``: a temporal model
-(``--checkpoint``, e.g. ``rdpd-light-video``) on N 1680x1120 frames in a sequence, seconds per
-frame with its state carried (frames 2 to N run the ConvLSTM's recurrent convolution) against
-its first frame (zero state), best of ``--repeats`` sequences; with ``--fuse-frames K`` each
-frame's views are first averaged with up to K-1 earlier frames registered onto it
-(:mod:`dualpixel.inference.frame_fusion`), any model.
+memory (targets: 3.0 s and 2 GiB on 2 CPU cores), then where its time goes (imports, loading,
+reading, the first pair's checks, the network, the output settings, writing; each run a fresh
+process). ``--int8-convs``: one 3x3 convolution at the default network's sizes in fp32,
+bf16 and int8 (oneDNN's quantised convolution), the lever for CPUs without AMX.
+``--sequence N``: a temporal model (``--checkpoint``, e.g. ``rdpd-light-video``) on N
+1680x1120 frames in a sequence, seconds per frame with its state carried (frames 2 to N run
+the ConvLSTM's recurrent convolution) against its first frame (zero state), best of
+``--repeats`` sequences; with ``--fuse-frames K`` each frame's views are first averaged with
+up to K-1 earlier frames registered onto it (:mod:`dualpixel.inference.frame_fusion`), any
+model.
 """
 
 from __future__ import annotations
@@ -211,30 +215,154 @@ PAPER_CASES = {
 }
 
 
-def command_time(checkpoint: str, device: str, repeats: int) -> tuple[float, float]:
-    """Best wall seconds of the whole ``dualpixel deblur`` command on a 1680x1120 pair (photo-
-    like: smoothed noise), each run a fresh process, and the largest peak RSS (GiB)."""
+def _command_pair(folder: Path) -> tuple[Path, Path]:
+    """A photo-like 1680x1120 pair of 8-bit PNGs (smoothed noise) in ``folder``."""
     import cv2
     import numpy as np
 
-    executable = str(Path(sys.executable).with_name("dualpixel"))
     rng = np.random.default_rng(0)
+    views = []
+    for side in ("left", "right"):
+        image = cv2.GaussianBlur(rng.random((1120, 1680, 3), dtype=np.float32), (0, 0), 2)
+        views.append(folder / f"{side}.png")
+        cv2.imwrite(str(views[-1]), np.clip(image * 255, 0, 255).astype(np.uint8))
+    return views[0], views[1]
+
+
+def _command_arguments(views: tuple[Path, Path], output: Path, checkpoint: str,
+                       device: str) -> list[str]:
+    return ["-q", "deblur", "--left", str(views[0]), "--right", str(views[1]), "-o",
+            str(output), "--checkpoint", checkpoint, "--device", device]
+
+
+def command_time(checkpoint: str, device: str, repeats: int) -> tuple[float, float]:
+    """Best wall seconds of the whole ``dualpixel deblur`` command on a 1680x1120 pair (photo-
+    like: smoothed noise), each run a fresh process, and the largest peak RSS (GiB)."""
+    executable = str(Path(sys.executable).with_name("dualpixel"))
     best, peak = float("inf"), 0.0
     with tempfile.TemporaryDirectory() as folder:
-        views = []
-        for side in ("left", "right"):
-            image = cv2.GaussianBlur(rng.random((1120, 1680, 3), dtype=np.float32), (0, 0), 2)
-            views.append(Path(folder) / f"{side}.png")
-            cv2.imwrite(str(views[-1]), np.clip(image * 255, 0, 255).astype(np.uint8))
+        views = _command_pair(Path(folder))
         for _ in range(repeats):
-            command = [executable, "-q", "deblur", "--left", str(views[0]), "--right",
-                       str(views[1]), "-o", str(Path(folder) / "out.png"), "--checkpoint",
-                       checkpoint, "--device", device]
+            command = [executable, *_command_arguments(views, Path(folder) / "out.png",
+                                                       checkpoint, device)]
             started = time.perf_counter()
             subprocess.run(command, check=True, capture_output=True)
             best = min(best, time.perf_counter() - started)
             peak = max(peak, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20)
     return best, peak
+
+
+#: The command's stages (:func:`command_stages`): the function each is timed around.
+STAGES = {"loading": ("dualpixel.inference", "build_deblurrer"),
+          "reading": ("dualpixel.inference.jobs", "_read_pair"),
+          "first pair's checks": ("dualpixel.inference.jobs", "_check_first_frame"),
+          "network": ("dualpixel.inference.deblur", "Deblurrer.network_output"),
+          "output settings (brightness tied)": ("dualpixel.inference.deblur", "Deblurrer.finish"),
+          "writing": ("dualpixel.inference.jobs", "write_png")}
+
+
+def stage_times(arguments: list[str]) -> dict[str, float]:
+    """Seconds of each stage of one ``dualpixel`` command run in this (fresh) process:
+    ``imports`` (the command line and the inference modules, torch among them), then
+    :data:`STAGES`, each the time inside its function."""
+    import functools
+    import importlib
+
+    started = time.perf_counter()
+    import dualpixel.cli.main
+    import dualpixel.inference.jobs  # what deblur imports when it runs
+
+    seconds = {"imports": time.perf_counter() - started}
+    for stage, (module_name, attribute) in STAGES.items():
+        owner = importlib.import_module(module_name)
+        *classes, name = attribute.split(".")
+        for class_name in classes:
+            owner = getattr(owner, class_name)
+        function = getattr(owner, name)
+
+        @functools.wraps(function)
+        def timed(*args, _function=function, _stage=stage, **kwargs):
+            begun = time.perf_counter()
+            try:
+                return _function(*args, **kwargs)
+            finally:
+                seconds[_stage] = seconds.get(_stage, 0.0) + time.perf_counter() - begun
+        setattr(owner, name, timed)
+    dualpixel.cli.main.cli.main(arguments, standalone_mode=False)
+    seconds["total in the process"] = time.perf_counter() - started
+    return seconds
+
+
+def command_stages(checkpoint: str, device: str, repeats: int) -> dict[str, tuple[float, float]]:
+    """The fastest and slowest seconds of each stage (:func:`stage_times`) over ``repeats``
+    runs of the command, each a fresh process."""
+    runs = []
+    with tempfile.TemporaryDirectory() as folder:
+        arguments = _command_arguments(_command_pair(Path(folder)), Path(folder) / "out.png",
+                                       checkpoint, device)
+        for _ in range(repeats):
+            result = subprocess.run([sys.executable, __file__, "--stages-of",
+                                     json.dumps(arguments)], check=True, capture_output=True,
+                                    text=True)
+            runs.append(json.loads(result.stdout.strip().splitlines()[-1]))
+    return {stage: (min(r[stage] for r in runs), max(r[stage] for r in runs))
+            for stage in runs[0]}
+
+
+#: The 3x3 convolutions :func:`int8_convolutions` times: (in, out channels, height, width).
+CONV_SHAPES = ((16, 16, 1120, 1680), (32, 32, 560, 840), (64, 64, 280, 420),
+               (128, 128, 140, 210))
+
+
+def int8_convolutions(repeats: int) -> list[dict[str, float | str]]:
+    """Milliseconds (best of ``repeats``) of one 3x3 convolution with its ReLU at each of
+    :data:`CONV_SHAPES` on the CPU: float32 and bfloat16 (oneDNN, fused, as the default path
+    runs them), int8 (oneDNN's quantised convolution, uint8 activations, per-channel int8
+    weights; output in bfloat16 or uint8), and quantising the bfloat16 input to uint8 through
+    PyTorch's quantised tensors."""
+    return [_convolution_times(*shape, repeats) for shape in CONV_SHAPES]
+
+
+def _convolution_times(cin: int, cout: int, height: int, width: int, repeats: int
+                       ) -> dict[str, float | str]:
+    import torch
+
+    def best(function) -> float:
+        function()
+        times = []
+        for _ in range(repeats):
+            started = time.perf_counter()
+            function()
+            times.append(time.perf_counter() - started)
+        return 1e3 * min(times)
+
+    weight, bias = torch.randn(cout, cin, 3, 3) * 0.1, torch.randn(cout) * 0.1
+    x = torch.rand(1, cin, height, width).contiguous(memory_format=torch.channels_last)
+    x16, w16, b16 = x.bfloat16(), weight.bfloat16(), bias.bfloat16()
+    scale, scales = 1 / 255, weight.abs().amax(dim=(1, 2, 3)) / 127
+    qx = (x / scale).round().clamp(0, 255).to(torch.uint8).contiguous(
+        memory_format=torch.channels_last)
+    qw = (weight / scales[:, None, None, None]).round().clamp(-128, 127).to(torch.int8)
+    packed = torch.ops.onednn.qconv_prepack(qw, scales, scale, 0, [1, 1], [1, 1], [1, 1], 1,
+                                            [1, cin, height, width])
+    zero = torch.zeros(cout, dtype=torch.int64)
+
+    def fused(a, w, b):
+        return torch.ops.mkldnn._convolution_pointwise(a, w, b, [1, 1], [1, 1], [1, 1], 1,
+                                                       "relu", [None], "")
+
+    def int8(dtype, output_scale):  # a float output takes scale 1 (oneDNN's rule)
+        return torch.ops.onednn.qconv2d_pointwise(qx, scale, 0, packed, scales, zero, bias,
+                                                  [1, 1], [1, 1], [1, 1], 1, output_scale, 0,
+                                                  dtype, "relu", [], "")
+
+    return {"shape": f"{cin}->{cout} at {width}x{height}",
+            "fp32": best(lambda: fused(x, weight, bias)),
+            "bf16": best(lambda: fused(x16, w16, b16)),
+            "int8 -> bf16": best(lambda: int8(torch.bfloat16, 1.0)),
+            "int8 -> uint8": best(lambda: int8(None, 0.05)),
+            "quantise bf16 input": best(lambda: torch.quantize_per_tensor(
+                x16.float(), scale, 0, torch.quint8).int_repr())}
 
 
 def sequence_time(checkpoint: str, device: str, frames: int, repeats: int,
@@ -299,7 +427,11 @@ def main() -> None:
                         help="instead: a temporal model on N frames in a sequence")
     parser.add_argument("--fuse-frames", type=int, default=1, metavar="K",
                         help="with --sequence: views averaged with up to K-1 earlier frames")
+    parser.add_argument("--int8-convs", action="store_true",
+                        help="instead: one 3x3 convolution in fp32, bf16 and int8 (oneDNN) at "
+                             "the default network's sizes, CPU")
     parser.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one case as JSON
+    parser.add_argument("--stages-of", help=argparse.SUPPRESS)  # internal: one command's stages
     parser.add_argument("--pair", help=argparse.SUPPRESS)  # internal: two cases, alternating
     args = parser.parse_args()
     if args.repeats is None:  # single passes vary by ~0.1 s; the full-width ones take minutes
@@ -308,6 +440,20 @@ def main() -> None:
         parser.error(f"--repeats must be at least 1, got {args.repeats}")
     if args.one:
         print(json.dumps(measure(json.loads(args.one), args.device, args.repeats)))
+        return
+    if args.stages_of:
+        print(json.dumps(stage_times(json.loads(args.stages_of))))
+        return
+    if args.int8_convs:
+        import warnings
+
+        warnings.filterwarnings("ignore", message=".*quantize_per_tensor")  # deprecated API
+        rows = int8_convolutions(args.repeats)
+        print("| 3x3 convolution + ReLU, ms | " + " | ".join(list(rows[0])[1:]) + " |")
+        print("|---|" + "---|" * (len(rows[0]) - 1))
+        for row in rows:
+            print(f"| {row['shape']} | " + " | ".join(f"{v:.1f}" for k, v in row.items()
+                                                      if k != "shape") + " |")
         return
     if args.pair:
         first, second = json.loads(args.pair)
@@ -330,6 +476,9 @@ def main() -> None:
         seconds, peak = command_time(checkpoint, args.device, args.repeats)
         print(f"dualpixel deblur, one 1680x1120 pair, whole command: {seconds:.2f} s "
               f"(target <= 3.0 s), peak RSS {peak:.2f} GiB (target <= 2 GiB)")
+        print(f"its stages, fastest-slowest of {args.repeats} fresh processes (s):")
+        for stage, (low, high) in command_stages(checkpoint, args.device, args.repeats).items():
+            print(f"  {stage}: {low:.2f}-{high:.2f}")
         return
     if args.sequence is not None:
         if args.sequence < 2:
