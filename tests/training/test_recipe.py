@@ -385,6 +385,19 @@ def test_a_start_tag_that_no_longer_ships_comes_from_a_file_given_for_it(tmp_pat
         assert bad.exit_code in (1, 2) and "Traceback" not in bad.output, bad.output
         assert message in bad.output, bad.output
         assert not (tmp_path / "x").exists()
+    # a phase run --from without its predecessor starts from the tag that predecessor made:
+    # one that no longer ships is refused the same way and comes from a file given for it
+    phases = [{"name": "first"}, {"name": "canon-both"}, {"name": "after", "init": "previous"}]
+    wide = _tiny_recipe(tmp_path / "c", phases=phases).rename(tmp_path / "c/rdpd-wide.yaml")
+    late = ["reproduce", str(wide), "--output", str(tmp_path / "late"), "--from", "after"]
+    refused = runner.invoke(cli, [*late, "--dry-run"])
+    assert refused.exit_code in (1, 2) and "Traceback" not in refused.output, refused.output
+    assert "rdpd-wide.v2 no longer ships" in refused.output, refused.output
+    assert "--tag-file rdpd-wide.v2=PATH" in refused.output
+    result = runner.invoke(cli, [*late, *given, "--no-progress", *MACHINE_OPTIONS])
+    assert result.exit_code == 0, result.output
+    init = read_metadata(tmp_path / "late/phases/after/last.safetensors")["extra"]["init"]
+    assert init["name"] == str(weights)
 
 
 def test_a_copy_of_a_shipped_start_is_named_the_released_file(tmp_path):

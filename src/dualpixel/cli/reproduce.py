@@ -68,7 +68,13 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
     device, caches) are the options here: they change the time a run takes, not its result.
     On a 2-core CPU: --loader-workers 0 --threads 2 --cache; on a GPU with 16 cores:
     --workers 14 --loader-workers 12 --frame-store runs/frame-store."""
-    from dualpixel.training.recipe import check_recipe, load_recipe, plan_text, tag_file_notes
+    from dualpixel.training.recipe import (
+        check_recipe,
+        load_recipe,
+        phase_start,
+        plan_text,
+        tag_file_notes,
+    )
     from dualpixel.training.recipe import reproduce as run_recipe
 
     recipe = load_recipe(recipe_path, tag_files=tag_files)
@@ -78,6 +84,8 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
         recipe.phase_index(start)
     if dry_run:
         check_recipe(recipe, output)
+        if start is not None and recipe.phase_index(start) > 0:
+            phase_start(recipe, recipe.phase_index(start), output)  # as the run would
         for note in tag_file_notes(recipe):
             click.echo(note)
         click.echo(plan_text(recipe, output, until))

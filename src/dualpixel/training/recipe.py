@@ -118,9 +118,16 @@ class Recipe:
 
     @property
     def start_tags(self) -> list[str]:
-        """The tags the phases start from (``init: TAG``), in order."""
-        return list(dict.fromkeys(p.init for p in self.phases
-                                  if p.init not in ("none", "previous")))
+        """The tags the phases start from, in order: ``init: TAG``, and for an ``init:
+        previous`` phase run ``--from`` without its predecessor, the tags that predecessor made
+        (:func:`made_tags`)."""
+        tags = []
+        for i, phase in enumerate(self.phases):
+            if phase.init == "previous" and i > 0:
+                tags += made_tags(self, self.phases[i - 1].name)
+            elif phase.init != "none":
+                tags.append(phase.init)
+        return list(dict.fromkeys(tags))
 
     def phase_folder(self, output: Path, index: int) -> Path:
         return output / "phases" / self.phases[index].name
@@ -535,8 +542,6 @@ def phase_start(recipe: Recipe, index: int, output: Path, *, must_exist: bool = 
     checked by its sha256) or, for ``init: previous``, the previous phase's final weights in
     ``output``; when that run is not there (``--from``), the shipped tag that phase made.
     ``must_exist=False`` (a dry run) accepts a previous phase that this run will make."""
-    from dualpixel.weights import phase_weights, resolve_tag
-
     phase = recipe.phases[index]
     if phase.init == "none":
         return None
@@ -546,12 +551,23 @@ def phase_start(recipe: Recipe, index: int, output: Path, *, must_exist: bool = 
     weights = recipe.phase_folder(output, index - 1) / "last.safetensors"
     if weights.is_file() or not must_exist:
         return str(weights)
-    tag = phase_weights(recipe.path.name, previous)
-    if tag is None:
+    tags = made_tags(recipe, previous)
+    if not tags:
         raise ParameterError(f"phase {phase.name} starts from phase {previous}, which is "
                              f"neither in {output} nor shipped; run that phase first")
-    resolve_tag(tag)
-    return tag
+    given = [tag for tag in tags if tag in recipe.tag_files]
+    return _tag_start(recipe, (given or tags)[0])
+
+
+def made_tags(recipe: Recipe, phase: str) -> list[str]:
+    """The tags of the weights a phase of ``recipe`` made: the shipped one first, then those
+    that no longer ship (:data:`dualpixel.weights.DEPRECATED`)."""
+    from dualpixel.weights import DEPRECATED, phase_weights
+
+    shipped = phase_weights(recipe.path.name, phase)
+    retired = [tag for tag, entry in DEPRECATED.items()
+               if entry.get("recipe") == recipe.path.name and entry.get("phase") == phase]
+    return ([shipped] if shipped else []) + retired
 
 
 def _tag_start(recipe: Recipe, tag: str) -> str:
