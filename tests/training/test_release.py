@@ -42,18 +42,19 @@ def finished_run(tmp_path_factory) -> Path:
 
 
 def _weights_folder(tmp_path: Path, run: Path) -> Path:
-    """A package weights folder holding one older tag (a copy of the run's export)."""
+    """A package weights folder holding two older tags (copies of the run's export)."""
     folder = tmp_path / "weights"
     folder.mkdir()
-    old = folder / "rdpd-light-base.v6.safetensors"
-    old.write_bytes((run / "ship" / f"{TAG}.safetensors").read_bytes())
     registry = {"default": "base", "aliases": {"base": "rdpd-light-base.v6",
                                                "old": "rdpd-light-base.v6"},
-                "weights": {"rdpd-light-base.v6": {
-                    "file": old.name, "architecture": "rdpd-light-base",
-                    "sha256": file_sha256(old), "recipe": "old.yaml", "phase": "last",
-                    "start": None, "num_params": 1, "doc": "old", "metrics": {}, "output": {}}},
-                "deprecated": {}}
+                "weights": {}, "deprecated": {}}
+    for version, phase in (("v5", "first"), ("v6", "last")):
+        old = folder / f"rdpd-light-base.{version}.safetensors"
+        old.write_bytes((run / "ship" / f"{TAG}.safetensors").read_bytes())
+        registry["weights"][f"rdpd-light-base.{version}"] = {
+            "file": old.name, "architecture": "rdpd-light-base", "sha256": file_sha256(old),
+            "recipe": "old.yaml", "phase": phase, "start": None, "num_params": 1, "doc": "old",
+            "metrics": {}, "output": {}}
     (folder / "registry.json").write_text(json.dumps(registry))
     return folder
 
@@ -69,7 +70,8 @@ def test_release_writes_the_file_header_row_deprecation_and_results(finished_run
     weights = _weights_folder(tmp_path, finished_run)
     old_sha256 = file_sha256(weights / "rdpd-light-base.v6.safetensors")
     result = _release(finished_run, weights, tmp_path / "results", "--tag", TAG, "--alias",
-                      "base", "--default", "--replaces", "rdpd-light-base.v6")
+                      "base", "--default", "--replaces", "rdpd-light-base.v6",
+                      "--replaces", "rdpd-light-base.v5")
     assert result.exit_code == 0, result.output
     shipped = weights / f"{TAG}.safetensors"
     registry = json.loads((weights / "registry.json").read_text())
@@ -92,9 +94,12 @@ def test_release_writes_the_file_header_row_deprecation_and_results(finished_run
     # from it can tell the released file from a remade one), and so are its other aliases
     retired = {"recipe": "old.yaml", "phase": "last", "note": f"replaced by {TAG}",
                "use": "base", "sha256": old_sha256}
-    assert registry["deprecated"] == {"rdpd-light-base.v6": retired, "old": retired}
+    assert registry["deprecated"] == {"rdpd-light-base.v6": retired, "old": retired,
+                                      "rdpd-light-base.v5": {**retired, "phase": "first"}}
     assert registry["aliases"] == {"base": TAG} and registry["default"] == "base"
-    assert not (weights / "rdpd-light-base.v6.safetensors").exists()
+    assert set(registry["weights"]) == {TAG}
+    assert sorted(f.name for f in weights.glob("*.safetensors")) == [shipped.name]
+    assert "rdpd-light-base.v5 is retired" in result.output
     # per-image results from the run's evaluation
     with open(tmp_path / "results" / f"{TAG}.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))

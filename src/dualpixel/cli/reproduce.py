@@ -108,9 +108,10 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
               help="A name that then stands for the tag (e.g. rdpd-light).")
 @click.option("--default", "make_default", is_flag=True,
               help="Make --alias the package's default model.")
-@click.option("--replaces", default=None, metavar="TAG",
+@click.option("--replaces", multiple=True, metavar="TAG",
               help="A shipped tag this one replaces: it moves to the deprecated names with the "
-                   "recipe and phase that remake it, and its file leaves the package.")
+                   "recipe and phase that remake it, and its file leaves the package "
+                   "(repeat for several).")
 @click.option("--weights-dir", type=OutputPath(file_okay=False, path_type=Path), default=None,
               help="Weights folder with registry.json [default: the package's].")
 @click.option("--results-dir", type=OutputPath(file_okay=False, path_type=Path),
@@ -119,7 +120,8 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
 @click.option("--recipes-dir", type=InputPath(file_okay=False, path_type=Path),
               default=Path("recipes"), show_default=True,
               help="Where shipped models' recipes live; the run's recipe must be there.")
-def release(run: Path, tag: str, alias: str | None, make_default: bool, replaces: str | None,
+def release(run: Path, tag: str, alias: str | None, make_default: bool,
+            replaces: tuple[str, ...],
             weights_dir: Path | None, results_dir: Path, recipes_dir: Path) -> None:
     """Ship a finished `reproduce` run: its weights into the package under --tag, with a
     header and a registry row written from the run (recipe, phase, start, metrics)."""
@@ -131,8 +133,8 @@ def release(run: Path, tag: str, alias: str | None, make_default: bool, replaces
     click.echo(f"released {done.tag}: {done.weights} (sha256 {done.sha256[:16]}...)")
     if done.results is not None:
         click.echo(f"per-image results: {done.results}")
-    if done.replaced is not None:
-        click.echo(f"{done.replaced} is retired (deprecated names)")
+    for old in done.replaced:
+        click.echo(f"{old} is retired (deprecated names)")
 
 
 COMMANDS = (reproduce, release)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,7 +41,7 @@ class Release:
     weights: Path
     sha256: str
     results: Path | None
-    replaced: str | None
+    replaced: tuple[str, ...]
 
 
 def run_recipe(run: str | Path):
@@ -175,11 +176,11 @@ def _checked_registry(path: Path) -> dict:
 def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = None,
                 results_dir: str | Path | None = Path("docs/results"),
                 recipes_dir: str | Path = Path("recipes"), alias: str | None = None,
-                replaces: str | None = None, default: bool = False) -> Release:
+                replaces: str | Sequence[str] = (), default: bool = False) -> Release:
     """Ship run ``run``'s weights under ``tag`` (the recipe's ``ship.tag``) into
     ``weights_dir`` (the package's, :func:`~dualpixel.weights.weights_folder`, by default),
     whose ``registry.json`` gets the row; ``alias`` then names it, ``default`` makes that
-    alias the default, ``replaces`` retires a shipped tag and its aliases (other than
+    alias the default, ``replaces`` retires shipped tags and their aliases (other than
     ``alias``), each saying which recipe phase remakes it and what to use instead. The
     recipe must lie in ``recipes_dir``: a shipped model is remade from there. Per-image results
     go to ``results_dir/TAG.csv`` (None: not written)."""
@@ -205,8 +206,10 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
     if tag in names:
         raise ParameterError(f"--tag {tag} already exists in {registry_path}: a tag is "
                              "written once (take the next vN)")
-    if replaces is not None and replaces not in registry["weights"]:
-        raise ParameterError(f"--replaces {replaces}: no shipped tag of that name")
+    replaces = (replaces,) if isinstance(replaces, str) else tuple(dict.fromkeys(replaces))
+    for old in replaces:
+        if old not in registry["weights"]:
+            raise ParameterError(f"--replaces {old}: no shipped tag of that name")
     if alias is not None and (alias in registry["weights"] or alias in registry["deprecated"]
                               or ".v" in alias):
         raise ParameterError(f"--alias {alias}: an alias is a name without .vN that is no tag")
@@ -250,12 +253,12 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
         "recipe": recipe.path.name, "phase": recipe.shipped_phase, "start": start,
         "num_params": extra["num_params"], "doc": header["doc"], "metrics": metrics,
         "output": recipe.output_settings}
-    if replaces is not None:  # retired with its aliases (but --alias), saying what remakes it
-        old = registry["weights"].pop(replaces)
+    for old_tag in replaces:  # retired with its aliases (but --alias), saying what remakes it
+        old = registry["weights"].pop(old_tag)
         retired = {"recipe": old["recipe"], "phase": old["phase"], "note": f"replaced by {tag}",
                    "use": alias or tag, "sha256": old["sha256"]}
-        registry["deprecated"][replaces] = retired
-        for name in [a for a, t in registry["aliases"].items() if t == replaces]:
+        registry["deprecated"][old_tag] = retired
+        for name in [a for a, t in registry["aliases"].items() if t == old_tag]:
             del registry["aliases"][name]
             if name != alias:
                 registry["deprecated"][name] = retired
@@ -264,6 +267,6 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
     if default:
         registry["default"] = alias
     _write_json(registry_path, registry)
-    if replaces is not None:
-        (folder / f"{replaces}.safetensors").unlink(missing_ok=True)
+    for old_tag in replaces:
+        (folder / f"{old_tag}.safetensors").unlink(missing_ok=True)
     return Release(tag, target, sha256, results, replaces)
