@@ -26,15 +26,19 @@
 #                               on written and on-the-fly data (loader and device rendering)
 #   tests                       issue #76's CUDA-path tests (tests/gpu) into $OUT/tests_gpu.txt
 #
-# Photographic recipes (rdpd-light-photographs*.yaml) read ../shared/data/photographs (54 MB for
-# train/), which does not travel: a call sends the repository alone, at most 64 MiB with its
-# tracked files (57 MB on 2026-12-03, 44 MB of them the three shipped weights; a fourth would put
-# the tree itself over the limit). Such a run needs fewer weights in the package first, then the
-# photographs carried in parts (an ignored folder each call, copied on the warm machine to
-# ../shared/data/photographs) before `start`; a run without them stops at its first data step.
+# Photographic recipes (rdpd-light-photographs*.yaml) read ../shared/data/photographs (61 MB),
+# which does not travel: a call sends the repository alone, at most 64 MiB with what it carries,
+# and the tracked files take 55 MiB of that (44 MB the three shipped weights; 2026-12-03). So the
+# photographs go in parts, one a call, onto a machine kept warm (it goes back ~30 s after a call):
+#   pack [BYTES]                here: the photographs in parts under .photos/ (ignored), each at
+#                               most BYTES (default: what the tree leaves of 64 MiB, less 2 MiB)
+#   unpack N K                  there: part N of K (carry .photos/N) into ../shared/data/
+#                               photographs; part K checks that every photograph arrived
+# Calls 1..K-1 `unpack N K`, each at once after the last; call K `unpack K K && start ...`.
+# With 55 MiB of tree that is 9 parts: retire shipped weights first (release --replaces).
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, stop, collect, kit, figures, synthesis or tests}; shift
+command=${1:?start, wait, stop, collect, kit, figures, synthesis, tests, pack or unpack}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -138,9 +142,51 @@ tests)  # issue #76: the CUDA paths' tests (tests/gpu), their report into $OUT (
   python3 -c "import pytest" 2>/dev/null || python3 -m pip install --quiet pytest
   PYTHONPATH=src python3 -m pytest -q -p no:cacheprovider tests/gpu 2>&1 | tee "$OUT/tests_gpu.txt"
   ;;
+pack)  # here: the photographs in parts that travel one a call (see the header)
+  photos=${PHOTOS:-../shared/data/photographs}
+  [ -d "$photos/train" ] || { echo "no $photos/train: set PHOTOS to the photographs" >&2; exit 1; }
+  tree=$(git ls-files -co --exclude-standard -z | grep -zv '^\.photos/' | xargs -0 stat -c %s \
+         | awk '{s += $1} END {print s}')
+  budget=${1:-$(( (64 << 20) - tree - (2 << 20) ))}
+  if (( budget < (1 << 20) )); then
+    echo "the tree takes $((tree >> 20)) MiB of 64: no room to carry photographs" >&2; exit 1
+  fi
+  rm -rf .photos
+  part=1 used=0
+  for split in train validation; do
+    for file in "$photos/$split"/*; do
+      size=$(stat -c %s "$file")
+      if (( used > 0 && used + size > budget )); then part=$((part + 1)); used=0; fi
+      mkdir -p ".photos/$part/$split"
+      cp "$file" ".photos/$part/$split/"
+      used=$((used + size))
+    done
+  done
+  counts="$(ls "$photos/train" | wc -l) $(ls "$photos/validation" | wc -l)"
+  for n in $(seq 1 $part); do echo "$counts" > ".photos/$n/expected"; done
+  mib() { awk -v b="$1" 'BEGIN {printf "%.1f", b / 1048576}'; }
+  echo "tree $(mib "$tree") MiB; $counts photographs in $part parts of at most" \
+       "$(mib "$budget") MiB: .photos/1 .. .photos/$part (carry one a call)"
+  ;;
+unpack)  # on the device: part N of K into ../shared/data/photographs
+  n=$1 parts=$2 into=../shared/data/photographs
+  [ -d ".photos/$n" ] || { echo "part .photos/$n did not travel (carry it)" >&2; exit 1; }
+  for split in train validation; do
+    mkdir -p "$into/$split"
+    [ -d ".photos/$n/$split" ] && cp ".photos/$n/$split"/* "$into/$split/"
+  done
+  read -r train validation < ".photos/$n/expected"
+  have="$(ls "$into/train" | wc -l) $(ls "$into/validation" | wc -l)"
+  echo "part $n of $parts: photographs here $have of $train $validation"
+  if [ "$n" = "$parts" ] && [ "$have" != "$train $validation" ]; then
+    echo "photographs missing: the machine was given back between parts; unpack 1..$parts" \
+         "again" >&2
+    exit 1
+  fi
+  ;;
 *)
-  echo "unknown command: $command (start, wait, stop, collect, kit, figures, synthesis or" \
-       "tests)" >&2
+  echo "unknown command: $command (start, wait, stop, collect, kit, figures, synthesis," \
+       "tests, pack or unpack)" >&2
   exit 2
   ;;
 esac
