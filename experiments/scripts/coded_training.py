@@ -1,14 +1,19 @@
 """Fine-tune arms from rdpd-light.v16 that differ in how the training views are formed (issue
 #77, item 3): as written (``plain``), lossily coded as the dev and unseen Canon views are (GIF
-frames at 840 px, H.264 at 1620; ``coded``), or with the Canon cameras' disparity ratio falling
-towards the frame's sides as measured on the dev pairs (``falloff``: ``calibrate camera
---falloff`` gives 0.35 at 840 px and 0.58 at 1620; ``docs/formation.md``).
+frames at 840 px, H.264 at 1620): each view on its own as a GIF or JPEG (``coded``) or the two
+views together as an H.264 animation, as the 1620-px views were made (``h264``); or with the
+Canon cameras' disparity ratio falling towards the frame's sides as measured on the dev pairs
+(``falloff``: ``calibrate camera --falloff`` gives 0.35 at 840 px and 0.58 at 1620;
+``docs/formation.md``).
 
-Both arms train alike on the photographic recipe's seven on-the-fly cameras (the same crops and
+The arms train alike on the photographic recipe's seven on-the-fly cameras (the same crops and
 draws, from the v17 run's data folder): 2 epochs of 300 iterations, learning rate 1e-4 cosine.
 In the ``coded`` arm each display-encoded training crop is, with probability 1/2, stored as a
 GIF frame (its own palette of 32-256 colours, Floyd-Steinberg dither) or a JPEG of quality
-50-95, each view on its own; targets stay clean, raw (linear) views are never coded.
+50-95, each view on its own; in the ``h264`` arm, with probability 1/2, the pair is coded as an
+H.264 animation (libx264 through PyAV, ``pip install av``; each view held 4 frames, twice round,
+CRF 18-30; each view back as the mean of its second round: ``formation_radius_map.h264``).
+Targets stay clean, raw (linear) views are never coded.
 
     python experiments/scripts/coded_training.py ARM OUT [--data runs/rdpd-light-photographs]
 """
@@ -21,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from coded_views import code  # this folder's GIF and JPEG round trips
+from formation_radius_map import h264  # this folder's H.264 animation round trip
 
 from dualpixel.data.dataset import DPPatchDataset
 from dualpixel.training import load_config, train
@@ -58,6 +64,26 @@ def code_training_views() -> None:
     DPPatchDataset.__getitem__ = getitem
 
 
+def code_training_pairs() -> None:
+    """Make every display-encoded training pair an H.264 animation with probability 1/2."""
+    plain = DPPatchDataset.__getitem__
+
+    def getitem(self, key):
+        item = plain(self, key)
+        if getattr(self, "raw_black_level", None) is not None or not isinstance(key, tuple):
+            return item
+        rng = np.random.default_rng((int(key[0]), int(key[1]) % 2**62, 264))
+        if rng.uniform() < 0.5:
+            crf = int(rng.integers(18, 31))
+            for t in range(item["left"].shape[0]):
+                pair = torch.stack((item["left"][t], item["right"][t])).permute(0, 2, 3, 1)
+                coded_pair = torch.from_numpy(h264(pair.numpy(), crf, hold=4, loops=2))
+                item["left"][t], item["right"][t] = coded_pair.permute(0, 3, 1, 2)
+        return item
+
+    DPPatchDataset.__getitem__ = getitem
+
+
 #: ``dualpixel calibrate camera --falloff`` on the dev Canon pairs (840 px; 1620 px with
 #: ``--max-radius 24 --skip-misaligned``).
 FALLOFF = {"canon-840-linear": 0.354, "canon-840": 0.354, "canon-hd-linear": 0.585}
@@ -82,7 +108,7 @@ def fall_off_towards_the_sides() -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("arm", choices=("plain", "coded", "falloff"))
+    parser.add_argument("arm", choices=("plain", "coded", "h264", "falloff"))
     parser.add_argument("output", type=Path)
     parser.add_argument("--data", type=Path, default=Path("runs/rdpd-light-photographs"))
     parser.add_argument("--threads", type=int, default=1)
@@ -94,6 +120,8 @@ def main() -> None:
         "threads": args.threads, "checkpoint_minutes": 10, "tensorboard": False})
     if args.arm == "coded":
         code_training_views()
+    if args.arm == "h264":
+        code_training_pairs()
     if args.arm == "falloff":
         fall_off_towards_the_sides()
     train(config, args.output, resume=(args.output / "config.yaml").exists(), progress=False)
