@@ -43,6 +43,7 @@ from dualpixel.io.images import read_rgb
 from dualpixel.optics.camera import load_camera
 from dualpixel.optics.crosstalk import apply_crosstalk
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
+from dualpixel.synthesis.view_coding import h264_round_trip
 
 BINS = ((0.0, 2.0), (2.0, 4.5), (4.5, 9.0), (9.0, 20.1))
 
@@ -157,37 +158,11 @@ def band_energy(image: np.ndarray, sigma: float = 1.0) -> float:
 
 
 def h264(views: np.ndarray, crf: int, hold: int = 10, loops: int = 3) -> np.ndarray:
-    """The two views coded as the 1620-px dev views were: an H.264 animation (libx264 through
-    PyAV, ``pip install av``; 4:2:0) showing each view ``hold`` frames, looped; each view back
-    as the mean of its frames after the first loop."""
-    import io
-
-    try:
-        import av
-    except ImportError:
-        raise SystemExit("--h264 needs PyAV: pip install av") from None
-    height, width = views.shape[1:3]
-    stream_buffer = io.BytesIO()
-    container = av.open(stream_buffer, "w", format="mp4")
-    stream = container.add_stream("libx264", rate=25)
-    stream.width, stream.height, stream.pix_fmt = width, height, "yuv420p"
-    stream.options = {"crf": str(crf), "preset": "medium"}
-    frames = [(np.clip(v, 0, 1) * 255).round().astype(np.uint8) for v in views]
-    for _ in range(loops):
-        for frame in frames:
-            for _ in range(hold):
-                for packet in stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")):
-                    container.mux(packet)
-    for packet in stream.encode():
-        container.mux(packet)
-    container.close()
-    stream_buffer.seek(0)
-    decoded = [f.to_ndarray(format="rgb24").astype(np.float32) / 255
-               for f in av.open(stream_buffer, "r").decode(video=0)]
-    count = len(frames)
-    return np.stack([np.mean([d for j, d in enumerate(decoded)
-                              if (j // hold) % count == i and j >= count * hold], axis=0)
-                     for i in range(count)])
+    """The two views ``(2, H, W, 3)`` in [0, 1] coded as the 1620-px dev views were: an H.264
+    animation showing each view ``hold`` frames, looped; each view back as the mean of its frames
+    after the first loop (:func:`dualpixel.synthesis.view_coding.h264_round_trip`)."""
+    frames = (np.clip(views, 0, 1) * 255).round().astype(np.uint8)
+    return h264_round_trip(frames, crf, hold=hold, loops=loops) / 255
 
 
 def tile_disparity(left: np.ndarray, right: np.ndarray, tile: int) -> tuple[np.ndarray, np.ndarray]:

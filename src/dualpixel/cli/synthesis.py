@@ -171,6 +171,11 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
 @click.option("--raw-gains", default=None, callback=float_list, metavar="LOW,HIGH",
               help="--encoding linear: exposure gains to draw per sequence, so that highlights "
                    "sit below the white level  [default: 1,1].")
+@click.option("--view-coding", default=None, metavar="CODEC[:SHARE]",
+              help="Code the two views of a share of the frames lossily, as real views often "
+                   "reach a model: h264 (the pair as one H.264 animation, as DPDD's published "
+                   "videos; needs PyAV) or jpeg, e.g. h264:0.5 (8-bit display-encoded views; "
+                   "share 0.5 if not given).")
 @click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
 @click.option("--depth-scale", type=float, default=0.001,
@@ -196,12 +201,14 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
           distortion: bool, psf_model: str, psf_bank: str | None, camera_file: str | None,
           psf_shapes: str | None,
           light: str | None, grey: bool, encoding: str, black_level: float | None,
-          raw_gains: list[float] | None, split: str, max_depth: float,
+          raw_gains: list[float] | None, view_coding: str | None, split: str,
+          max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
           png_compression: int | None, source: str, shard: tuple[int, int] | None) -> None:
     """Synthesise DP views from RGB + depth into a DPDD-layout dataset (resumable)."""
     from dualpixel.optics.camera import load_camera
     from dualpixel.synthesis.dataset import SynthConfig, synthesis_settings, synthesize_dataset
+    from dualpixel.synthesis.view_coding import ViewCoding
 
     settings = synthesis_settings(settings_name, camera=camera_file is not None)
     if old_lens_sets is not None:
@@ -227,6 +234,7 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         psf_shapes=psf_shapes, grey=grey, encoding=encoding,
         black_level=0.0 if black_level is None else black_level,
         raw_gains=(1.0, 1.0) if raw_gains is None else tuple(raw_gains),
+        view_coding=None if view_coding is None else ViewCoding.parse(view_coding).as_dict(),
     )
     if source == "on-the-fly":
         from dualpixel.synthesis.on_the_fly import write_on_the_fly

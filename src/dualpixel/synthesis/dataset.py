@@ -82,6 +82,7 @@ from dualpixel.synthesis.inputs import (
     load_frame,
 )
 from dualpixel.synthesis.layers import check_render_mode
+from dualpixel.synthesis.view_coding import ViewCoding, code_views
 
 __all__ = ["SYNTH_SETTINGS", "SynthConfig", "merge_shards", "plan_jobs", "read_manifest",
            "render_job", "render_jobs", "render_target", "synthesis_settings",
@@ -127,6 +128,10 @@ class SynthConfig:
     encoding: str = "srgb"
     black_level: float = 0.0
     raw_gains: tuple[float, float] = (1.0, 1.0)
+    # Ours: a share of the stored frames have their two views lossily coded (H.264 as one
+    # animation, or JPEG): dualpixel.synthesis.view_coding.ViewCoding's fields; 8-bit
+    # display-encoded views only. None: no coding.
+    view_coding: dict | None = field(default=None, hash=False)
 
     def __post_init__(self) -> None:
         for key in ("lens_sets", "noise_sigmas", "raw_gains"):  # lists from JSON or YAML
@@ -163,6 +168,16 @@ class SynthConfig:
         elif (self.black_level, self.raw_gains) != (0.0, (1.0, 1.0)):
             raise ParameterError("black_level and raw_gains are for encoding 'linear' (raw "
                                  "values); sRGB-encoded images have neither")
+        coding = ViewCoding.from_value(self.view_coding)
+        if coding is not None:
+            if self.bit_depth != 8 or self.encoding != "srgb":
+                raise ParameterError("view_coding codes 8-bit display-encoded views (bit_depth "
+                                     "8, encoding 'srgb'); raw views are never coded")
+            object.__setattr__(self, "view_coding", coding.as_dict())
+
+    def coding(self) -> ViewCoding | None:
+        """The views' lossy coding (:mod:`dualpixel.synthesis.view_coding`), or None."""
+        return ViewCoding.from_value(self.view_coding)
 
     def draw_settings(self) -> CameraSettings:
         """The camera's settings of every sequence: :func:`camera_settings`."""
@@ -200,6 +215,8 @@ class SynthConfig:
                 del data[key]
         if not data["grey"]:
             del data["grey"]
+        if data["view_coding"] is None:  # as recorded before view coding existed
+            del data["view_coding"]
         if data["encoding"] == "srgb":  # as recorded before raw storage existed
             for key in ("encoding", "black_level", "raw_gains"):
                 del data[key]
@@ -376,6 +393,12 @@ def _stored(result, job: FrameJob, config: SynthConfig) -> dict[str, np.ndarray]
     if config.grey:  # the green channel alone
         left, right, combined, target = (image[..., 1] for image in (left, right, combined,
                                                                      target))
+    coding = config.coding()
+    if coding is not None:
+        coded = code_views(left, right, coding, job.noise_seed)
+        if coded[0] is not left:  # the combined image of the coded views
+            left, right = coded
+            combined = ((left.astype(np.uint32) + right + 1) >> 1).astype(left.dtype)
     return {"left": left, "right": right, "combined": combined, "target": target,
             "defocus": result.defocus.cpu().numpy().astype(np.float32)}
 
