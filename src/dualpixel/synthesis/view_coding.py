@@ -13,8 +13,9 @@ their mean; the target stays clean; raw views are never coded):
   as the mean of its frames after the first round; ``quality`` is the CRF range (lower: better).
 * ``"jpeg"``: each view a JPEG on its own (OpenCV, 4:2:0); ``quality`` is the JPEG quality range.
 
-Written datasets code whole frames; on-the-fly sources code each training crop (the coder's
-blocks then fall on the crop's grid).
+Written datasets code whole frames; on-the-fly sources code what they render: each training crop
+in loader processes (the coder's blocks then fall on the crop's grid), whole frames where they
+are rendered on the training device.
 """
 
 from __future__ import annotations
