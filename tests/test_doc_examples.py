@@ -35,6 +35,10 @@ SHARED = ROOT.parent / "shared" / "data"
 #: recipes run as --dry-run here), with what the refusal must name (a clean error, no
 #: traceback).
 REFUSED = {"dualpixel release runs/rdpd-light --tag rdpd-light.v12": "runs/rdpd-light",
+           # its earlier phases' weights come from the run folder, or --tag-file: the tag
+           # that phase made no longer ships
+           "dualpixel reproduce recipes/rdpd-light.yaml --output runs/rdpd-light --from "
+           "joint-cycle --dry-run": "--tag-file rdpd-light-stage11=PATH",
            # the stand-in dp-real-nogt holds one Pixel 4 pair
            "dualpixel adapt ../shared/data/dp-real-nogt --select pixel-gif-0? --select "
            "pixel-mp4-0? -o runs/adapt-pixel4 --camera pixel4 --scenes 2 --epochs 1 "
