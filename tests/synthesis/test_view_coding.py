@@ -83,6 +83,8 @@ def test_coding_settings_are_checked_and_recorded():
         (dict(bit_depth=8, view_coding={"codec": "h264", "quality": [30, 18]}), "quality"),
         (dict(bit_depth=8, view_coding={"codec": "h264", "crf": 23}), "unknown view_coding"),
         (dict(bit_depth=8, view_coding={"codec": "h264", "share": 1.5}), "share"),
+        (dict(bit_depth=8, view_coding={"codec": "h264", "share": "half"}), "share must be"),
+        (dict(bit_depth=8, view_coding={"codec": "jpeg", "quality": 90}), "quality for jpeg"),
     ]:
         with pytest.raises(ParameterError, match=message):
             SynthConfig(**bad)

@@ -56,17 +56,23 @@ class ViewCoding:
         if self.codec not in CODECS:
             raise ParameterError(f"view_coding codec must be one of {', '.join(CODECS)}, got "
                                  f"{self.codec!r}")
-        if not 0.0 <= float(self.share) <= 1.0:
-            raise ParameterError(f"view_coding share must be in [0, 1], got {self.share}")
-        quality = tuple(int(q) for q in (self.quality or DEFAULT_QUALITY[self.codec]))
+        if isinstance(self.share, bool) or not isinstance(self.share, (int, float)) \
+                or not 0.0 <= self.share <= 1.0:
+            raise ParameterError(f"view_coding share must be a number in [0, 1], got "
+                                 f"{self.share!r}")
         low, high = CODECS[self.codec]
-        if len(quality) != 2 or not low <= quality[0] <= quality[1] <= high:
+        given = DEFAULT_QUALITY[self.codec] if self.quality is None else self.quality
+        if not (isinstance(given, (list, tuple)) and len(given) == 2
+                and all(isinstance(q, int) and not isinstance(q, bool) for q in given)
+                and low <= given[0] <= given[1] <= high):
             raise ParameterError(f"view_coding quality for {self.codec} must be [lowest, "
-                                 f"highest] within [{low}, {high}], got {list(self.quality)}")
-        object.__setattr__(self, "quality", quality)
-        if not (1 <= int(self.hold) <= 60 and 2 <= int(self.loops) <= 10):
-            raise ParameterError(f"view_coding hold must be in [1, 60] and loops in [2, 10], "
-                                 f"got {self.hold} and {self.loops}")
+                                 f"highest] integers within [{low}, {high}], got {given!r}")
+        object.__setattr__(self, "quality", tuple(given))
+        for name, value, bounds in (("hold", self.hold, (1, 60)), ("loops", self.loops, (2, 10))):
+            if isinstance(value, bool) or not isinstance(value, int) \
+                    or not bounds[0] <= value <= bounds[1]:
+                raise ParameterError(f"view_coding {name} must be an integer in "
+                                     f"[{bounds[0]}, {bounds[1]}], got {value!r}")
 
     @classmethod
     def from_value(cls, value: Any) -> ViewCoding | None:
@@ -81,8 +87,7 @@ class ViewCoding:
         if unknown:
             raise ParameterError(f"unknown view_coding setting(s) {', '.join(unknown)}; known: "
                                  f"{', '.join(sorted(known))}")
-        return cls(**{k: tuple(v) if k == "quality" and v is not None else v
-                      for k, v in value.items()})
+        return cls(**value)
 
     @classmethod
     def parse(cls, text: str) -> ViewCoding:
