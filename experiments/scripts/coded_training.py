@@ -46,42 +46,45 @@ def coded(view: torch.Tensor, rng: np.random.Generator, codec: str) -> torch.Ten
     return torch.stack(frames)
 
 
-def code_training_views() -> None:
-    """Make every display-encoded training crop coded with probability 1/2 (by its key)."""
+def code_half_the_display_items(salt: int, code_item) -> None:
+    """Make ``code_item(item, rng)`` change every display-encoded training item with
+    probability 1/2, drawn from its key and ``salt`` (raw views and whole frames untouched)."""
     plain = DPPatchDataset.__getitem__
 
     def getitem(self, key):
         item = plain(self, key)
         if getattr(self, "raw_black_level", None) is not None or not isinstance(key, tuple):
             return item
-        rng = np.random.default_rng((int(key[0]), int(key[1]) % 2**62, 77))
+        rng = np.random.default_rng((int(key[0]), int(key[1]) % 2**62, salt))
         if rng.uniform() < 0.5:
-            codec = "gif" if rng.uniform() < 0.5 else "jpeg"
-            for name in ("left", "right"):
-                item[name] = coded(item[name], rng, codec)
+            code_item(item, rng)
         return item
 
     DPPatchDataset.__getitem__ = getitem
+
+
+def code_training_views() -> None:
+    """Each view of half the display-encoded crops a GIF frame or a JPEG, on its own."""
+
+    def code_item(item, rng):
+        codec = "gif" if rng.uniform() < 0.5 else "jpeg"
+        for name in ("left", "right"):
+            item[name] = coded(item[name], rng, codec)
+
+    code_half_the_display_items(77, code_item)
 
 
 def code_training_pairs() -> None:
-    """Make every display-encoded training pair an H.264 animation with probability 1/2."""
-    plain = DPPatchDataset.__getitem__
+    """Half the display-encoded pairs an H.264 animation of both views."""
 
-    def getitem(self, key):
-        item = plain(self, key)
-        if getattr(self, "raw_black_level", None) is not None or not isinstance(key, tuple):
-            return item
-        rng = np.random.default_rng((int(key[0]), int(key[1]) % 2**62, 264))
-        if rng.uniform() < 0.5:
-            crf = int(rng.integers(18, 31))
-            for t in range(item["left"].shape[0]):
-                pair = torch.stack((item["left"][t], item["right"][t])).permute(0, 2, 3, 1)
-                coded_pair = torch.from_numpy(h264(pair.numpy(), crf, hold=4, loops=2))
-                item["left"][t], item["right"][t] = coded_pair.permute(0, 3, 1, 2)
-        return item
+    def code_item(item, rng):
+        crf = int(rng.integers(18, 31))
+        for t in range(item["left"].shape[0]):
+            pair = torch.stack((item["left"][t], item["right"][t])).permute(0, 2, 3, 1)
+            coded_pair = torch.from_numpy(h264(pair.numpy(), crf, hold=4, loops=2))
+            item["left"][t], item["right"][t] = coded_pair.permute(0, 3, 1, 2)
 
-    DPPatchDataset.__getitem__ = getitem
+    code_half_the_display_items(264, code_item)
 
 
 #: ``dualpixel calibrate camera --falloff`` on the dev Canon pairs (840 px; 1620 px with

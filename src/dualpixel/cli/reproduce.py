@@ -80,12 +80,11 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
     recipe = load_recipe(recipe_path, tag_files=tag_files)
     if until is not None:
         recipe.phase_index(until)
-    if start is not None:
-        recipe.phase_index(start)
+    first = 0 if start is None else recipe.phase_index(start)
     if dry_run:
         check_recipe(recipe, output)
-        if start is not None and recipe.phase_index(start) > 0:
-            phase_start(recipe, recipe.phase_index(start), output)  # as the run would
+        if first > 0:
+            phase_start(recipe, first, output)  # as the run would
         for note in tag_file_notes(recipe):
             click.echo(note)
         click.echo(plan_text(recipe, output, until))

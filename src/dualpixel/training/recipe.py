@@ -360,11 +360,11 @@ def load_recipe(path: str | Path, *, tag_files: dict[str, str | Path] | None = N
 
 def _checked_tag_files(recipe: Recipe, tag_files: dict[str, str | Path]) -> dict[str, str]:
     """``tag_files`` with each tag one the phases start from and each path a file."""
-    checked = {}
+    checked, starts = {}, recipe.start_tags
     for tag, path in tag_files.items():
-        if tag not in recipe.start_tags:
+        if tag not in starts:
             raise ParameterError(f"recipe {recipe.path} starts from no tag {tag!r} (the tags its "
-                                 f"phases start from: {', '.join(recipe.start_tags) or 'none'})")
+                                 f"phases start from: {', '.join(starts) or 'none'})")
         if not Path(path).is_file():
             raise InputFileError(Path(path), f"weights for {tag} not found")
         checked[tag] = str(path)
