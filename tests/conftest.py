@@ -127,6 +127,23 @@ def write_dpdd_pairs(root: Path, split: str, names: list[str], size=(40, 48), se
 
 
 @pytest.fixture(scope="module")
+def naf_model():
+    """A tiny NAF-level network (model ``dpnaf``) whose blocks and head are not the identity,
+    in eval mode."""
+    import torch
+
+    from dualpixel.models import build_model
+
+    torch.manual_seed(2)
+    model = build_model("dpnaf", width=0.125, residual=True)
+    with torch.no_grad():
+        for name, parameter in model.named_parameters():
+            if name.endswith(("beta", "gamma")) or name.startswith("head."):
+                parameter.normal_(0, 0.1)
+    return model.eval()
+
+
+@pytest.fixture(scope="module")
 def refined_model():
     """A tiny recurrent network with a refiner whose correction is not zero (a fresh one adds
     nothing), in eval mode."""

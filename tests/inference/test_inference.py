@@ -41,7 +41,7 @@ def made_views():
 
 
 @pytest.mark.parametrize("views", ["made_views", "canon_views"])
-@pytest.mark.parametrize("name", ["tiny_model", "refined_model"])
+@pytest.mark.parametrize("name", ["tiny_model", "refined_model", "naf_model"])
 def test_tiled_inference_matches_whole_image(name, views, request):
     tiny_model = request.getfixturevalue(name)
     left, right = (v[:400, :600] for v in request.getfixturevalue(views))
@@ -262,3 +262,16 @@ def test_multiscale_fuses_a_half_resolution_pass_with_its_own_state(tiny_model):
         two_scale(np.zeros((20, 40, 3), np.float32), np.zeros((20, 40, 3), np.float32))
     with pytest.raises(ParameterError, match="sigma must be > 0"):
         Deblurrer(tiny_model, precision="fp32", multiscale=True, fusion_sigma=-1.0)
+
+
+def test_onnx_matches_pytorch_for_naf_levels(naf_model, tmp_path):
+    pytest.importorskip("onnxruntime")
+    from dualpixel.inference.onnx_export import export_onnx, run_onnx
+
+    export_onnx(naf_model, tmp_path / "naf.onnx", height=48, width=64)
+    x = torch.rand(1, 7, 40, 56)  # another size than traced
+    with torch.no_grad():
+        expected, _ = naf_model.step(x)
+    (out,) = run_onnx(tmp_path / "naf.onnx", x.numpy())
+    assert np.abs(out - expected.numpy()).max() < 1e-4
+    assert np.abs(out - (x[:, :3] + x[:, 3:6]).numpy() / 2).mean() > 1e-3  # not the input

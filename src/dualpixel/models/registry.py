@@ -7,6 +7,7 @@ rdpd           2      yes     yes        RDPD / RDPD+ / sRDPD+ (Sec. 4, Fig. 6)
 rspd           1      yes     yes        RSPD+ (supplement, single DP view)
 dpdnet         2      no      no         DPDNet (Abuolaim & Brown, ECCV 2020)
 dpdnet-single  1      no      no         DPDNet-Single
+dpnaf          2      yes     no         ours: the U-Net with NAF-block levels
 =============  =====  ======  =========  ==========================================
 
 ``width`` multiplies every layer width (1.0 = the published models) so a light model can be trained
@@ -56,6 +57,8 @@ def build_model(
         peepholes=peepholes,
         residual=residual,
         refiner=tuple(refiner),
+        block=spec.block,
+        block_counts=spec.block_counts,
     )
     for option, value in (("residual", residual), ("a refiner", refiner)):
         if value and spec.output != "clamp":

@@ -25,6 +25,12 @@ class ModelSpec:
     output: str
     encoder_dropout: float
     description: str
+    #: What each level is made of: "conv" (two 3x3 convolutions with ReLU, max-pooling down,
+    #: the paper's) or "naf" (NAF blocks, :mod:`dualpixel.models.naf`).
+    block: str = "conv"
+    #: NAF blocks per encoder level, in the bottleneck, per decoder level (coarsest first):
+    #: ``2 * len(encoder) + 1`` counts ("naf" only).
+    block_counts: tuple[int, ...] = ()
 
     @property
     def in_channels(self) -> int:
@@ -57,6 +63,9 @@ MODELS: dict[str, ModelSpec] = {
                   "DP deblurring U-Net of Abuolaim & Brown 2020 (left, right)"),
         ModelSpec("dpdnet-single", 1, False, False, (64, 128, 256, 512), 1024, "sigmoid", 0.4,
                   "DPDNet on a single view (left)"),
+        ModelSpec("dpnaf", 2, True, False, (32, 64, 128, 256), 512, "clamp", 0.0,
+                  "NAF-block DP U-Net, ours (left, right, radial distance)", block="naf",
+                  block_counts=(1, 1, 2, 4, 6, 1, 1, 1, 1)),
     )
 }
 
@@ -76,4 +85,5 @@ ARCHITECTURES: dict[str, dict[str, object]] = {
     "rdpd-light-base": {"model": "rdpd", "width": 0.5, "residual": True},
     "rdpd-wide": {"model": "rdpd", "width": 1.0, "residual": True, "refiner": (32, 64, 128)},
     "rdpd-wide-base": {"model": "rdpd", "width": 1.0, "residual": True},
+    "dpnaf-light": {"model": "dpnaf", "width": 0.5, "residual": True},
 }

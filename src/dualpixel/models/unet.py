@@ -27,6 +27,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from dualpixel.models.convlstm import ConvLSTMCell, LSTMState
+from dualpixel.models.naf import ShuffleUp, naf_blocks, naf_down
 from dualpixel.models.padding import SIZE_MULTIPLE, pad_to_multiple
 from dualpixel.models.refiner import Refiner
 from dualpixel.models.spec import ModelSpec
@@ -49,6 +50,10 @@ class NetworkShape:
     residual: bool = False  # output = input image + network output (not in the paper)
     # Widths of a refiner that corrects the base output (ours; dualpixel.models.refiner); () none.
     refiner: tuple[int, ...] = ()
+    # Levels of two 3x3 convolutions ("conv") or of NAF blocks ("naf", dualpixel.models.naf), and
+    # the NAF blocks per encoder level, bottleneck and decoder level.
+    block: str = "conv"
+    block_counts: tuple[int, ...] = ()
 
 
 def _conv_relu(cin: int, cout: int, kernel: int = 3) -> list[nn.Module]:
@@ -118,12 +123,35 @@ class DeblurNet(nn.Module):
         #: from the checkpoint or registry they were loaded from as torchvision's weights carry
         #: their transforms; empty: as the network gives it (``dualpixel.weights.run_settings``).
         self.output_settings: dict[str, object] = {}
+        if shape.block == "naf":
+            self._build_naf_levels()
+        elif shape.block == "conv":
+            self._build_conv_levels()
+        else:
+            raise ValueError(f"unknown level block {shape.block!r}: conv or naf")
+        if shape.residual and shape.output != "clamp":
+            raise ValueError("a residual network needs the clamped linear output")
+        if shape.block == "conv":  # NAF levels keep PyTorch's initialisation, as NAFNet does
+            self._init_weights()
+        if shape.residual:  # start as the identity: output = blurred input
+            nn.init.zeros_(self.head[-1].weight)
+            nn.init.zeros_(self.head[-1].bias)
+        # Built after the He initialisation: the refiner initialises itself (identity at first).
+        self.refiner = Refiner(shape.in_channels, shape.refiner) if shape.refiner else None
+        if self.refiner is not None and shape.output != "clamp":
+            raise ValueError("a refined network needs the clamped linear output")
+
+    def _build_conv_levels(self) -> None:
+        """The paper's levels: two 3x3 conv + ReLU each, max-pooling down (``downs`` None), the
+        ConvLSTM or DPDNet's double convolution in the bottleneck, :class:`_UpConv` up."""
+        shape = self.shape
         widths = shape.encoder
         self.encoders = nn.ModuleList()
         cin = shape.in_channels
         for width in widths:
             self.encoders.append(_double_conv(cin, width))
             cin = width
+        self.downs: nn.ModuleList | None = None
         self.encoder_dropout = nn.Dropout(shape.encoder_dropout)
         if shape.recurrent:
             self.bottleneck = nn.Sequential(*_conv_relu(cin, shape.bottleneck))
@@ -148,15 +176,35 @@ class DeblurNet(nn.Module):
         # The residual variant drops the ReLU of the 3-channel layer: a correction needs both signs.
         head_act = nn.Identity() if shape.residual else nn.ReLU(inplace=True)
         self.head = nn.Sequential(nn.Conv2d(cin, 3, 3, padding=1), head_act, nn.Conv2d(3, 3, 1))
-        if shape.residual and shape.output != "clamp":
-            raise ValueError("a residual network needs the clamped linear output")
-        self._init_weights()
-        if shape.residual:  # start as the identity: output = blurred input
-            nn.init.zeros_(self.head[-1].weight)
-        # Built after the He initialisation: the refiner initialises itself (identity at first).
-        self.refiner = Refiner(shape.in_channels, shape.refiner) if shape.refiner else None
-        if self.refiner is not None and shape.output != "clamp":
-            raise ValueError("a refined network needs the clamped linear output")
+
+    def _build_naf_levels(self) -> None:
+        """NAF levels (:mod:`dualpixel.models.naf`): a 3x3 convolution into the first, NAF blocks
+        at every level, a 2x2 stride-2 convolution down (the next level's width), the skip and
+        the upsampled features joined by a 1x1 convolution, a 3x3 convolution to the image."""
+        shape = self.shape
+        widths, depth = shape.encoder, len(shape.encoder)
+        counts = shape.block_counts
+        if len(counts) != 2 * depth + 1:
+            raise ValueError(f"NAF levels need {2 * depth + 1} block counts (encoder, bottleneck, "
+                             f"decoder), got {counts}")
+        if shape.recurrent:
+            raise ValueError("NAF levels have no recurrent bottleneck")
+        self.encoders = nn.ModuleList(
+            [naf_blocks(widths[0], counts[0], cin=shape.in_channels, kernel=3)]
+            + [naf_blocks(width, count) for width, count in zip(widths[1:], counts[1:depth])])
+        self.downs = nn.ModuleList(
+            naf_down(cin, cout) for cin, cout in zip(widths, (*widths[1:], shape.bottleneck)))
+        self.encoder_dropout = nn.Dropout(shape.encoder_dropout)
+        self.bottleneck = naf_blocks(shape.bottleneck, counts[depth])
+        self.lstm = None
+        self.upconvs = nn.ModuleList()
+        self.decoders = nn.ModuleList()
+        cin = shape.bottleneck
+        for width, count in zip(reversed(widths), counts[depth + 1:]):
+            self.upconvs.append(ShuffleUp(cin, width))
+            self.decoders.append(naf_blocks(width, count, cin=2 * width))
+            cin = width
+        self.head = nn.Sequential(nn.Conv2d(cin, 3, 3, padding=1))
 
     def _init_weights(self) -> None:
         for module in self.modules():
@@ -179,8 +227,11 @@ class DeblurNet(nn.Module):
         depends on the coarsest level at all (in our trained models that level had gone dormant:
         its ReLUs almost never fire, and zeroing it changed the training MSE by < 1 %), and
         training can bring the revived units back in: their activations are alive, so the zeroed
-        weights get gradients.
+        weights get gradients. For the paper's levels only: NAF blocks have no ReLU to die.
         """
+        if self.shape.block != "conv":
+            raise ValueError("reinit_bottleneck is for the paper's convolution levels (NAF "
+                             "blocks have no ReLU that could go dormant)")
         fresh = DeblurNet(self.shape, spec=self.spec, width=self.width)
         with torch.no_grad():
             for mine, new in zip(self.coarsest_level(), fresh.coarsest_level(), strict=True):
@@ -193,9 +244,12 @@ class DeblurNet(nn.Module):
         return [p for name, p in self.named_parameters() if not name.startswith("refiner.")]
 
     def coarsest_level(self) -> list[nn.Module]:
-        """The modules working at 1/16 of the input size: the bottleneck (and ConvLSTM) and the
-        first up-convolution, which brings their output back to 1/8."""
+        """The modules working at 1/16 of the input size: the bottleneck (and ConvLSTM; with NAF
+        levels the convolution down into it) and the first up-convolution, which brings their
+        output back to 1/8."""
         modules: list[nn.Module] = [self.bottleneck]
+        if self.downs is not None:
+            modules.insert(0, self.downs[-1])
         if self.lstm is not None:
             modules.append(self.lstm)
         return [*modules, self.upconvs[0]]
@@ -222,7 +276,7 @@ class DeblurNet(nn.Module):
             if index == len(self.encoders) - 1:
                 x = self.encoder_dropout(x)
             skips.append(x)
-            x = F.max_pool2d(x, 2)
+            x = F.max_pool2d(x, 2) if self.downs is None else self.downs[index](x)
         x = self.bottleneck(x)
         if self.lstm is not None:
             state = self.lstm(x, state)
@@ -256,15 +310,17 @@ class DeblurNet(nn.Module):
 
 def pass_memory(model: DeblurNet, pixels: int) -> int:
     """Bytes one network pass over ``pixels`` (members x height x width) takes at its peak, in
-    float32, with margin: 20 bytes per channel of the first encoder and refiner level, plus 128
-    for the frame's input and output. Measured peaks on the CPU: the default model (16 + 32
-    channels) 650-800 bytes a pixel at 1620x980 and 840x512, estimated 1088; rdpd-wide
-    (32 + 32) 1230, estimated 1408.
+    float32, with margin: 20 bytes per channel of the first encoder and refiner level (72 for a
+    NAF level, whose blocks hold twice its channels and their norms), plus 128 for the frame's
+    input and output. Measured peaks on the CPU: the default model (16 + 32 channels) 650-800
+    bytes a pixel at 1620x980 and 840x512, estimated 1088; rdpd-wide (32 + 32) 1230, estimated
+    1408; dpnaf-light (16, NAF) 935-1222, estimated 1280.
 
     >>> from dualpixel.models.registry import build_model
     >>> pass_memory(build_model("rdpd", width=0.5, refiner=(32, 64, 128)), 1000)
     1088000
     """
     shape = model.shape
-    channels = shape.encoder[0] + (shape.refiner[0] if shape.refiner else 0)
-    return (20 * channels + 128) * pixels
+    per_channel = 72 if shape.block == "naf" else 20
+    refiner = 20 * shape.refiner[0] if shape.refiner else 0
+    return (per_channel * shape.encoder[0] + refiner + 128) * pixels
