@@ -47,14 +47,16 @@ def test_tiny_model_overfits_a_tiny_batch(tiny_synthetic_dataset):
     assert min(losses[-10:]) < losses[0] / 4
 
 
-@pytest.mark.parametrize("ema_decay", [0.0, 0.9])
-def test_resume_continues_exactly(tiny_synthetic_dataset, tmp_path, ema_decay):
+@pytest.mark.parametrize(("ema_decay", "model"), [(0.0, "rdpd"), (0.9, "rdpd"), (0.9, "dpnaf")])
+def test_resume_continues_exactly(tiny_synthetic_dataset, tmp_path, ema_decay, model):
     config = tiny_config(tiny_synthetic_dataset, lr_halve_every=1, val_data=str(
-        tiny_synthetic_dataset), val_split="train", val_limit=1, ema_decay=ema_decay)
+        tiny_synthetic_dataset), val_split="train", val_limit=1, ema_decay=ema_decay,
+        model=model, residual=model == "dpnaf")
     straight = train(config, tmp_path / "straight", progress=False)
     first = train(tiny_config(tiny_synthetic_dataset, lr_halve_every=1, epochs=1,
                               val_data=str(tiny_synthetic_dataset), val_split="train",
-                              val_limit=1, ema_decay=ema_decay), tmp_path / "resumed",
+                              val_limit=1, ema_decay=ema_decay, model=model,
+                              residual=model == "dpnaf"), tmp_path / "resumed",
                   progress=False)
     assert first.step == 3
     resumed = train(config, tmp_path / "resumed", resume=True, progress=False)
