@@ -15,6 +15,10 @@ Option (ours, off by default): ``refiner=(w1, w2, ...)`` appends a refiner,
 :class:`~dualpixel.models.refiner.Refiner`, that corrects the clamped output from the input and
 that output; it starts as the identity, so it can be trained on top of a trained (frozen) network.
 
+Option (ours, per model): ``block="naf"`` builds every level of NAF blocks instead
+(:mod:`dualpixel.models.naf`; model ``dpnaf``), with strided convolutions down and pixel-shuffle
+up-convolutions; the skips, the residual output and the refiner are as above.
+
 Any input size: the input is reflect-padded to a multiple of 16 and the output cropped back.
 """
 
