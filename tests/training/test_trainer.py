@@ -362,6 +362,12 @@ def test_models_command_lists_counts():
     result = CliRunner().invoke(cli, ["models"])
     assert result.exit_code == 0
     assert "24,278,703" in result.output and "31,035,151" in result.output
+    from dualpixel.models import ARCHITECTURES, build_architecture, count_parameters
+
+    for name in ARCHITECTURES:  # every name `architecture:` takes, with what it builds
+        count = count_parameters(build_architecture(name))
+        assert re.search(rf"^  {re.escape(name)}: .*{count:,} parameters$", result.output,
+                         flags=re.M)
     # the shipped checkpoints with their metadata
     from dualpixel.weights import model_info
 

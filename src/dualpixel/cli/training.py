@@ -24,6 +24,13 @@ def models(width: float) -> None:
     if width == 1.0:
         keras = count_parameters(build_model("rdpd", peepholes=False))
         click.echo(f"(rdpd without peepholes, as the authors' Keras ConvLSTM2D: {keras:,})")
+    from dualpixel.models import ARCHITECTURES, build_architecture
+
+    click.echo("\narchitectures (a recipe's `architecture:`):")
+    for name, settings in ARCHITECTURES.items():
+        described = ", ".join(f"{k} {v}" for k, v in settings.items() if k != "model")
+        count = count_parameters(build_architecture(name))
+        click.echo(f"  {name}: {settings['model']}, {described}, {count:,} parameters")
     from dualpixel.weights import DEPRECATED, model_info
 
     click.echo("\nshipped weights (dualpixel.load_model(NAME), --checkpoint NAME):")
