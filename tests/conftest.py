@@ -126,21 +126,27 @@ def write_dpdd_pairs(root: Path, split: str, names: list[str], size=(40, 48), se
             cv2.imwrite(str(root / folder / f"{name}.png"), image)
 
 
+def busy_naf(model, *, std: float, seed: int):
+    """``model`` (a NAF block or network) in eval mode with every block's scales and the head
+    drawn at random (normal, ``std``): a fresh one is the identity, on which most checks of
+    its output would pass whatever it computed."""
+    import torch
+
+    torch.manual_seed(seed)
+    with torch.no_grad():
+        for name, parameter in model.named_parameters():
+            if name.endswith(("beta", "gamma")) or name.startswith("head."):
+                parameter.normal_(0, std)
+    return model.eval()
+
+
 @pytest.fixture(scope="module")
 def naf_model():
     """A tiny NAF-level network (model ``dpnaf``) whose blocks and head are not the identity,
     in eval mode."""
-    import torch
-
     from dualpixel.models import build_model
 
-    torch.manual_seed(2)
-    model = build_model("dpnaf", width=0.125, residual=True)
-    with torch.no_grad():
-        for name, parameter in model.named_parameters():
-            if name.endswith(("beta", "gamma")) or name.startswith("head."):
-                parameter.normal_(0, 0.1)
-    return model.eval()
+    return busy_naf(build_model("dpnaf", width=0.125, residual=True), std=0.1, seed=2)
 
 
 @pytest.fixture(scope="module")

@@ -39,11 +39,9 @@ DEV = ("canon-dp-real", "canon-dp-real-hd")
 
 def held_out_psnr(checkpoint: Path, family_config: Path) -> float:
     """Mean PSNR (dB) over the seven cameras' held-out frames, as the recipe validates."""
-    import yaml
-
-    config = yaml.safe_load(family_config.read_text())
-    sequences = _discover(config["val_data"], "test")
-    transform = raw_views_transform(config["val_data"], config["raw_views"])
+    config = load_config(family_config)
+    sequences = _discover(config.val_data, config.val_split)
+    transform = raw_views_transform(config.val_data, config.raw_views)
     model = load_model(checkpoint, device="cpu").float()
     return float(validate(model, sequences, torch.device("cpu"), transform)[0])
 

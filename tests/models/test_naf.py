@@ -10,19 +10,13 @@ from dualpixel.models.naf import LayerNorm2d, NAFBlock
 from dualpixel.models.spec import ModelSpec
 from dualpixel.models.unet import DeblurNet, NetworkShape
 from dualpixel.training import load_config
+from tests.conftest import busy_naf
 
 TINY = 0.125
 
 
-def busy(model: torch.nn.Module, seed: int = 0) -> torch.nn.Module:
-    """``model`` with every NAF block's scales and the head drawn at random: a fresh one is the
-    identity, which would make the tests below pass on anything."""
-    torch.manual_seed(seed)
-    with torch.no_grad():
-        for name, parameter in model.named_parameters():
-            if name.endswith(("beta", "gamma")) or name.startswith("head."):
-                parameter.normal_(0, 0.3)
-    return model.eval()
+def busy(model: torch.nn.Module) -> torch.nn.Module:
+    return busy_naf(model, std=0.3, seed=0)
 
 
 def test_layer_norm_equals_torch_on_the_channels_in_both_memory_layouts():

@@ -14,7 +14,13 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath
 @click.option("--width", type=float, default=1.0, help="Width multiplier of every layer.")
 def models(width: float) -> None:
     """List the networks with their inputs and parameter counts."""
-    from dualpixel.models import MODELS, build_model, count_parameters
+    from dualpixel.models import (
+        ARCHITECTURES,
+        MODELS,
+        build_architecture,
+        build_model,
+        count_parameters,
+    )
 
     click.echo(f"{'name':<15}{'inputs':<8}{'recurrent':<11}{'parameters':>12}  description")
     for name, spec in MODELS.items():
@@ -24,8 +30,6 @@ def models(width: float) -> None:
     if width == 1.0:
         keras = count_parameters(build_model("rdpd", peepholes=False))
         click.echo(f"(rdpd without peepholes, as the authors' Keras ConvLSTM2D: {keras:,})")
-    from dualpixel.models import ARCHITECTURES, build_architecture
-
     click.echo("\narchitectures (a recipe's `architecture:`):")
     for name, settings in ARCHITECTURES.items():
         described = ", ".join(f"{k} {v}" for k, v in settings.items() if k != "model")

@@ -27,8 +27,9 @@ __all__ = ["LayerNorm2d", "NAFBlock", "ShuffleUp", "naf_blocks", "naf_down"]
 
 class LayerNorm2d(nn.Module):
     """Layer normalisation over the channels of each pixel of ``(B, C, H, W)``, with a learnt
-    per-channel scale and offset (``torch.nn.LayerNorm`` on channels-last, without the two
-    transposes)."""
+    per-channel scale and offset: ``torch.nn.functional.layer_norm`` on the channels-last view
+    (no copy for a channels-last tensor; one transposing copy otherwise, still faster than
+    normalising along dim 1 by hand)."""
 
     def __init__(self, channels: int, eps: float = 1e-6) -> None:
         super().__init__()
@@ -38,14 +39,8 @@ class LayerNorm2d(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         weight, bias = self.weight.to(x.dtype), self.bias.to(x.dtype)
-        if x.is_contiguous(memory_format=torch.channels_last):  # NHWC in memory: one kernel
-            normed = F.layer_norm(x.permute(0, 2, 3, 1), (x.shape[1],), weight, bias, self.eps)
-            return normed.permute(0, 3, 1, 2).to(x.dtype)
-        mean = x.mean(1, keepdim=True)
-        centred = x - mean
-        variance = centred.pow(2).mean(1, keepdim=True)
-        return centred * (weight[:, None, None] * torch.rsqrt(variance + self.eps)) \
-            + bias[:, None, None]
+        normed = F.layer_norm(x.permute(0, 2, 3, 1), (x.shape[1],), weight, bias, self.eps)
+        return normed.permute(0, 3, 1, 2).to(x.dtype)  # autocast may compute it in float32
 
 
 def simple_gate(x: torch.Tensor) -> torch.Tensor:

@@ -174,10 +174,11 @@ class TrainConfig:
         if self.reinit_bottleneck and self.init_weights is None:
             raise ParameterError("reinit_bottleneck needs init_weights (a new network is fresh "
                                  "everywhere already)")
+        levels = model_spec(self.model).block
         for option in ("widen_init", "reinit_bottleneck"):
-            if getattr(self, option) and model_spec(self.model).block != "conv":
+            if getattr(self, option) and levels != "conv":
                 raise ParameterError(f"{option} is for the paper's convolution levels; model "
-                                     f"{self.model!r} has {model_spec(self.model).block} levels")
+                                     f"{self.model!r} has {levels} levels")
         if self.refiner is not None and (not self.refiner or min(self.refiner) < 1):
             raise ParameterError(f"refiner must list channel widths >= 1, got {self.refiner}")
         if self.freeze_base and not self.refiner:
