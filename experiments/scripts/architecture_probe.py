@@ -62,7 +62,8 @@ def main() -> None:
         **ARMS[args.arm], "init_weights": None, "base_lr_scale": 1.0,
         "epochs": args.epochs, "iterations_per_epoch": args.iterations, "learning_rate": 2e-4,
         "lr_schedule": "cosine", "val_data": str(args.data / "data" / "canon-840-test"),
-        "val_limit": 4, "threads": args.threads, "checkpoint_minutes": 10, "tensorboard": False})
+        "val_limit": 4, "threads": args.threads, "checkpoint_minutes": 10, "tensorboard": False,
+        "cache": True})
     history = run / "history.jsonl"
     done = history.exists() and len(history.read_text().splitlines()) >= args.epochs
     if not done:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -235,3 +236,30 @@ def test_rendering_on_the_device_gives_the_loaders_items(source, scenes, tmp_pat
         {**r, "seconds": s["seconds"]} for r, s in zip(runs[1].history, runs[0].history)]
     with pytest.raises(ParameterError, match="render_on"):
         _config(source, validation, render_on="gpu")
+
+
+def test_cached_scenes_give_the_same_items_without_reading_the_files_again(scenes, tmp_path):
+    """With ``cache`` a scene is decoded once per process: the items equal those read from the
+    files each time, and a second pass renders with the scenes' RGB files gone."""
+    from dualpixel.synthesis import on_the_fly
+
+    copy = tmp_path / "scenes"
+    shutil.copytree(scenes, copy)
+    folder = tmp_path / "source"
+    write_on_the_fly(folder, copy, "rgbd", SynthConfig(**SETTINGS))
+    keys = [(3, 11), (0, 5), (9, 77)]
+    read = OnTheFlyDataset(folder, PatchConfig(patch_size=64))
+    expected = [read[key] for key in keys]
+    on_the_fly._SCENES.clear()
+    cached = OnTheFlyDataset(folder, PatchConfig(patch_size=64), cache=True)
+    first = [cached[key] for key in keys]
+    for sequence in ("seq_000", "seq_003", "seq_009"):
+        for image in (copy / sequence / "rgb").iterdir():
+            image.unlink()
+    again = [cached[key] for key in keys]
+    on_the_fly._SCENES.clear()
+    for want, *got in zip(expected, first, again):
+        for item in got:
+            assert all(torch.equal(want[k], item[k]) for k in want)
+    with pytest.raises(InputFileError):
+        read[(3, 11)]  # without the cache the files are read, and they are gone

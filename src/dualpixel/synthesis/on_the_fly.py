@@ -19,7 +19,10 @@ the whole frame's render to a level of rounding where the distortion moves it, e
 none does.
 
 Training names such a folder wherever it names a dataset (``synthetic_data``; a recipe's synth
-step with ``source: on-the-fly``); validation stays on datasets written once.
+step with ``source: on-the-fly``); validation stays on datasets written once. With ``cache``
+(training's ``cache``, ``reproduce --cache``) each scene's RGB and depth are decoded once per
+process and kept, shared by every source of the process that reads the same scenes: about
+3.3 MB a 840x560 scene (RGB as 8-bit where that is lossless).
 """
 
 from __future__ import annotations
@@ -124,7 +127,8 @@ class OnTheFlyDataset(DPPatchDataset):
     Rendering runs where the item is made: in the DataLoader's worker processes (CPU).
     """
 
-    def __init__(self, folder: str | Path, config: PatchConfig, *, transform=None):
+    def __init__(self, folder: str | Path, config: PatchConfig, *, cache: bool = False,
+                 transform=None):
         from dualpixel.io.images import image_size
 
         self.source = _Source.read(folder)
@@ -137,6 +141,7 @@ class OnTheFlyDataset(DPPatchDataset):
                 sequences.append(_Sequence(f"{scene.name}/{lens_set}", height, width,
                                            scene.frames, s, c))
         super().__init__(sequences, config, transform=transform)
+        self.cache_scenes = cache
 
     @property
     def raw_black_level(self) -> float | None:
@@ -166,11 +171,9 @@ class OnTheFlyDataset(DPPatchDataset):
 
     def _pending(self, job) -> _Pending:
         from dualpixel.synthesis.dataset import render_target
-        from dualpixel.synthesis.inputs import load_frame
 
         config = self.source.config
-        scene = load_frame(job.frame, self.source.fmt, max_depth=config.max_depth,
-                           depth_scale=config.depth_scale)
+        scene = _scene(job.frame, self.source.fmt, config, self.cache_scenes)
         target = _as_read(render_target(job, config, scene), config.bit_depth)
         return _Pending(job, scene, target)
 
@@ -239,6 +242,28 @@ class _Pending:
         if key != "target":
             raise KeyError(key)
         return self.target
+
+
+_SCENES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # this process's decoded scenes
+
+
+def _scene(frame, fmt: str, config, cache: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A scene frame's RGB ``(H, W, 3)`` float32 and depth ``(H, W)``, as
+    :func:`~dualpixel.synthesis.inputs.load_frame` reads them; with ``cache``, decoded once
+    per process (:data:`_SCENES`; each call gets its own copies)."""
+    from dualpixel.data.frame_store import compact_frame, expand
+    from dualpixel.synthesis.inputs import load_frame
+
+    read = dict(max_depth=config.max_depth, depth_scale=config.depth_scale)
+    if not cache:
+        return load_frame(frame, fmt, **read)
+    key = (str(frame.rgb), str(frame.depth), fmt, read["max_depth"], read["depth_scale"])
+    if key not in _SCENES:
+        rgb, depth = load_frame(frame, fmt, **read)
+        _SCENES[key] = (compact_frame({"rgb": rgb})["rgb"], depth)
+    rgb, depth = _SCENES[key]
+    image = expand(rgb)
+    return (image.copy() if image is rgb else image), depth.copy()
 
 
 def _as_read(image: np.ndarray, bit_depth: int) -> np.ndarray:

@@ -125,7 +125,7 @@ def _synthetic_dataset(config: TrainConfig, patches: PatchConfig, stored: dict[s
     parts = []
     for folder in folders:
         if is_on_the_fly(folder):
-            part = OnTheFlyDataset(folder, patches)
+            part = OnTheFlyDataset(folder, patches, cache=config.cache)
             if config.raw_views == "model" and part.raw_black_level is not None:
                 part.transform = StoredRawViews(part.raw_black_level)
         else:
