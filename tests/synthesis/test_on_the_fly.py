@@ -20,6 +20,7 @@ from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
 from dualpixel.synthesis.on_the_fly import (
     ON_THE_FLY_FILE,
     OnTheFlyDataset,
+    SceneCache,
     write_on_the_fly,
     write_samples,
 )
@@ -239,10 +240,8 @@ def test_rendering_on_the_device_gives_the_loaders_items(source, scenes, tmp_pat
 
 
 def test_cached_scenes_give_the_same_items_without_reading_the_files_again(scenes, tmp_path):
-    """With ``cache`` a scene is decoded once per process: the items equal those read from the
-    files each time, and a second pass renders with the scenes' RGB files gone."""
-    from dualpixel.synthesis import on_the_fly
-
+    """Sources given a scene cache decode each scene once and share it: the items equal those
+    read from the files each time, and a second pass renders with the scenes' RGB files gone."""
     copy = tmp_path / "scenes"
     shutil.copytree(scenes, copy)
     folder = tmp_path / "source"
@@ -250,14 +249,15 @@ def test_cached_scenes_give_the_same_items_without_reading_the_files_again(scene
     keys = [(3, 11), (0, 5), (9, 77)]
     read = OnTheFlyDataset(folder, PatchConfig(patch_size=64))
     expected = [read[key] for key in keys]
-    on_the_fly._SCENES.clear()
-    cached = OnTheFlyDataset(folder, PatchConfig(patch_size=64), cache=True)
+    scenes = SceneCache()
+    cached = OnTheFlyDataset(folder, PatchConfig(patch_size=64), scenes=scenes)
     first = [cached[key] for key in keys]
+    other = OnTheFlyDataset(folder, PatchConfig(patch_size=64), scenes=scenes)
+    assert torch.equal(other[(3, 11)]["left"], first[0]["left"]) and len(scenes) == 3
     for sequence in ("seq_000", "seq_003", "seq_009"):
         for image in (copy / sequence / "rgb").iterdir():
             image.unlink()
     again = [cached[key] for key in keys]
-    on_the_fly._SCENES.clear()
     for want, *got in zip(expected, first, again):
         for item in got:
             assert all(torch.equal(want[k], item[k]) for k in want)

@@ -19,10 +19,9 @@ the whole frame's render to a level of rounding where the distortion moves it, e
 none does.
 
 Training names such a folder wherever it names a dataset (``synthetic_data``; a recipe's synth
-step with ``source: on-the-fly``); validation stays on datasets written once. With ``cache``
-(training's ``cache``, ``reproduce --cache``) each scene's RGB and depth are decoded once per
-process and kept, shared by every source of the process that reads the same scenes: about
-3.3 MB a 840x560 scene (RGB as 8-bit where that is lossless).
+step with ``source: on-the-fly``); validation stays on datasets written once. Sources given
+one :class:`SceneCache` (training's ``cache``, ``reproduce --cache``) decode each scene's RGB
+and depth once per process and share them: about 3.3 MB a 840x560 scene.
 """
 
 from __future__ import annotations
@@ -39,8 +38,8 @@ from dualpixel.data.dataset import DPPatchDataset, PatchConfig
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.atomic import atomic_path
 
-__all__ = ["ON_THE_FLY_FILE", "OnTheFlyDataset", "is_on_the_fly", "write_on_the_fly",
-           "write_samples"]
+__all__ = ["ON_THE_FLY_FILE", "OnTheFlyDataset", "SceneCache", "is_on_the_fly",
+           "write_on_the_fly", "write_samples"]
 
 #: The file that makes a folder an on-the-fly source.
 ON_THE_FLY_FILE = "on-the-fly.json"
@@ -122,13 +121,14 @@ class _Sequence:
 class OnTheFlyDataset(DPPatchDataset):
     """Crops of frames rendered on the fly (see the module's text): ``(index, seed)`` items as
     :class:`DPPatchDataset` gives, one index per scene and lens set, the draw from the seed.
-    ``transform`` as for :class:`DPPatchDataset`.
+    ``transform`` as for :class:`DPPatchDataset`; ``scenes``: where decoded scenes are kept
+    (None: each item reads its scene's files).
 
     Rendering runs where the item is made: in the DataLoader's worker processes (CPU).
     """
 
-    def __init__(self, folder: str | Path, config: PatchConfig, *, cache: bool = False,
-                 transform=None):
+    def __init__(self, folder: str | Path, config: PatchConfig, *,
+                 scenes: SceneCache | None = None, transform=None):
         from dualpixel.io.images import image_size
 
         self.source = _Source.read(folder)
@@ -141,7 +141,7 @@ class OnTheFlyDataset(DPPatchDataset):
                 sequences.append(_Sequence(f"{scene.name}/{lens_set}", height, width,
                                            scene.frames, s, c))
         super().__init__(sequences, config, transform=transform)
-        self.cache_scenes = cache
+        self.scene_cache = scenes
 
     @property
     def raw_black_level(self) -> float | None:
@@ -171,9 +171,12 @@ class OnTheFlyDataset(DPPatchDataset):
 
     def _pending(self, job) -> _Pending:
         from dualpixel.synthesis.dataset import render_target
+        from dualpixel.synthesis.inputs import load_frame
 
         config = self.source.config
-        scene = _scene(job.frame, self.source.fmt, config, self.cache_scenes)
+        read = dict(max_depth=config.max_depth, depth_scale=config.depth_scale)
+        scene = (load_frame(job.frame, self.source.fmt, **read) if self.scene_cache is None
+                 else self.scene_cache.load(job.frame, self.source.fmt, **read))
         target = _as_read(render_target(job, config, scene), config.bit_depth)
         return _Pending(job, scene, target)
 
@@ -244,26 +247,31 @@ class _Pending:
         return self.target
 
 
-_SCENES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # this process's decoded scenes
+class SceneCache:
+    """Scene frames decoded once and kept in memory (RGB as 8-bit where that is lossless),
+    for the on-the-fly sources of one process that read the same scenes."""
 
+    def __init__(self) -> None:
+        self._scenes: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
-def _scene(frame, fmt: str, config, cache: bool) -> tuple[np.ndarray, np.ndarray]:
-    """A scene frame's RGB ``(H, W, 3)`` float32 and depth ``(H, W)``, as
-    :func:`~dualpixel.synthesis.inputs.load_frame` reads them; with ``cache``, decoded once
-    per process (:data:`_SCENES`; each call gets its own copies)."""
-    from dualpixel.data.frame_store import compact_frame, expand
-    from dualpixel.synthesis.inputs import load_frame
+    def __len__(self) -> int:
+        return len(self._scenes)
 
-    read = dict(max_depth=config.max_depth, depth_scale=config.depth_scale)
-    if not cache:
-        return load_frame(frame, fmt, **read)
-    key = (str(frame.rgb), str(frame.depth), fmt, read["max_depth"], read["depth_scale"])
-    if key not in _SCENES:
-        rgb, depth = load_frame(frame, fmt, **read)
-        _SCENES[key] = (compact_frame({"rgb": rgb})["rgb"], depth)
-    rgb, depth = _SCENES[key]
-    image = expand(rgb)
-    return (image.copy() if image is rgb else image), depth.copy()
+    def load(self, frame, fmt: str, *, max_depth: float, depth_scale: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """A frame's RGB ``(H, W, 3)`` float32 in [0, 1] and depth ``(H, W)`` as
+        :func:`~dualpixel.synthesis.inputs.load_frame` reads them, the files read on the first
+        call only; each call gets its own copies."""
+        from dualpixel.data.frame_store import compact_frame, expand
+        from dualpixel.synthesis.inputs import load_frame
+
+        key = (str(frame.rgb), str(frame.depth), fmt, max_depth, depth_scale)
+        if key not in self._scenes:
+            rgb, depth = load_frame(frame, fmt, max_depth=max_depth, depth_scale=depth_scale)
+            self._scenes[key] = (compact_frame({"rgb": rgb})["rgb"], depth)
+        rgb, depth = self._scenes[key]
+        image = expand(rgb)
+        return (image.copy() if image is rgb else image), depth.copy()
 
 
 def _as_read(image: np.ndarray, bit_depth: int) -> np.ndarray:

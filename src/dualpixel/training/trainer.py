@@ -113,7 +113,7 @@ def _synthetic_dataset(config: TrainConfig, patches: PatchConfig, stored: dict[s
     """The synthetic data: written datasets read, on-the-fly sources rendered
     (:mod:`dualpixel.synthesis.on_the_fly`), in the order ``synthetic_data`` names them."""
     from dualpixel.data.dataset import ConcatPatches
-    from dualpixel.synthesis.on_the_fly import OnTheFlyDataset, is_on_the_fly
+    from dualpixel.synthesis.on_the_fly import OnTheFlyDataset, SceneCache, is_on_the_fly
     from dualpixel.training.raw_views import StoredRawViews
 
     folders = ([config.synthetic_data] if isinstance(config.synthetic_data, str)
@@ -123,9 +123,10 @@ def _synthetic_dataset(config: TrainConfig, patches: PatchConfig, stored: dict[s
         transform = raw_views_transform(folders, config.raw_views)
         return DPPatchDataset(sequences, patches, **stored, transform=transform)
     parts = []
+    scenes = SceneCache() if config.cache else None  # shared by the sources
     for folder in folders:
         if is_on_the_fly(folder):
-            part = OnTheFlyDataset(folder, patches, cache=config.cache)
+            part = OnTheFlyDataset(folder, patches, scenes=scenes)
             if config.raw_views == "model" and part.raw_black_level is not None:
                 part.transform = StoredRawViews(part.raw_black_level)
         else:
