@@ -371,3 +371,44 @@ def test_the_output_modes_on_a_known_over_sharpening_darkening_model(frame, tiny
         for limit in ("model", "limited"):
             kept = deblurrer.finish(image, left, right, brightness=tie, overshoot=limit)
             assert np.abs(kept - image).max() < 3 / 255, (tie, limit)
+
+
+def test_eval_trusts_the_orientation_of_a_set_synth_made(tmp_path):
+    """A frame focused far has its blur in front of the focus plane, which the swapped-views
+    guess reads as exchanged views: right for a stranger's pair, wrong for a set ``synth``
+    wrote, whose left is the synthesizer's left."""
+    import json
+    import shutil
+
+    import cv2
+
+    from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
+
+    rng = np.random.default_rng(5)
+    noise = cv2.GaussianBlur(rng.standard_normal((192, 320, 3)).astype(np.float32), (0, 0), 2.0)
+    scene = tmp_path / "scenes" / "seq_000"
+    (scene / "rgb").mkdir(parents=True)
+    (scene / "depth").mkdir()
+    rgb = np.clip(0.45 + 1.2 * noise, 0.02, 0.9)
+    cv2.imwrite(str(scene / "rgb" / "frame_0000.png"),
+                np.rint(rgb[..., ::-1] * 255).astype(np.uint8))
+    # the left quarter 1.5 m away, the rest 3 m, where the scene is focused
+    depth = np.where(np.arange(320)[None, :] < 80, 1.5, 3.0).repeat(192, 0)
+    np.save(scene / "depth" / "frame_0000.npy", depth.astype(np.float32))
+    (scene / "scene.json").write_text(json.dumps({"focus_distance": 3.0}))
+    made = tmp_path / "made"
+    synthesize_dataset(tmp_path / "scenes", "rgbd", made,
+                       SynthConfig(lens_sets=("dslr-840",), noise=False, distortion=False,
+                                   split="test"), progress=False)
+    stranger = tmp_path / "stranger"  # the same files without the synthesizer's description
+    shutil.copytree(made, stranger, ignore=shutil.ignore_patterns("dataset.json"))
+    codes = {}
+    for name, root in (("made", made), ("stranger", stranger)):
+        out = tmp_path / f"eval-{name}"
+        result = CliRunner().invoke(cli, ["eval", "--dataset", str(root), "--split", "test",
+                                          "--no-model", "--no-niqe", "--figures", "0", "-o",
+                                          str(out)])
+        assert result.exit_code == 0, result.output
+        findings = json.loads((out / "summary.json").read_text())["view_findings"]
+        codes[name] = [f["code"] for f in findings]
+    assert codes == {"made": [], "stranger": ["swapped"]}

@@ -95,7 +95,8 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
             sequences, others = discover_dp_dataset(dataset, request.split), {}
         else:
             sequences, others = discover_scene_folders(dataset)
-        meta["view_findings"] = _view_findings(sequences, request.encoding)
+        meta["view_findings"] = _view_findings(
+            sequences, request.encoding, synthesized=(dataset / "dataset.json").is_file())
         examples = examples_from_sequences(sequences, others, request.compare or {})
         if any(example.defocus is not None for example in examples):
             breakdown = BlurBreakdown()
@@ -124,11 +125,14 @@ def run_evaluation(request: EvaluationRequest, deblurrer=None, method: str = "mo
     return output / "summary.md"
 
 
-def _view_findings(sequences, encoding: ViewEncoding | None = None) -> list[dict[str, str]]:
+def _view_findings(sequences, encoding: ViewEncoding | None = None, *,
+                   synthesized: bool = False) -> list[dict[str, str]]:
     """The checks ``deblur`` runs (:func:`~dualpixel.inference.view_checks.check_views`,
     :func:`~dualpixel.inference.encoding.encoding_findings`) on the first pair of every
     sequence, each finding also given as a warning: swapped, half-bright or raw views taken
-    for display values would otherwise just score lower."""
+    for display values would otherwise just score lower. ``synthesized``: a set ``synth``
+    wrote, whose left view is the synthesizer's left, so the guess that views are exchanged
+    (most blur behind the focus plane, false for a frame focused far) is not made."""
     import warnings
 
     from dualpixel.inference.encoding import encoding_findings, to_model
@@ -146,6 +150,8 @@ def _view_findings(sequences, encoding: ViewEncoding | None = None) -> list[dict
             left, right = to_model(left, right, exposed, scale=max_level(bits))
             combined = None
         for finding in findings + check_views(left, right, combined=combined):
+            if synthesized and finding.code == "swapped":
+                continue
             found.append({"example": sequence.name, "code": finding.code,
                           "message": finding.message})
             warnings.warn(f"{first.left}: {finding.message}", stacklevel=2)
