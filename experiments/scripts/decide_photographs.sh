@@ -6,13 +6,20 @@
 # gives the verdict. About 20 minutes on 2 cores.
 #   RUN=runs/rdpd-light-photographs TAG=rdpd-light.v17 REF=rdpd-light.v16 \
 #       bash experiments/scripts/decide_photographs.sh
-# (v16's own decision: RUN=runs/rdpd-light-photographs-cpu TAG=rdpd-light.v16 REF=rdpd-light.v15.)
+# (v16's own decision: RUN=runs/rdpd-light-photographs-cpu TAG=rdpd-light.v16 REF=rdpd-light.v15;
+# REF=START: the shipped tag the run's first phase started from.)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 DP=.venv/bin/dualpixel
 RUN=${RUN:-runs/rdpd-light-photographs}
 TAG=${TAG:-rdpd-light.v17}
 REF=${REF:-rdpd-light.v16}
+if [ "$REF" = START ]; then  # the shipped tag the run's first phase started from
+  REF=$(.venv/bin/python -c "import json, sys; from dualpixel.training.recipe import load_recipe
+recipe = load_recipe(json.load(open(sys.argv[1]))['recipe'])
+print(recipe.phases[0].init)" "$RUN/recipe.json")
+  echo "START: $REF"
+fi
 CAND=$RUN/ship/$TAG.safetensors
 OUT=$RUN/decision
 for camera in canon-840 canon-hd canon-stored dslr phone phone-raw phone-close; do
