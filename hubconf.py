@@ -1,7 +1,7 @@
 """torch.hub entry points: every shipped model by its alias and tag, as a network in eval mode.
 
     model = torch.hub.load("path/to/dualpixel", "rdpd_light", source="local")
-    model = torch.hub.load("path/to/dualpixel", "rdpd_light_v12", source="local",
+    model = torch.hub.load("path/to/dualpixel", "rdpd_light_v18", source="local",
                            device="cpu")
 
 Names are the registry's aliases and tags with ``-`` and ``.`` as ``_``. The weights ship

@@ -29,14 +29,14 @@ def pair(behind_focus_frame):
 
 def test_a_shipped_models_settings_follow_it_everywhere(pair, tmp_path):
     left, right = pair
-    name = "rdpd-light.v12"  # runs with brightness tied; its file's header does not say so
+    name = "rdpd-light.v18"  # runs with brightness tied (its registry row)
     assert output_settings(name) == {"brightness": "tied"}
     by_name = deblur(left, right, model=name, device="cpu")
     copy = tmp_path / "my-copy.safetensors"
     shutil.copy(resolve_checkpoint(name), copy)  # known by its sha256
     net = load_model(name, device="cpu")
     assert net.output_settings == {"brightness": "tied"}
-    hub = torch.hub.load(str(ROOT), "rdpd_light_v12", source="local", device="cpu")
+    hub = torch.hub.load(str(ROOT), "rdpd_light_v18", source="local", device="cpu")
     for model in (copy, str(copy), net, hub):
         np.testing.assert_array_equal(deblur(left, right, model=model, device="cpu"), by_name)
     untied = deblur(left, right, model=net, device="cpu", brightness="model")

@@ -354,7 +354,7 @@ def load_recipe(path: str | Path, *, tag_files: dict[str, str | Path] | None = N
     recipe = Recipe(path, _plain(path, "recipe", raw["name"]), str(raw.get("description", "")),
                     steps, train, phases, ship, evaluate)
     recipe.tag_files = _checked_tag_files(recipe, tag_files or {})
-    check_recipe(recipe)
+    check_recipe(recipe, retired_starts=True)
     return recipe
 
 
@@ -487,9 +487,12 @@ def _architecture_keys(settings: dict[str, Any]) -> dict[str, Any]:
     return {**settings, **keys}
 
 
-def check_recipe(recipe: Recipe, output: Path = Path("OUTPUT")) -> None:
+def check_recipe(recipe: Recipe, output: Path = Path("OUTPUT"), *,
+                 retired_starts: bool = False) -> None:
     """Build every step's and phase's settings (no work done): each error names the recipe, the
-    step or phase and the problem."""
+    step or phase and the problem. ``retired_starts``: a phase may start from a tag that no
+    longer ships and has no file given (reading a recipe; running it needs the file)."""
+
     steps_seen: set[str] = set()
     for step in recipe.data:
         where = f"data step {step.name}"
@@ -507,7 +510,7 @@ def check_recipe(recipe: Recipe, output: Path = Path("OUTPUT")) -> None:
     for index, phase in enumerate(recipe.phases):
         where = f"phase {phase.name}"
         try:
-            init = phase_start(recipe, index, output, must_exist=False)
+            init = _planned_start(recipe, index, output, retired_starts)
         except (ParameterError, InputFileError) as error:
             raise _fail(recipe.path, where, f"init {phase.init!r} cannot be resolved: "
                                             f"{error}") from None
@@ -559,6 +562,19 @@ def phase_start(recipe: Recipe, index: int, output: Path, *, must_exist: bool = 
     return _tag_start(recipe, (given or tags)[0])
 
 
+def _planned_start(recipe: Recipe, index: int, output: Path, retired_starts: bool) -> str | None:
+    """:func:`phase_start` for a plan (a previous phase this run will make is accepted); with
+    ``retired_starts``, a tag that no longer ships and has no file given stands for itself."""
+    from dualpixel.weights import DEPRECATED
+
+    try:
+        return phase_start(recipe, index, output, must_exist=False)
+    except (ParameterError, InputFileError):
+        if retired_starts and recipe.phases[index].init in DEPRECATED:
+            return recipe.phases[index].init  # remade by its own recipe; a run needs its file
+        raise
+
+
 def made_tags(recipe: Recipe, phase: str) -> list[str]:
     """The tags of the weights a phase of ``recipe`` made: the shipped one first, then those
     that no longer ship (:data:`dualpixel.weights.DEPRECATED`)."""
@@ -606,7 +622,7 @@ def plan_text(recipe: Recipe, output: Path, until: str | None = None) -> str:
     for index, phase in enumerate(recipe.phases[: last + 1]):
         folder = recipe.phase_folder(output, index)
         config = phase_config(recipe, index, output,
-                              phase_start(recipe, index, output, must_exist=False))
+                              _planned_start(recipe, index, output, retired_starts=True))
         changes = ", ".join(f"{k}={v}" for k, v in phase.settings.items()) or "(shared only)"
         lines.append(f"  {index + 1:02d} {phase.name:<14} from {phase.init}; {changes}; "
                      f"{config.epochs} x {config.iterations_per_epoch or 'auto'} iterations  "
@@ -822,7 +838,7 @@ def needed_steps(recipe: Recipe, output: Path, first: int, last: int) -> list[Da
                         {s.name for s in recipe.data}}
     for index in range(first, last + 1):
         config = phase_config(recipe, index, output,
-                              phase_start(recipe, index, output, must_exist=False))
+                              _planned_start(recipe, index, output, retired_starts=True))
         for key in _DATA_KEYS:
             wanted |= {folders[v] for v in _as_list(getattr(config, key)) if v in folders}
     for step in reversed(recipe.data):  # inputs come before the steps that read them
