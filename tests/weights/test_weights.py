@@ -91,8 +91,8 @@ def test_reproduce_plans_the_registry_phase(tag, tmp_path):
     weights = WEIGHTS[tag]
     recipe = load_recipe(RECIPES / weights.recipe)
     # a start that no longer ships is remade by its own recipe: the default's file stands in
-    remade = [f"--tag-file={tag}={WEIGHTS[ALIASES[DEFAULT_CHECKPOINT]].path}"
-              for tag in recipe.start_tags if tag in DEPRECATED]
+    remade = [f"--tag-file={retired}={WEIGHTS[ALIASES[DEFAULT_CHECKPOINT]].path}"
+              for retired in recipe.start_tags if retired in DEPRECATED]
     result = CliRunner().invoke(cli, ["reproduce", str(RECIPES / weights.recipe), "--output",
                                       str(tmp_path / "run"), "--dry-run", *remade])
     assert result.exit_code == 0, result.output

@@ -149,9 +149,8 @@ def _view_findings(sequences, encoding: ViewEncoding | None = None, *,
             exposed = encoding.exposed(left, right, scale=max_level(bits))
             left, right = to_model(left, right, exposed, scale=max_level(bits))
             combined = None
-        for finding in findings + check_views(left, right, combined=combined):
-            if synthesized and finding.code == "swapped":
-                continue
+        for finding in findings + check_views(left, right, combined=combined,
+                                              orientation_known=synthesized):
             found.append({"example": sequence.name, "code": finding.code,
                           "message": finding.message})
             warnings.warn(f"{first.left}: {finding.message}", stacklevel=2)

@@ -156,7 +156,7 @@ def _brightness(left: np.ndarray, right: np.ndarray,
 
 def check_views(
     left: np.ndarray, right: np.ndarray, *, combined: np.ndarray | None = None,
-    bit_depths: tuple[int, int] | None = None,
+    bit_depths: tuple[int, int] | None = None, orientation_known: bool = False,
 ) -> list[ViewFinding]:
     """Likely mistakes in a DP pair, most serious first (empty when none is seen).
 
@@ -165,6 +165,8 @@ def check_views(
         combined: the combined image of the same capture, if there is one (brightness and
             same-capture checks).
         bit_depths: the files' bit depths ``(left, right)``, if read from files.
+        orientation_known: the left view is known to be the camera's left (a synthesised
+            pair), so the guess that the views are exchanged is not made.
     """
     findings = []
     if bit_depths is not None and bit_depths[0] != bit_depths[1]:
@@ -173,5 +175,5 @@ def check_views(
             "from the same export?")))
     findings += _brightness(left, right, combined)
     coded = _block_coded(left)
-    swapped = _swapped(left, right)
+    swapped = None if orientation_known else _swapped(left, right)
     return ([swapped] if swapped else []) + findings + ([coded] if coded else [])

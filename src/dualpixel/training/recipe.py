@@ -492,7 +492,6 @@ def check_recipe(recipe: Recipe, output: Path = Path("OUTPUT"), *,
     """Build every step's and phase's settings (no work done): each error names the recipe, the
     step or phase and the problem. ``retired_starts``: a phase may start from a tag that no
     longer ships and has no file given (reading a recipe; running it needs the file)."""
-
     steps_seen: set[str] = set()
     for step in recipe.data:
         where = f"data step {step.name}"
