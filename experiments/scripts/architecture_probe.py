@@ -27,7 +27,7 @@ import torch
 from dualpixel.models.checkpoint import load_model
 from dualpixel.training import load_config, train
 from dualpixel.training.raw_views import raw_views_transform
-from dualpixel.training.trainer import _discover, validate
+from dualpixel.training.trainer import _discover, has_checkpoint, validate
 
 #: The arms: the architecture's build settings, as a training config takes them.
 ARMS = {
@@ -67,7 +67,7 @@ def main() -> None:
     history = run / "history.jsonl"
     done = history.exists() and len(history.read_text().splitlines()) >= args.epochs
     if not done:
-        train(config, run, resume=(run / "config.yaml").exists(), progress=False)
+        train(config, run, resume=has_checkpoint(run), progress=False)
     scores_path = args.output / f"{args.arm}.json"
     scores = json.loads(scores_path.read_text()) if scores_path.exists() else {}
     best = run / "best.safetensors"

@@ -303,7 +303,7 @@ def test_refusals(tiny_synthetic_dataset, tmp_path):
     with pytest.raises(ParameterError, match="differs from the saved run in learning_rate"):
         train(tiny_config(tiny_synthetic_dataset, learning_rate=1.0), tmp_path / "run",
               resume=True, progress=False)
-    with pytest.raises(InputFileError, match="nothing to resume"):
+    with pytest.raises(InputFileError, match=r"nothing to resume.*without --resume"):
         train(tiny_config(tiny_synthetic_dataset), tmp_path / "new", resume=True, progress=False)
     with pytest.raises(ParameterError, match=r"unknown config key.*learnin_rate"):
         load_config(None, {"learnin_rate": 1})

@@ -412,7 +412,8 @@ class Trainer:
             raise ParameterError(
                 f"{output} already holds a training run; pass --resume to continue it")
         if self.resume and not has_run:
-            raise InputFileError(output / "last_state.pt", "nothing to resume (no checkpoint)")
+            raise InputFileError(output / "last_state.pt", "nothing to resume (no checkpoint yet); "
+                                 "start the run again without --resume")
         if self.resume:
             resumed = _check_resumable(output, config)
             if self.main:
