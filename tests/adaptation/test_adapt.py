@@ -143,3 +143,52 @@ def test_adapt_refuses_a_camera_its_views_do_not_measure(tmp_path, tiny_checkpoi
     assert "the views do not measure this camera" in result.output
     assert "give --camera" in result.output and "Traceback" not in result.output
     assert not (out / "train").exists() and not (out / "camera.json").exists()
+
+
+def test_adapt_codes_both_training_sources_and_keeps_its_held_out_frames_clean(tmp_path):
+    """``view_coding``: the camera's and the family's synthetic pairs coded as the start's own
+    training pairs were; the held-out frames scored before and after stay clean."""
+    from dualpixel.adaptation.finetune import AdaptSettings, _data
+    from dualpixel.synthesis.on_the_fly import ON_THE_FLY_FILE
+
+    settings = AdaptSettings(scenes=2, scene_size=(128, 96), view_coding="h264:0.25")
+    sources, val = _data(tmp_path, settings, CAMERA, grey=False, progress=False)
+    for source in sources:
+        config = json.loads((Path(source) / ON_THE_FLY_FILE).read_text())["config"]
+        assert config["view_coding"]["codec"] == "h264"
+        assert config["view_coding"]["share"] == 0.25
+    held_out = json.loads((Path(val) / "dataset.json").read_text())
+    assert "view_coding" not in held_out["config"]
+    clean = AdaptSettings(scenes=2, scene_size=(128, 96))
+    sources, _ = _data(tmp_path / "clean", clean, CAMERA, grey=False, progress=False)
+    config = json.loads((Path(sources[0]) / ON_THE_FLY_FILE).read_text())["config"]
+    assert "view_coding" not in config
+
+
+def test_adapt_refuses_a_coding_it_cannot_make_before_any_work(tmp_path, tiny_checkpoint,
+                                                               monkeypatch):
+    from dualpixel.adaptation.finetune import AdaptSettings
+    from dualpixel.errors import ParameterError
+
+    pairs = _pairs(tmp_path / "pairs", count=2)
+    result = CliRunner().invoke(cli, ["adapt", str(pairs), "-o", str(tmp_path / "a"),
+                                      "--checkpoint", str(tiny_checkpoint), "--view-coding",
+                                      "gif", *SMALL])
+    assert result.exit_code != 0 and "codec must be one of h264, jpeg" in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "a").exists()
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "av" else real(name, *a))
+    with pytest.raises(ParameterError, match="needs PyAV"):
+        AdaptSettings(view_coding="h264")
+    assert AdaptSettings(view_coding="jpeg:0.5").coding().share == 0.5  # OpenCV: always there
+
+
+def test_the_report_tells_apart_pairs_whose_folders_share_a_name():
+    from dualpixel.adaptation.report import _pair_names
+
+    pairs = [("dev/scene_00/left.png",), ("dev-hd/scene_00/left.png",),
+             ("dev-hd/scene_01/left.png",)]
+    assert _pair_names(pairs) == ["dev/scene_00", "dev-hd/scene_00", "scene_01"]

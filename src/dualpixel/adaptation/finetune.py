@@ -66,6 +66,8 @@ class AdaptSettings:
     in_focus_weight: float = 0.0
     seed: int = 0
     scene_size: tuple[int, int] = (840, 560)  # (width, height) px of the synthetic scenes
+    # the synthetic training pairs' lossy coding, ``CODEC[:SHARE]`` or None (ViewCoding.parse)
+    view_coding: str | None = None
 
     def __post_init__(self) -> None:
         from dualpixel.errors import check_range
@@ -88,6 +90,14 @@ class AdaptSettings:
             check_range(name, getattr(self, name), 0.0, 1e3)
         if self.learning_rate <= 0:
             raise ParameterError(f"learning_rate must be > 0, got {self.learning_rate}")
+        if self.view_coding is not None:
+            self.coding().require()  # checked now, not when the first crop is rendered
+
+    def coding(self):
+        """The training pairs' :class:`~dualpixel.synthesis.view_coding.ViewCoding`, or None."""
+        from dualpixel.synthesis.view_coding import ViewCoding
+
+        return None if self.view_coding is None else ViewCoding.parse(self.view_coding)
 
 
 @dataclass
@@ -211,14 +221,16 @@ def _blur_maps(output: Path, pairs, camera: DPCamera, measured, progress: bool):
     return read_blur_maps(path)[0], path
 
 
-def _synth_config(camera: DPCamera | str, grey: bool, seed: int, split: str):
-    """The family recipe's synthesis settings for a colour or a grey (phone) camera."""
+def _synth_config(camera: DPCamera | str, grey: bool, seed: int, split: str,
+                  coding: dict | None = None):
+    """The family recipe's synthesis settings for a colour or a grey (phone) camera, the views
+    coded by ``coding`` (a ViewCoding's mapping; None: clean)."""
     from dualpixel.optics.camera import load_camera
     from dualpixel.synthesis.dataset import SynthConfig
 
     camera = load_camera(camera) if isinstance(camera, str) else camera
     common = dict(camera=camera.to_dict(), psf_bank="pixel4", noise_model="poisson-gaussian",
-                  bit_depth=8, seed=seed, split=split)
+                  bit_depth=8, seed=seed, split=split, view_coding=coding)
     if grey:
         return SynthConfig(lens_sets=("phone-2016-crop", "phone-2016-close"), grey=True,
                            noise_sigmas=(0.008, 0.012, 0.018, 0.025, 0.035), **common)
@@ -242,11 +254,14 @@ def _data(output: Path, settings: AdaptSettings, camera: DPCamera, grey: bool,
     write_scene_folder(data / "val-scenes", 4, config, seed=settings.seed + 1,
                        progress=progress, photos=photos)
     family = "pixel4" if grey else "canon-840-linear"  # the shipped family's nearest camera
+    coding = settings.coding()
+    coding = None if coding is None else coding.as_dict()
     sources = []
     for name, source_camera, offset in (("camera-train", camera, 2), ("family-train", family, 3)):
         folder = data / name
         write_on_the_fly(folder, data / "scenes", "rgbd",
-                         _synth_config(source_camera, grey, settings.seed + offset, "train"))
+                         _synth_config(source_camera, grey, settings.seed + offset, "train",
+                                       coding))
         sources.append(str(folder))
     val = data / "camera-test"
     summary = synthesize_dataset(data / "val-scenes", "rgbd", val,

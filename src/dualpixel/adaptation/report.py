@@ -55,6 +55,15 @@ def _val_psnr(checkpoint: str | Path, val: str, device: str) -> float:
     return validate(model, discover_dp_dataset(val, "test"), target)[0]
 
 
+def _pair_names(pairs: Sequence[tuple[str, ...]]) -> list[str]:
+    """Each pair's folder name, with its parent's where two folders share a name (the same
+    scenes at two resolutions)."""
+    folders = [Path(pair[0]).parent for pair in pairs]
+    names = [folder.name for folder in folders]
+    return [f"{folder.parent.name}/{name}" if names.count(name) > 1 else name
+            for folder, name in zip(folders, names)]
+
+
 def write_report(output: Path, pairs: Sequence[tuple[str, str, np.ndarray, np.ndarray]],
                  start: Path, adapted: Path, maps: Sequence[BlurMap], camera: DPCamera, val: str,
                  *, device: str = "auto", progress: bool = False) -> dict[str, Any]:
@@ -74,8 +83,7 @@ def write_report(output: Path, pairs: Sequence[tuple[str, str, np.ndarray, np.nd
     rows, residuals = [], {label: [] for label in names}
     steps = progress_bar(total=len(pairs) * len(names), desc="adapt report", enabled=progress)
     with steps:
-        for (path, _, left, right), blur in zip(pairs, maps):
-            pair = Path(path).parent.name
+        for (_, _, left, right), blur, pair in zip(pairs, maps, _pair_names(pairs)):
             left, right = grey_as_one_channel(left, right)
             for label, method in methods.items():
                 deblurred = method(left, right)

@@ -38,6 +38,10 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath, pars
               show_default=True, help="Weight of the formation loss on the pairs (0: off).")
 @click.option("--in-focus-weight", type=click.FloatRange(0, 1e3), default=0.0,
               show_default=True, help="Weight of keeping their in-focus blocks (0: off).")
+@click.option("--view-coding", default=None, metavar="CODEC[:SHARE]",
+              help="Code the two views of a share of the synthetic training pairs lossily, as "
+                   "the pairs' own views may have been: h264 (needs PyAV) or jpeg, e.g. h264:0.5 "
+                   "[default: none].")
 @click.option("--seed", type=click.IntRange(0, 2**31 - 1), default=0, show_default=True)
 @click.option("--device", default="auto", show_default=True, help="auto, cpu, cuda, ...")
 @click.option("--threads", type=click.IntRange(1, 1024), default=None,
@@ -46,8 +50,8 @@ from dualpixel.cli.common import CONTEXT, DPCommand, InputPath, OutputPath, pars
 def adapt(pairs: tuple[Path, ...], output: Path, select: tuple[str, ...], checkpoint: str,
           camera: str | None, photos: Path | None, scenes: int, epochs: int, iterations: int,
           patch_size: int, scene_size: tuple[int, int], formation_weight: float,
-          in_focus_weight: float, seed: int, device: str, threads: int | None,
-          progress: bool) -> None:
+          in_focus_weight: float, view_coding: str | None, seed: int, device: str,
+          threads: int | None, progress: bool) -> None:
     """Fine-tune a model to the camera of the DP pairs in the PAIRS folders (left/right views,
     no targets needed; targets present are ignored), from synthetic data formed like that
     camera and a formation loss on the pairs themselves. Writes OUTPUT/adapted.safetensors and
@@ -60,7 +64,7 @@ def adapt(pairs: tuple[Path, ...], output: Path, select: tuple[str, ...], checkp
                              epochs=epochs, iterations=iterations, patch_size=patch_size,
                              scene_size=scene_size,
                              formation_weight=formation_weight, in_focus_weight=in_focus_weight,
-                             seed=seed)
+                             view_coding=view_coding, seed=seed)
     result = run_adapt(pairs, output, settings, device=device, threads=threads,
                        progress=progress, log=click.echo)
     start, adapted = result.figures["start"], result.figures["adapted"]

@@ -100,6 +100,15 @@ class ViewCoding:
                                  f"{text!r}") from None
         return cls(codec=codec, share=value)
 
+    def require(self) -> ViewCoding:
+        """Itself, once what its codec needs is known to be installed (before any work)."""
+        from importlib.util import find_spec
+
+        if self.codec == "h264" and find_spec("av") is None:
+            raise ParameterError("H.264 view coding needs PyAV: pip install av (or "
+                                 "dualpixel[video])")
+        return self
+
     def as_dict(self) -> dict[str, Any]:
         return {"codec": self.codec, "share": self.share, "quality": list(self.quality),
                 "hold": self.hold, "loops": self.loops}
