@@ -132,3 +132,16 @@ def test_synth_command_takes_a_codec_and_refuses_bad_ones(scenes, tmp_path):
         assert bad.exit_code == 2 and "Traceback" not in bad.output, bad.output
         assert message in bad.output
         assert not (tmp_path / "bad").exists()
+
+
+def test_h264_coding_without_pyav_is_refused_before_any_frame(scenes, tmp_path, monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "av" else real(name, *a))
+    bad = CliRunner().invoke(cli, ["synth", "--input", str(scenes), "--lens-sets", "set1",
+                                   "--output", str(tmp_path / "bad"), "--bit-depth", "8",
+                                   "--view-coding", "h264"])
+    assert bad.exit_code == 2 and "needs PyAV: pip install av" in bad.output, bad.output
+    assert "Traceback" not in bad.output and not (tmp_path / "bad").exists()

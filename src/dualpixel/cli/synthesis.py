@@ -234,7 +234,8 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         psf_shapes=psf_shapes, grey=grey, encoding=encoding,
         black_level=0.0 if black_level is None else black_level,
         raw_gains=(1.0, 1.0) if raw_gains is None else tuple(raw_gains),
-        view_coding=None if view_coding is None else ViewCoding.parse(view_coding).as_dict(),
+        view_coding=None if view_coding is None
+        else ViewCoding.parse(view_coding).require().as_dict(),
     )
     if source == "on-the-fly":
         from dualpixel.synthesis.on_the_fly import write_on_the_fly
