@@ -38,6 +38,8 @@ CODECS: dict[str, tuple[int, int]] = {"h264": (0, 51), "jpeg": (1, 100)}
 #: Each codec's quality range when none is given: the dev views' H.264 lies near CRF 23
 #: (`docs/formation.md`), photographs' JPEGs at quality 50-95.
 DEFAULT_QUALITY: dict[str, tuple[int, int]] = {"h264": (18, 30), "jpeg": (50, 95)}
+#: What H.264 coding needs and where it is not installed.
+_NEEDS_PYAV = "H.264 view coding needs PyAV: pip install av (or dualpixel[video])"
 
 
 @dataclass(frozen=True)
@@ -105,8 +107,7 @@ class ViewCoding:
         from importlib.util import find_spec
 
         if self.codec == "h264" and find_spec("av") is None:
-            raise ParameterError("H.264 view coding needs PyAV: pip install av (or "
-                                 "dualpixel[video])")
+            raise ParameterError(_NEEDS_PYAV)
         return self
 
     def as_dict(self) -> dict[str, Any]:
@@ -151,8 +152,7 @@ def h264_round_trip(views: np.ndarray, crf: int, *, hold: int = 4, loops: int = 
     try:
         import av
     except ImportError:
-        raise ParameterError("H.264 view coding needs PyAV: pip install av (or "
-                             "dualpixel[video])") from None
+        raise ParameterError(_NEEDS_PYAV) from None
     count, height, width = views.shape[:3]
     padded = np.pad(views, ((0, 0), (0, height % 2), (0, width % 2), (0, 0)), mode="reflect")
     buffer = io.BytesIO()
