@@ -145,3 +145,50 @@ def test_h264_coding_without_pyav_is_refused_before_any_frame(scenes, tmp_path, 
                                    "--view-coding", "h264"])
     assert bad.exit_code == 2 and "needs PyAV: pip install av" in bad.output, bad.output
     assert "Traceback" not in bad.output and not (tmp_path / "bad").exists()
+
+
+def _recipe_coding_views(folder: Path, source: str) -> Path:
+    import yaml
+
+    raw = {"name": "coded", "description": "coded views",
+           "data": [{"name": "scenes", "scenes": {"sequences": 1, "frames": 1, "width": 96,
+                                                   "height": 64, "seed": 1}},
+                    {"name": "synth", "synth": {"input": "scenes", "lens_sets": ["set1"],
+                                                "bit_depth": 8, "source": source,
+                                                "view_coding": {"codec": "h264"}}}],
+           "train": {"model": "rdpd", "synthetic_data": "synth", "epochs": 1,
+                     "iterations_per_epoch": 1, "patch_size": 32},
+           "phases": [{"name": "only"}]}
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "coded.yaml").write_text(yaml.safe_dump(raw, sort_keys=False))
+    return folder / "coded.yaml"
+
+
+@pytest.mark.parametrize("source", ["written", "on-the-fly"])
+def test_a_recipe_coding_views_without_pyav_is_refused_before_its_run(tmp_path, monkeypatch,
+                                                                       source):
+    import importlib.util
+
+    from dualpixel.errors import InputFileError
+    from dualpixel.training.recipe import check_codecs, load_recipe
+
+    path = _recipe_coding_views(tmp_path, source)
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "av" else real(name, *a))
+    for extra in ([], ["--dry-run"]):
+        bad = CliRunner().invoke(cli, ["reproduce", str(path), "--output", str(tmp_path / "run"),
+                                       *extra])
+        assert bad.exit_code == 1 and "Traceback" not in bad.output, bad.output  # the recipe's
+        assert "data step synth" in bad.output and "needs PyAV" in bad.output, bad.output
+        assert not (tmp_path / "run").exists()
+    # written views already coded need no codec to train on; on-the-fly ones code as they train
+    done = tmp_path / "run/data/synth"
+    done.mkdir(parents=True)
+    (done / "dataset.json").write_text('{"status": "complete"}')
+    recipe = load_recipe(path)
+    if source == "written":
+        check_codecs(recipe, tmp_path / "run")
+    else:
+        with pytest.raises(InputFileError, match="needs PyAV"):
+            check_codecs(recipe, tmp_path / "run")

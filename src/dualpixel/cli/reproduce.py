@@ -69,6 +69,7 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
     On a 2-core CPU: --loader-workers 0 --threads 2 --cache; on a GPU with 16 cores:
     --workers 14 --loader-workers 12 --frame-store runs/frame-store."""
     from dualpixel.training.recipe import (
+        check_codecs,
         check_recipe,
         load_recipe,
         phase_start,
@@ -85,10 +86,13 @@ def reproduce(recipe_path: Path, output: Path, until: str | None, start: str | N
         check_recipe(recipe, output)
         if first > 0:
             phase_start(recipe, first, output)  # as the run would
+        check_codecs(recipe, output, first,
+                     None if until is None else recipe.phase_index(until))
         for note in tag_file_notes(recipe):
             click.echo(note)
         click.echo(plan_text(recipe, output, until))
-        click.echo("plan checked: every data step, phase and start resolves")
+        click.echo("plan checked: every data step, phase and start resolves, its codecs are "
+                   "installed")
         return
     machine = {"workers": loader_workers, "threads": threads, "device": device, "cache": cache,
                "frame_store": None if frame_store is None else str(frame_store),

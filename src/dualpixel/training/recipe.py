@@ -62,7 +62,7 @@ from dualpixel.io.paths import check_plain_name
 from dualpixel.names import BRIGHTNESS_MODES, OVERSHOOT_MODES, SYNTH_SOURCES, renamed_keys
 from dualpixel.training.config import MACHINE_KEYS
 
-__all__ = ["MACHINE_SETTINGS", "OUTPUT_SETTINGS", "Phase", "Recipe", "load_recipe",
+__all__ = ["MACHINE_SETTINGS", "OUTPUT_SETTINGS", "Phase", "Recipe", "check_codecs", "load_recipe",
            "phase_done", "phase_finished", "plan_text", "reproduce"]
 
 _TOP_KEYS = {"name", "description", "extends", "data", "train", "phases", "ship", "evaluate"}
@@ -847,6 +847,26 @@ def needed_steps(recipe: Recipe, output: Path, first: int, last: int) -> list[Da
     return [s for s in recipe.data if s.name in wanted]
 
 
+def check_codecs(recipe: Recipe, output: Path, first: int = 0, last: int | None = None
+                 ) -> None:
+    """Refuse, before any work, a run whose data must still be coded by a codec that is not
+    installed (:meth:`~dualpixel.synthesis.view_coding.ViewCoding.require`): a written step of
+    phases ``first..last`` not finished yet, or an on-the-fly step (it codes as it trains)."""
+    last = len(recipe.phases) - 1 if last is None else last
+    for step in needed_steps(recipe, output, first, last):
+        if step.kind != "synth":
+            continue
+        coding = synth_config(recipe, step, output)[0].coding()
+        on_the_fly = step.args.get("source") == "on-the-fly"
+        if coding is None or (not on_the_fly and _step_state(output / "data" / step.name)
+                              == "done"):
+            continue
+        try:
+            coding.require()
+        except ParameterError as error:
+            raise _fail(recipe.path, f"data step {step.name}", str(error)) from None
+
+
 def check_machine(machine: dict[str, Any] | None) -> dict[str, Any]:
     """The machine settings of a run (:data:`MACHINE_SETTINGS` keys), checked as
     :class:`TrainConfig` checks them."""
@@ -882,6 +902,7 @@ def reproduce(recipe: Recipe, output: str | Path, *, until: str | None = None,
         raise ParameterError(f"--from {start} comes after --until {until}")
     if first > 0:
         phase_start(recipe, first, output)  # a start that cannot be resolved fails now
+    check_codecs(recipe, output, first, last)
     from dualpixel.io.lock import folder_lock
 
     with folder_lock(output, "reproduce"):
