@@ -1,0 +1,72 @@
+"""Issue #77 item 3: how strongly real DP views were block-coded, against the coding training gives.
+
+:func:`dualpixel.inference.view_checks.blockiness` (steps on the coder's 8-px grid over those
+between it; about 1 uncoded) of every left view of the real pairs in ``../shared``, and of
+held-out synthetic phone views (a written set of the photographic recipe) after the H.264 coding
+of ``view_coding`` (both views in one animation) at several CRFs, at their own exposure and
+scaled to the real phone views' (their 99.5th percentile).
+
+    python experiments/scripts/view_blockiness.py runs/rdpd-light-photographs/data/phone-test
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from dualpixel.inference.view_checks import blockiness
+from dualpixel.io.images import read_rgb
+from dualpixel.synthesis.view_coding import h264_round_trip
+
+SHARED = Path("../shared/data")
+REAL = {"Pixel 4, GIF frames": ("dp-real-nogt", "pixel-gif-0?/left.png"),
+        "Pixel 4, MP4 frames": ("dp-real-nogt", "pixel-mp4-0?/left.png"),
+        "Canon R6 II": ("dp-real-nogt", "sdirt-*/left.png"),
+        "dev Canon, 840 px (GIF)": ("canon-dp-real", "scene_*/view0.png"),
+        "dev Canon, 1620 px (H.264)": ("canon-dp-real-hd", "scene_*/view0.png")}
+CRFS = (18, 24, 30, 36, 42, 48)
+
+
+def _row(label: str, values: list[float]) -> str:
+    values = [v for v in values if v is not None]
+    return (f"| {label} | {len(values)} | {np.median(values):.2f} | {min(values):.2f} - "
+            f"{max(values):.2f} |")
+
+
+def _as_rgb8(image: np.ndarray) -> np.ndarray:
+    return np.clip(np.round(image * 255), 0, 255).astype(np.uint8)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("phone_set", type=Path, help="a written phone held-out set (split test)")
+    parser.add_argument("--count", type=int, default=8)
+    args = parser.parse_args()
+    print("| views | pairs | blockiness, median | range |\n|---|---|---|---|")
+    real_peak = []
+    for label, (folder, pattern) in REAL.items():
+        paths = sorted((SHARED / folder).glob(pattern))
+        views = [read_rgb(path) for path in paths]
+        if label.startswith("Pixel"):
+            real_peak += [float(np.percentile(v, 99.5)) for v in views]
+        print(_row(label, [blockiness(v) for v in views]))
+    exposure = float(np.median(real_peak))
+    lefts = sorted((args.phone_set / "test_l").rglob("*.png"))[: args.count]
+    pairs = [(read_rgb(p), read_rgb(args.phone_set / "test_r" / p.relative_to(
+        args.phone_set / "test_l"))) for p in lefts]
+    for scale_label, dark in (("own exposure", False), (f"at the real views' ({exposure:.2f})",
+                                                         True)):
+        for crf in CRFS:
+            values = []
+            for left, right in pairs:
+                scale = exposure / max(float(np.percentile(left, 99.5)), 1e-6) if dark else 1.0
+                coded = h264_round_trip(np.stack([_as_rgb8(left * scale),
+                                                  _as_rgb8(right * scale)]), crf)
+                values.append(blockiness(np.round(coded[0]) / 255.0))
+            print(_row(f"ours, phone, H.264 CRF {crf}, {scale_label}", values))
+
+
+if __name__ == "__main__":
+    main()
