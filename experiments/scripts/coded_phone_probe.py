@@ -16,10 +16,9 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-import numpy as np
+from view_blockiness import coded_psnr, held_out_frames  # beside this script
 
 import dualpixel
-from dualpixel.io.images import read_rgb
 from dualpixel.synthesis.on_the_fly import write_on_the_fly
 from dualpixel.training import train
 from dualpixel.training.recipe import load_recipe, phase_config, synth_config
@@ -51,26 +50,13 @@ def make_arm(name: str, out: Path, data: Path, iterations: int, threads: int) ->
     return run / "last.safetensors"
 
 
-def gains(model: str, test: Path, count: int) -> list[float]:
-    """Gain over the combined input (dB, green, mean of ``count`` frames) per CRF of CRFS."""
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).parent))
-    from view_blockiness import _coded, _psnr
-
-    lefts = sorted((test / "test_l").rglob("*.png"))[:count]
+def gains(model: str, pairs: list, targets: list) -> list[float]:
+    """Gain over the combined input (dB, green, mean of the frames) per CRF of CRFS."""
     loaded = dualpixel.load_model(model) if model.endswith(".safetensors") else model
     row = []
     for crf in CRFS:
-        values = []
-        for path in lefts:
-            rel = path.relative_to(test / "test_l")
-            left, right = read_rgb(path), read_rgb(test / "test_r" / rel)
-            target = read_rgb(test / "test_c" / "target" / rel.relative_to("source"))[..., 1]
-            left, right = (np.clip(v[..., 1], 0, 1) for v in _coded(left, right, crf, 1.0))
-            output = np.asarray(dualpixel.deblur(left, right, model=loaded, brightness="tied"))
-            values.append(_psnr(output, target) - _psnr((left + right) / 2, target))
-        row.append(float(np.mean(values)))
+        inputs, outputs = coded_psnr(pairs, targets, crf, [1.0] * len(pairs), loaded)
+        row.append(outputs - inputs)
     return row
 
 
@@ -88,8 +74,9 @@ def main() -> None:
             make_arm(name, args.output, args.data, args.iterations, args.threads))
     names = ["clean" if c is None else f"CRF {c}" for c in CRFS]
     print(f"| model | {' | '.join(names)} |\n|---|{'---|' * len(CRFS)}")
+    pairs, targets = held_out_frames(args.data / "data" / "phone-test", args.count)
     for label, model in models.items():
-        row = gains(model, args.data / "data" / "phone-test", args.count)
+        row = gains(model, pairs, targets)
         print(f"| {label} | {' | '.join(f'{g:+.2f}' for g in row)} |", flush=True)
 
 

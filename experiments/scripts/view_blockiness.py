@@ -22,6 +22,7 @@ import dualpixel
 from dualpixel.inference.view_checks import blockiness
 from dualpixel.io.images import read_rgb
 from dualpixel.synthesis.view_coding import h264_round_trip
+from dualpixel.weights import DEFAULT_CHECKPOINT
 
 SHARED = Path("../shared/data")
 REAL = {"Pixel 4, GIF frames": ("dp-real-nogt", "pixel-gif-0?/left.png"),
@@ -56,6 +57,30 @@ def _as_rgb8(image: np.ndarray) -> np.ndarray:
     return np.clip(np.round(image * 255), 0, 255).astype(np.uint8)
 
 
+def held_out_frames(test: Path, count: int) -> tuple[list, list]:
+    """The first ``count`` pairs of a written held-out set (float ``(H, W, 3)``) and their
+    targets' green channel."""
+    lefts = sorted((test / "test_l").rglob("*.png"))[:count]
+    pairs = [(read_rgb(p), read_rgb(test / "test_r" / p.relative_to(test / "test_l")))
+             for p in lefts]
+    targets = [read_rgb(test / "test_c" / "target" / p.relative_to(test / "test_l" / "source")
+                        )[..., 1] for p in lefts]
+    return pairs, targets
+
+
+def coded_psnr(pairs: list, targets: list, crf: int | None, scales: list[float],
+               model=DEFAULT_CHECKPOINT) -> tuple[float, float]:
+    """Mean PSNR (dB, green) of the combined input and of ``model``'s output (tied brightness)
+    with every pair coded at ``crf`` after its light was scaled by its ``scales`` entry."""
+    scores = []
+    for (left, right), scale, target in zip(pairs, scales, targets):
+        left, right = (np.clip(v[..., 1], 0, 1) for v in _coded(left, right, crf, scale))
+        output = np.asarray(dualpixel.deblur(left, right, model=model, brightness="tied"))
+        scores.append((_psnr((left + right) / 2, target), _psnr(output, target)))
+    inputs, outputs = np.mean(scores, axis=0)
+    return float(inputs), float(outputs)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("phone_set", type=Path, help="a written phone held-out set (split test)")
@@ -70,9 +95,7 @@ def main() -> None:
             real_peak += [float(np.percentile(v, 99.5)) for v in views]
         print(_row(label, [blockiness(v) for v in views]))
     exposure = float(np.median(real_peak))
-    lefts = sorted((args.phone_set / "test_l").rglob("*.png"))[: args.count]
-    pairs = [(read_rgb(p), read_rgb(args.phone_set / "test_r" / p.relative_to(
-        args.phone_set / "test_l"))) for p in lefts]
+    pairs, targets = held_out_frames(args.phone_set, args.count)
     scales = {"own exposure": [1.0] * len(pairs),
               f"at the real views' ({exposure:.2f})": [
                   exposure / max(float(np.percentile(left, 99.5)), 1e-6) for left, _ in pairs]}
@@ -82,16 +105,9 @@ def main() -> None:
                       for (left, right), scale in zip(pairs, factors)]
             print(_row(f"ours, phone, H.264 CRF {crf}, {label}", values))
     print("\n| views | input PSNR, dB | output PSNR, dB | gain, dB |\n|---|---|---|---|")
-    targets = [read_rgb(args.phone_set / "test_c" / "target" / p.relative_to(
-        args.phone_set / "test_l" / "source"))[..., 1] for p in lefts]
     for k, (label, factors) in enumerate(scales.items()):
         for crf in ((None,) if k == 0 else ()) + (18, 24, 30, 36, 44):
-            scores = []
-            for (left, right), scale, target in zip(pairs, factors, targets):
-                left, right = (np.clip(v[..., 1], 0, 1) for v in _coded(left, right, crf, scale))
-                output = np.asarray(dualpixel.deblur(left, right))
-                scores.append((_psnr((left + right) / 2, target), _psnr(output, target)))
-            inputs, outputs = np.mean(scores, axis=0)
+            inputs, outputs = coded_psnr(pairs, targets, crf, factors)
             name = "clean" if crf is None else f"H.264 CRF {crf}, {label}"
             print(f"| {name} | {inputs:.2f} | {outputs:.2f} | {outputs - inputs:+.2f} |")
 

@@ -857,10 +857,11 @@ def check_codecs(recipe: Recipe, output: Path, first: int = 0, last: int | None 
         if step.kind != "synth":
             continue
         coding = synth_config(recipe, step, output)[0].coding()
-        on_the_fly = step.args.get("source") == "on-the-fly"
-        if coding is None or (not on_the_fly and _step_state(output / "data" / step.name)
-                              == "done"):
+        if coding is None:
             continue
+        written = step.args.get("source") != "on-the-fly"
+        if written and _step_state(output / "data" / step.name) == "done":
+            continue  # coded when it was written
         try:
             coding.require()
         except ParameterError as error:
