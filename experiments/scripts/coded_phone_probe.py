@@ -50,12 +50,12 @@ def make_arm(name: str, out: Path, data: Path, iterations: int, threads: int) ->
     return run / "last.safetensors"
 
 
-def gains(model: str, pairs: list, targets: list) -> list[float]:
+def gains(model: str, frames: list) -> list[float]:
     """Gain over the combined input (dB, green, mean of the frames) per CRF of CRFS."""
     loaded = dualpixel.load_model(model) if model.endswith(".safetensors") else model
     row = []
     for crf in CRFS:
-        inputs, outputs = coded_psnr(pairs, targets, crf, [1.0] * len(pairs), loaded)
+        inputs, outputs = coded_psnr(frames, crf, [1.0] * len(frames), loaded)
         row.append(outputs - inputs)
     return row
 
@@ -74,9 +74,9 @@ def main() -> None:
             make_arm(name, args.output, args.data, args.iterations, args.threads))
     names = ["clean" if c is None else f"CRF {c}" for c in CRFS]
     print(f"| model | {' | '.join(names)} |\n|---|{'---|' * len(CRFS)}")
-    pairs, targets = held_out_frames(args.data / "data" / "phone-test", args.count)
+    frames = held_out_frames(args.data / "data" / "phone-test", args.count)
     for label, model in models.items():
-        row = gains(model, pairs, targets)
+        row = gains(model, frames)
         print(f"| {label} | {' | '.join(f'{g:+.2f}' for g in row)} |", flush=True)
 
 

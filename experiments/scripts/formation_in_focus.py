@@ -19,10 +19,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from formation_view_coding import gif_frame
+from margin_under_coding import coded  # beside this script
 
 from dualpixel.io.images import read_rgb
-from dualpixel.synthesis.view_coding import h264_round_trip
 
 SIGMAS = (0.0, 0.35, 0.5, 0.7, 1.0)
 
@@ -32,21 +31,14 @@ def fine(image: np.ndarray) -> np.ndarray:
     return image - cv2.GaussianBlur(image, (0, 0), 1.5)
 
 
-def coded(images: list[np.ndarray], coding: str) -> list[np.ndarray]:
-    """Float ``(H, W, 3)`` images after the dev frames' coding (one H.264 animation or GIF)."""
-    if coding == "gif":
-        return [gif_frame(image) for image in images]
-    as8 = np.stack([np.clip(np.rint(image * 255), 0, 255).astype(np.uint8) for image in images])
-    return list(h264_round_trip(as8, 23, hold=10, loops=3) / 255.0)
-
-
 def slopes(scene: Path, tile: int, agree: float, coding: str) -> dict[str, list[float]]:
     """Per in-focus textured tile: the real views' slope and ours at each of :data:`SIGMAS`."""
     left, right, target = (read_rgb(scene / f"{name}.png") for name in ("view0", "view1", "target"))
     ours = {}
     for sigma in SIGMAS:
         view = cv2.GaussianBlur(target, (0, 0), sigma) if sigma else target
-        view, _, truth = coded([view, view, target], coding)
+        # the dev frames' coding: one H.264 animation at CRF 23 holding each view 10 frames
+        view, _, truth = coded((view, view, target), coding, 23, hold=10, loops=3)
         ours[sigma] = (fine(view[..., 1]), fine(truth[..., 1]))
     real, truth = fine((left[..., 1] + right[..., 1]) / 2), fine(target[..., 1])
     difference = left[..., 1] - right[..., 1]

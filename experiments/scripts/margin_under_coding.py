@@ -20,48 +20,39 @@ from pathlib import Path
 import numpy as np
 import torch
 from formation_view_coding import gif_frame
+from view_blockiness import as_rgb8, held_out_frames, psnr  # beside this script
 
 import dualpixel
-from dualpixel.io.images import read_rgb
 from dualpixel.synthesis.view_coding import h264_round_trip
 
 CODINGS = ("none", "gif", "h264")
 
 
-def _psnr(image: np.ndarray, target: np.ndarray) -> float:
-    return float(10 * np.log10(1.0 / np.mean((np.clip(image, 0, 1) - target) ** 2)))
-
-
-def frames(test: Path, count: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The first ``count`` (left, right, target) of a written held-out set, float (H, W, 3)."""
-    lefts = sorted((test / "test_l").rglob("*.png"))[:count]
-    return [(read_rgb(p), read_rgb(test / "test_r" / p.relative_to(test / "test_l")),
-             read_rgb(test / "test_c" / "target" / p.relative_to(test / "test_l" / "source")))
-            for p in lefts]
-
-
-def coded(images: tuple[np.ndarray, ...], coding: str, crf: int) -> list[np.ndarray]:
-    """``images`` (float (H, W, 3) in [0, 1]) after ``coding``."""
+def coded(images: tuple[np.ndarray, ...], coding: str, crf: int, **round_trip
+          ) -> list[np.ndarray]:
+    """``images`` (float (H, W, 3) in [0, 1]) after ``coding``: ``none``, ``gif`` (each its own
+    GIF frame) or ``h264`` (one animation at ``crf``; ``round_trip``: its ``hold`` and
+    ``loops``)."""
     if coding == "none":
         return list(images)
     if coding == "gif":
         return [gif_frame(image) for image in images]
-    as8 = np.stack([np.clip(np.rint(image * 255), 0, 255).astype(np.uint8) for image in images])
-    return list(h264_round_trip(as8, crf) / 255.0)
+    as8 = np.stack([as_rgb8(image) for image in images])
+    return list(h264_round_trip(as8, crf, **round_trip) / 255.0)
 
 
-def gains(models: list[str], test: Path, count: int, coding: str, crf: int) -> list[float]:
-    """Mean PSNR gain over the combined input of each model, dB."""
+def gains(models: list[str], frames: list, coding: str, crf: int) -> list[float]:
+    """Mean PSNR gain over the combined input of each model on ``frames``
+    (:func:`view_blockiness.held_out_frames`), dB."""
     totals = np.zeros(len(models))
-    items = frames(test, count)
-    for left, right, target in items:
-        left, right, target = coded((left, right, target), coding, crf)
-        base = _psnr((left + right) / 2, target)
+    for images in frames:
+        left, right, target = coded(images, coding, crf)
+        base = psnr((left + right) / 2, target)
         for index, model in enumerate(models):
             output = np.asarray(dualpixel.deblur(left, right, model=model, brightness="tied",
                                                  device="cpu"))
-            totals[index] += _psnr(output, target) - base
-    return list(totals / len(items))
+            totals[index] += psnr(output, target) - base
+    return list(totals / len(frames))
 
 
 def main() -> None:
@@ -77,8 +68,9 @@ def main() -> None:
     print(f"| set | coding | {names[0]} | {names[1]} | "
           "difference |\n|---|---|---|---|---|")
     for test in args.sets:
+        frames = held_out_frames(test, args.count)  # read once for every coding
         for coding in CODINGS:
-            first, second = gains(args.models, test, args.count, coding, args.crf)
+            first, second = gains(args.models, frames, coding, args.crf)
             print(f"| {test.name} | {coding} | {first:+.3f} | {second:+.3f} | "
                   f"{second - first:+.3f} |", flush=True)
 

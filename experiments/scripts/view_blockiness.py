@@ -39,7 +39,8 @@ def _row(label: str, values: list[float]) -> str:
             f"{max(values):.2f} |")
 
 
-def _psnr(image: np.ndarray, target: np.ndarray) -> float:
+def psnr(image: np.ndarray, target: np.ndarray) -> float:
+    """PSNR (dB) of ``image``, clipped to [0, 1], against ``target``."""
     return float(10 * np.log10(1.0 / np.mean((np.clip(image, 0, 1) - target) ** 2)))
 
 
@@ -49,34 +50,35 @@ def _coded(left: np.ndarray, right: np.ndarray, crf: int | None, scale: float
     light was scaled by ``scale``, then scaled back."""
     if crf is None:
         return left, right
-    coded = h264_round_trip(np.stack([_as_rgb8(left * scale), _as_rgb8(right * scale)]), crf)
+    coded = h264_round_trip(np.stack([as_rgb8(left * scale), as_rgb8(right * scale)]), crf)
     return coded[0] / 255.0 / scale, coded[1] / 255.0 / scale
 
 
-def _as_rgb8(image: np.ndarray) -> np.ndarray:
+def as_rgb8(image: np.ndarray) -> np.ndarray:
+    """A float image in [0, 1] as 8-bit levels, rounded."""
     return np.clip(np.round(image * 255), 0, 255).astype(np.uint8)
 
 
-def held_out_frames(test: Path, count: int) -> tuple[list, list]:
-    """The first ``count`` pairs of a written held-out set (float ``(H, W, 3)``) and their
-    targets' green channel."""
+def held_out_frames(test: Path, count: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The first ``count`` (left, right, target) of a written held-out set, float
+    ``(H, W, 3)``."""
     lefts = sorted((test / "test_l").rglob("*.png"))[:count]
-    pairs = [(read_rgb(p), read_rgb(test / "test_r" / p.relative_to(test / "test_l")))
-             for p in lefts]
-    targets = [read_rgb(test / "test_c" / "target" / p.relative_to(test / "test_l" / "source")
-                        )[..., 1] for p in lefts]
-    return pairs, targets
+    return [(read_rgb(p), read_rgb(test / "test_r" / p.relative_to(test / "test_l")),
+             read_rgb(test / "test_c" / "target" / p.relative_to(test / "test_l" / "source")))
+            for p in lefts]
 
 
-def coded_psnr(pairs: list, targets: list, crf: int | None, scales: list[float],
+def coded_psnr(frames: list, crf: int | None, scales: list[float],
                model=DEFAULT_CHECKPOINT) -> tuple[float, float]:
     """Mean PSNR (dB, green) of the combined input and of ``model``'s output (tied brightness)
-    with every pair coded at ``crf`` after its light was scaled by its ``scales`` entry."""
+    with every pair of ``frames`` (:func:`held_out_frames`) coded at ``crf`` after its light was
+    scaled by its ``scales`` entry."""
     scores = []
-    for (left, right), scale, target in zip(pairs, scales, targets):
+    for (left, right, target), scale in zip(frames, scales):
+        target = target[..., 1]
         left, right = (np.clip(v[..., 1], 0, 1) for v in _coded(left, right, crf, scale))
         output = np.asarray(dualpixel.deblur(left, right, model=model, brightness="tied"))
-        scores.append((_psnr((left + right) / 2, target), _psnr(output, target)))
+        scores.append((psnr((left + right) / 2, target), psnr(output, target)))
     inputs, outputs = np.mean(scores, axis=0)
     return float(inputs), float(outputs)
 
@@ -95,19 +97,20 @@ def main() -> None:
             real_peak += [float(np.percentile(v, 99.5)) for v in views]
         print(_row(label, [blockiness(v) for v in views]))
     exposure = float(np.median(real_peak))
-    pairs, targets = held_out_frames(args.phone_set, args.count)
-    scales = {"own exposure": [1.0] * len(pairs),
+    frames = held_out_frames(args.phone_set, args.count)
+    scales = {"own exposure": [1.0] * len(frames),
               f"at the real views' ({exposure:.2f})": [
-                  exposure / max(float(np.percentile(left, 99.5)), 1e-6) for left, _ in pairs]}
+                  exposure / max(float(np.percentile(left, 99.5)), 1e-6)
+                  for left, _, _ in frames]}
     for label, factors in scales.items():
         for crf in CRFS:
             values = [blockiness(_coded(left, right, crf, scale)[0])
-                      for (left, right), scale in zip(pairs, factors)]
+                      for (left, right, _), scale in zip(frames, factors)]
             print(_row(f"ours, phone, H.264 CRF {crf}, {label}", values))
     print("\n| views | input PSNR, dB | output PSNR, dB | gain, dB |\n|---|---|---|---|")
     for k, (label, factors) in enumerate(scales.items()):
         for crf in ((None,) if k == 0 else ()) + (18, 24, 30, 36, 44):
-            inputs, outputs = coded_psnr(pairs, targets, crf, factors)
+            inputs, outputs = coded_psnr(frames, crf, factors)
             name = "clean" if crf is None else f"H.264 CRF {crf}, {label}"
             print(f"| {name} | {inputs:.2f} | {outputs:.2f} | {outputs - inputs:+.2f} |")
 
