@@ -206,7 +206,7 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
                noise_model: str | None = None, noise_sigmas: tuple[float, ...] | None = None,
                distortion: bool = True,
                camera: str | Path | DPCamera | None = None, psf_shapes: str | None = None,
-               light: str | None = None, device: str = "cpu",
+               light: str | None = None, base_blur: float = 0.0, device: str = "cpu",
                camera_file: str | Path | DPCamera | None = None) -> dict[str, Any]:
     """Synthesise a DP frame from an all-in-focus image and its depth (metres, ``(H, W)``).
 
@@ -224,6 +224,8 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
     shape replaces ``psf_bank`` (unless ``psf_shapes="bank"``), its per-channel disparity ratio
     forms the views and its light space is where the blur happens (``light`` overrides it:
     "encoded", the paper's, or "linear"); see :func:`~dualpixel.synthesis.frame.camera_settings`.
+    ``base_blur``: std (px) of a Gaussian blurring both views, not the target: the in-focus
+    optics, which the thin lens leaves perfectly sharp (0: none, the paper's views).
     Until release 0.3, ``camera`` naming a lens set and ``camera_file`` are taken as their old
     meanings, with a warning.
     Returns ``left``, ``right``, ``combined``, ``target`` in the layout of ``rgb`` and
@@ -276,7 +278,8 @@ def synthesize(rgb: Any, depth: Any, *, lens_set: str | None = None, seed: int =
         known = ", ".join([*PAPER_LENS_SETS, *DEFOCUS_PROFILES])
         raise ParameterError(f"lens_set must be one of {known}, got {lens_set!r}")
     draw = draw_sequence(seed, lens, **settings.draw_options(), distortion=distortion,
-                         noise=noise, noise_model=noise_model, noise_sigmas=noise_sigmas)
+                         noise=noise, noise_model=noise_model, noise_sigmas=noise_sigmas,
+                         base_blur=(base_blur, base_blur))
     frame = synthesize_frame(images[0], depth_map, draw, noise_seed=seed,
                              device=resolve_device(device))
     result: dict[str, Any] = {}

@@ -1,11 +1,14 @@
-"""Image gradients used across the package (flat-patch rejection, figure crops), in one place."""
+"""Image filters used across the package, in one place: gradients (flat-patch rejection, figure
+crops) and OpenCV's Gaussian blur on torch tensors (the device finish, the in-focus optics)."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
+import torch
+import torch.nn.functional as F
 
-__all__ = ["gradient_magnitude", "sharpness"]
+__all__ = ["gaussian_blur", "gaussian_reach", "gradient_magnitude", "sharpness"]
 
 
 def gradient_magnitude(image: np.ndarray) -> np.ndarray:
@@ -26,3 +29,35 @@ def sharpness(image: np.ndarray) -> float:
     """Mean Sobel gradient magnitude of the grey image (units of [0, 1] intensity per pixel),
     a cheap flat-patch detector."""
     return float(gradient_magnitude(image).mean())
+
+
+def gaussian_reach(sigma: float) -> int:
+    """Pixels on each side that :func:`gaussian_blur` of std ``sigma`` px reads: half its kernel
+    (OpenCV's size ``round(8 sigma + 1) | 1``); 0 for no blur."""
+    return (max(1, round(sigma * 8 + 1)) | 1) // 2 if sigma > 0 else 0
+
+
+def _reflected(image: torch.Tensor, pad: int, dim: int) -> torch.Tensor:
+    """``image`` padded by ``pad`` along ``dim`` as OpenCV's BORDER_REFLECT pads
+    (``fedcba|abcdef|fedcba``, repeated as far as needed)."""
+    length = image.shape[dim]
+    index = torch.arange(-pad, length + pad, device=image.device) % (2 * length)
+    index = torch.where(index >= length, 2 * length - 1 - index, index)
+    return image.index_select(dim, index)
+
+
+def gaussian_blur(image: torch.Tensor, sigma: float) -> torch.Tensor:
+    """OpenCV's ``GaussianBlur`` with std ``sigma`` px and BORDER_REFLECT of ``(..., H, W)``
+    float values, each plane alone: its kernel size (:func:`gaussian_reach`), separable. A
+    ``sigma`` of 0 returns ``image``."""
+    if sigma <= 0:
+        return image
+    half = gaussian_reach(sigma)
+    size = 2 * half + 1
+    x = torch.arange(size, dtype=torch.float64, device=image.device) - half
+    kernel = torch.exp(-(x**2) / (2 * sigma**2))
+    kernel = (kernel / kernel.sum()).to(image.dtype)
+    planes = image.reshape(-1, 1, *image.shape[-2:])
+    rows = F.conv2d(_reflected(planes, half, -1), kernel.view(1, 1, 1, size))
+    blurred = F.conv2d(_reflected(rows, half, -2), kernel.view(1, 1, size, 1))
+    return blurred.reshape(image.shape)

@@ -433,3 +433,34 @@ def test_the_phone_profile_blurs_crops_like_the_phone_frame():
                                   DEFOCUS_PROFILES["phone-2016-close"].lens(rng, 1.0, 840))[0]))
              for _ in range(200)]
     assert 2.0 <= min(close) and max(close) <= 24.0 and np.median(close) > 1.8 * np.median(far)
+
+
+def test_the_in_focus_blur_softens_the_stored_views_and_not_the_targets(scene_dir, tmp_path):
+    """``base_blur``: recorded in dataset.json (not when 0, so older datasets resume) and per
+    frame; the same seed's targets stay byte for byte, its views lose fine detail; bad ranges
+    are refused naming the setting."""
+    plain = SynthConfig(noise=False, **FAST)
+    assert "base_blur" not in plain.as_dict()
+    soft = SynthConfig(noise=False, base_blur=[0.8, 1.2], **FAST)
+    assert soft.base_blur == (0.8, 1.2) and SynthConfig.from_dict(soft.as_dict()) == soft
+    written = {}
+    for name, config in (("plain", plain), ("soft", soft)):
+        synthesize_dataset(scene_dir, "rgbd", tmp_path / name, config, progress=False)
+        written[name] = json.loads((tmp_path / name / "manifest.jsonl").read_text()
+                                   .splitlines()[0])
+    assert "base_blur" not in written["plain"]
+    assert 0.8 <= written["soft"]["base_blur"] <= 1.2
+    assert json.loads((tmp_path / "soft" / "dataset.json").read_text())["config"][
+        "base_blur"] == [0.8, 1.2]
+    images = {name: {k: read16(tmp_path / name / record["outputs"][k]).astype(np.float64)
+                     for k in ("left", "target")} for name, record in written.items()}
+    np.testing.assert_array_equal(images["plain"]["target"], images["soft"]["target"])
+
+    def detail(image):
+        return np.abs(image - cv2.GaussianBlur(image, (0, 0), 1.5)).mean()
+
+    assert detail(images["soft"]["left"]) < 0.8 * detail(images["plain"]["left"])
+    for bad, message in (([0.5], "two stds"), ([1.0, 0.5], "LOW <= HIGH"),
+                         ([-1.0, 0.5], "base_blur"), (["a", "b"], "base_blur")):
+        with pytest.raises(ParameterError, match=message):
+            SynthConfig(base_blur=bad, **FAST)

@@ -6,6 +6,7 @@ import torch
 from dualpixel.errors import ParameterError
 from dualpixel.optics.psf import PSFParams
 from dualpixel.optics.thin_lens import PAPER_LENS_SETS
+from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
 from dualpixel.synthesis.convolution import convolve_same
 from dualpixel.synthesis.frame import draw_sequence, synthesize_frame
 from dualpixel.synthesis.renderer import quantise_layers, render_dp_views
@@ -42,6 +43,54 @@ def test_in_focus_plane_gives_identical_views_and_target():
         assert torch.equal(frame.left, frame.right)
         assert float((frame.left - frame.target).abs().max()) < 1e-6
         assert float(frame.defocus.abs().max()) == 0.0
+
+
+@pytest.mark.parametrize("light", ["encoded", "linear"])
+def test_the_in_focus_blur_softens_both_views_and_not_the_target(light):
+    """``base_blur``: in focus, each view is the target blurred (in the light the lens blurs)
+    by OpenCV's Gaussian of the drawn std; the target and the defocus map are untouched."""
+    camera = PAPER_LENS_SETS["set1"]
+    depth = np.full((H, W), camera.focus_distance, np.float32)
+    rgb = textured().permute(1, 2, 0).numpy()
+    draw = draw_sequence(0, "set1", noise=False, distortion=False, light=light,
+                         base_blur=(0.7, 0.7))
+    rgb = rgb.clip(0.0, 1.0)
+    frame = synthesize_frame(rgb, depth, draw)
+    scene = rgb if light == "encoded" else srgb_to_linear(torch.from_numpy(rgb)).numpy()
+    blurred = cv2.GaussianBlur(scene, (0, 0), 0.7, borderType=cv2.BORDER_REFLECT)
+    if light == "linear":
+        blurred = linear_to_srgb(torch.from_numpy(blurred)).numpy()
+    expected = torch.from_numpy(blurred).permute(2, 0, 1)
+    for view in (frame.left, frame.right, frame.combined):
+        torch.testing.assert_close(view, expected, rtol=0, atol=2e-6)
+    assert float((frame.target - torch.from_numpy(rgb).permute(2, 0, 1)).abs().max()) < 1e-6
+    sharp = synthesize_frame(rgb, depth, draw_sequence(0, "set1", noise=False, distortion=False,
+                                                       light=light))
+    assert float((sharp.left - frame.left).abs().max()) > 0.05  # it does blur
+    # a window's margin grows by the Gaussian's reach: in focus, the PSF's own margin is small
+    wide = draw_sequence(0, "set1", noise=False, distortion=False, light=light,
+                         base_blur=(2.5, 2.5))
+    whole = synthesize_frame(rgb, depth, wide)
+    part = synthesize_frame(rgb, depth, wide, window=(40, 50, 24, 32))
+    torch.testing.assert_close(part.left, whole.left[:, 40:64, 50:82], rtol=0, atol=1e-6)
+
+
+def test_the_in_focus_blur_is_drawn_from_its_own_stream():
+    """Drawn uniformly from the range per seed, recorded, and the other draws unchanged;
+    refused outside [0, 3] px or as a reversed range."""
+    draws = [draw_sequence(seed, "set2", base_blur=(0.2, 0.8)) for seed in range(20)]
+    stds = [draw.base_blur for draw in draws]
+    assert all(0.2 <= s <= 0.8 for s in stds) and len(set(stds)) == 20
+    assert draw_sequence(5, "set2", base_blur=(0.2, 0.8)).base_blur == stds[5]
+    assert draws[5].describe()["base_blur"] == stds[5]
+    plain = draw_sequence(5, "set2")
+    assert plain.base_blur == 0.0 and "base_blur" not in plain.describe()
+    assert (plain.psf, plain.noise_sigma, plain.distortion) == (
+        draws[5].psf, draws[5].noise_sigma, draws[5].distortion)
+    for bad, message in (((-0.1, 0.5), "base_blur"), ((0.5, 4.0), "base_blur"),
+                         ((0.8, 0.2), "LOW <= HIGH"), ((0.5,), "two stds")):
+        with pytest.raises(ParameterError, match=message):
+            draw_sequence(5, "set2", base_blur=bad)
 
 
 def horizontal_shift(reference: torch.Tensor, moved: torch.Tensor) -> float:
@@ -342,6 +391,9 @@ def test_the_old_names_of_a_sequence_draw_still_import_with_a_warning():
               "distortion": False}, 1e-6),
     ("set1", {"light": "linear", "raw_black_level": 0.0625, "distortion": False}, 1e-6),
     ("set3", {"distortion": False}, 1e-6),
+    # the in-focus blur reads past the PSF's margin: the window's margin grows by its reach
+    ("set3", {"distortion": False, "base_blur": (1.5, 1.5)}, 1e-6),
+    ("set0", {"light": "linear", "base_blur": (0.4, 0.9)}, 1e-4),
     # blur of 40 px, layers at 1/8: a margin without the reduced resolutions' reach is 7e-6 off
     ("set4", {"distortion": False, "noise": False, "size": (384, 256)}, 1e-6),
 ])

@@ -176,6 +176,10 @@ def scenes(output: Path, sequences: int, frames: int, size: tuple[int, int], lea
                    "reach a model: h264 (the pair as one H.264 animation, as DPDD's published "
                    "videos; needs PyAV) or jpeg, e.g. h264:0.5 (8-bit display-encoded views; "
                    "share 0.5 if not given).")
+@click.option("--base-blur", default=None, callback=float_list, metavar="LOW,HIGH",
+              help="Blur both views, not the target, by a Gaussian of std drawn per sequence "
+                   "from LOW-HIGH px: the in-focus optics, which the thin lens leaves sharp "
+                   "(real Canon views at 1620 px: about 0.6)  [default: 0,0].")
 @click.option("--split", default="train", help="Split name for RGB-D input (SYNTHIA: SEQ3=test).")
 @click.option("--max-depth", type=float, default=250.0, help="Clip depth here (metres).")
 @click.option("--depth-scale", type=float, default=0.001,
@@ -201,7 +205,8 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
           distortion: bool, psf_model: str, psf_bank: str | None, camera_file: str | None,
           psf_shapes: str | None,
           light: str | None, grey: bool, encoding: str, black_level: float | None,
-          raw_gains: list[float] | None, view_coding: str | None, split: str,
+          raw_gains: list[float] | None, view_coding: str | None,
+          base_blur: list[float] | None, split: str,
           max_depth: float,
           depth_scale: float, seed: int, device: str, workers: int,
           png_compression: int | None, source: str, shard: tuple[int, int] | None) -> None:
@@ -236,6 +241,7 @@ def synth(input_dir: Path, fmt: str, output: Path, settings_name: str, lens_sets
         raw_gains=(1.0, 1.0) if raw_gains is None else tuple(raw_gains),
         view_coding=None if view_coding is None
         else ViewCoding.parse(view_coding).require().as_dict(),
+        base_blur=(0.0, 0.0) if base_blur is None else tuple(base_blur),
     )
     if source == "on-the-fly":
         from dualpixel.synthesis.on_the_fly import write_on_the_fly

@@ -15,6 +15,7 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
+from dualpixel.filters import gaussian_blur
 from dualpixel.inference.brightness import _FLOOR, resolved_sigma
 from dualpixel.inference.overshoot import OVERSHOOT_MARGIN, overshoot_radius
 from dualpixel.optics.tone import linear_to_srgb, srgb_to_linear
@@ -60,27 +61,6 @@ def limit_overshoot_tensor(output: torch.Tensor, combined: torch.Tensor, *,
     return torch.minimum(torch.maximum(output, low[0] - spare), high[0] + spare)
 
 
-def _reflected(image: torch.Tensor, pad: int, dim: int) -> torch.Tensor:
-    """``image`` padded by ``pad`` along ``dim`` as OpenCV's BORDER_REFLECT pads
-    (``fedcba|abcdef|fedcba``, repeated as far as needed)."""
-    length = image.shape[dim]
-    index = torch.arange(-pad, length + pad, device=image.device) % (2 * length)
-    index = torch.where(index >= length, 2 * length - 1 - index, index)
-    return image.index_select(dim, index)
-
-
-def _gaussian(image: torch.Tensor, sigma: float) -> torch.Tensor:
-    """OpenCV's GaussianBlur of ``(N, 1, H, W)`` float32 with std ``sigma`` px: its kernel size
-    (``round(8 sigma + 1) | 1``), separable, borders reflected."""
-    size = max(1, round(sigma * 8 + 1)) | 1
-    half = size // 2
-    x = torch.arange(size, dtype=torch.float64, device=image.device) - half
-    kernel = torch.exp(-(x**2) / (2 * sigma**2))
-    kernel = (kernel / kernel.sum()).to(image.dtype)
-    rows = F.conv2d(_reflected(image, half, -1), kernel.view(1, 1, 1, size))
-    return F.conv2d(_reflected(rows, half, -2), kernel.view(1, 1, size, 1))
-
-
 def low_pass_tensor(grey: torch.Tensor, sigma: float) -> torch.Tensor:
     """:func:`~dualpixel.inference.brightness._low_pass` of ``(H, W)``: a Gaussian of ``sigma``
     px, on a grid ``sigma // 16`` times coarser (area-averaged) and brought back bilinearly."""
@@ -88,10 +68,10 @@ def low_pass_tensor(grey: torch.Tensor, sigma: float) -> torch.Tensor:
     factor = max(1, int(sigma // 16))
     image = grey[None, None]
     if factor == 1 or min(height, width) < 4 * factor:
-        return _gaussian(image, sigma)[0, 0]
+        return gaussian_blur(image, sigma)[0, 0]
     small = F.interpolate(image, size=(max(1, round(height / factor)),
                                        max(1, round(width / factor))), mode="area")
-    small = _gaussian(small, sigma / factor)
+    small = gaussian_blur(small, sigma / factor)
     return F.interpolate(small, size=(height, width), mode="bilinear", align_corners=False)[0, 0]
 
 

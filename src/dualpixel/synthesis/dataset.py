@@ -70,6 +70,7 @@ from dualpixel.synthesis.frame import (
     CameraSettings,
     SequenceDraw,
     camera_settings,
+    check_base_blur_range,
     draw_sequence,
     synthesize_frame,
 )
@@ -132,9 +133,12 @@ class SynthConfig:
     # animation, or JPEG): dualpixel.synthesis.view_coding.ViewCoding's fields; 8-bit
     # display-encoded views only. None: no coding.
     view_coding: dict | None = field(default=None, hash=False)
+    # Ours: the in-focus optics, a Gaussian std (px of the frame) drawn per sequence uniformly
+    # from (low, high) and applied to both views, not the target (SequenceDraw.base_blur).
+    base_blur: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
-        for key in ("lens_sets", "noise_sigmas", "raw_gains"):  # lists from JSON or YAML
+        for key in ("lens_sets", "noise_sigmas", "raw_gains", "base_blur"):  # JSON or YAML lists
             if isinstance(getattr(self, key), list):
                 object.__setattr__(self, key, tuple(getattr(self, key)))
         known = (*PAPER_LENS_SETS, *DEFOCUS_PROFILES)
@@ -157,6 +161,7 @@ class SynthConfig:
         check_range("depth_scale", self.depth_scale, 0.0, low_inclusive=False)
         check_plain_name(self.split, "split")
         check_seed("seed", self.seed)
+        object.__setattr__(self, "base_blur", check_base_blur_range(self.base_blur))
         if not 1 <= self.max_layers <= 100000:
             raise ParameterError(f"max_layers must be in [1, 100000], got {self.max_layers}")
         light = self.draw_settings().light  # refuses a bad camera, light or psf_shapes now
@@ -217,6 +222,10 @@ class SynthConfig:
             del data["grey"]
         if data["view_coding"] is None:  # as recorded before view coding existed
             del data["view_coding"]
+        if self.base_blur == (0.0, 0.0):  # as recorded before the in-focus blur existed
+            del data["base_blur"]
+        else:
+            data["base_blur"] = list(self.base_blur)
         if data["encoding"] == "srgb":  # as recorded before raw storage existed
             for key in ("encoding", "black_level", "raw_gains"):
                 del data[key]
@@ -319,7 +328,7 @@ def plan_jobs(
                 noise_model=config.noise_model, noise_sigmas=config.noise_sigmas,
                 max_layers=config.max_layers, render_mode=config.render_mode,
                 raw_black_level=config.black_level if config.encoding == "linear" else None,
-                raw_gains=config.raw_gains,
+                raw_gains=config.raw_gains, base_blur=config.base_blur,
             )
             for index, frame in enumerate(sequence.frames):
                 noise_seed = int(np.random.SeedSequence((config.seed, number, index))

@@ -1,4 +1,5 @@
-"""One synthetic DP frame: CoC -> layered DP views -> radial distortion -> noise (paper Sec. 3).
+"""One synthetic DP frame: CoC -> layered DP views -> in-focus blur (ours) -> radial distortion ->
+noise (paper Sec. 3).
 
 A :class:`SequenceDraw` fixes what the paper keeps constant over a sequence (lens, PSF shape,
 distortion set, noise strength); :func:`draw_sequence` draws it reproducibly from a seed.
@@ -13,7 +14,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 import torch
 
-from dualpixel.errors import ParameterError
+from dualpixel.errors import ParameterError, check_range
+from dualpixel.filters import gaussian_blur, gaussian_reach
 from dualpixel.names import PSF_SHAPE_SOURCES
 from dualpixel.optics.crosstalk import (
     apply_crosstalk,
@@ -52,8 +54,9 @@ from dualpixel.synthesis.renderer import render_dp_views
 if TYPE_CHECKING:
     from dualpixel.optics.camera import DPCamera
 
-__all__ = ["CameraSettings", "DPFrame", "SequenceDraw", "camera_settings", "draw_sequence",
-           "render_region", "sharp_target", "synthesize_frame", "synthesize_frames"]
+__all__ = ["MAX_BASE_BLUR", "CameraSettings", "DPFrame", "SequenceDraw", "camera_settings",
+           "check_base_blur", "check_base_blur_range", "draw_sequence", "render_region",
+           "sharp_target", "synthesize_frame", "synthesize_frames"]
 
 
 @dataclass(frozen=True)
@@ -81,8 +84,13 @@ class SequenceDraw:
     # (dualpixel.optics.tone.linear_to_raw, as a phone's DP data), noise added to them;
     # None: sRGB-encoded values. Needs ``light`` "linear".
     raw: tuple[float, float] | None = None
+    # Ours: std (px of the frame) of a Gaussian blurring both views after the layered render,
+    # not the target: the in-focus optics, which the thin lens leaves perfectly sharp
+    # (docs/formation.md, "In focus, the real views are softer"). 0: the paper's views.
+    base_blur: float = 0.0
 
     def __post_init__(self) -> None:
+        check_base_blur(self.base_blur)
         if self.disparity_ratio is not None:
             check_disparity_ratio(self.disparity_ratio)
         if check_disparity_falloff(self.disparity_falloff) and self.disparity_ratio is None:
@@ -127,7 +135,28 @@ class SequenceDraw:
             **({} if self.light == "encoded" else {"light": self.light}),
             **({} if self.raw is None
                else {"raw": {"black_level": self.raw[0], "gain": self.raw[1]}}),
+            **({} if not self.base_blur else {"base_blur": self.base_blur}),
         }
+
+
+#: The largest in-focus blur (Gaussian std, px) a draw takes.
+MAX_BASE_BLUR = 3.0
+
+
+def check_base_blur(sigma: float, name: str = "base_blur") -> float:
+    """A Gaussian std of the in-focus optics in [0, :data:`MAX_BASE_BLUR`] px."""
+    return check_range(name, sigma, 0.0, MAX_BASE_BLUR, high_inclusive=True)
+
+
+def check_base_blur_range(values, name: str = "base_blur") -> tuple[float, float]:
+    """A range ``(low, high)`` of in-focus blurs to draw from, each :func:`check_base_blur`."""
+    values = tuple(values)
+    if len(values) != 2:
+        raise ParameterError(f"{name} must be two stds LOW,HIGH in px, got {list(values)}")
+    low, high = (check_base_blur(v, name) for v in values)
+    if low > high:
+        raise ParameterError(f"{name} must have LOW <= HIGH, got {low:g},{high:g}")
+    return float(low), float(high)
 
 
 def _init_with_old_names(init):
@@ -211,6 +240,7 @@ def draw_sequence(
     light: Light = "encoded",
     raw_black_level: float | None = None,
     raw_gains: tuple[float, float] = (1.0, 1.0),
+    base_blur: tuple[float, float] = (0.0, 0.0),
 ) -> SequenceDraw:
     """Draw a sequence's PSF shape and noise strength from ``seed`` for a lens set's ``lens``
     (a name of :data:`~dualpixel.optics.thin_lens.PAPER_LENS_SETS` or a thin lens).
@@ -218,7 +248,9 @@ def draw_sequence(
     A paper lens set ``setK`` gets the matching distortion preset ``setK`` (supplement S3); any
     other lens (e.g. one drawn from a defocus profile) a preset drawn from ``seed``. With a
     ``raw_black_level`` the sequence is stored as raw values, its exposure gain drawn
-    uniformly from ``raw_gains``.
+    uniformly from ``raw_gains``; the in-focus blur (:attr:`SequenceDraw.base_blur`) is drawn
+    uniformly from ``base_blur`` (px), from a stream of its own so the other draws stay as they
+    were without it.
     """
     check_psf_model(psf_model)
     check_render_mode(render_mode)
@@ -240,6 +272,9 @@ def draw_sequence(
         check_raw_storage(raw_black_level, raw_gains)
         gain = float(np.random.default_rng((*np.atleast_1d(seed), 3)).uniform(*raw_gains))
         raw = (float(raw_black_level), gain)
+    low, high = check_base_blur_range(base_blur)
+    in_focus = low if low == high else float(
+        np.random.default_rng((*np.atleast_1d(seed), 4)).uniform(low, high))
     return SequenceDraw(
         lens=lens,
         psf=psf,
@@ -253,6 +288,7 @@ def draw_sequence(
         disparity_falloff=disparity_falloff,
         light=light,
         raw=raw,
+        base_blur=in_focus,
     )
 
 
@@ -366,14 +402,16 @@ def render_region(coc: torch.Tensor, draw: SequenceDraw, window: tuple[int, int,
     """Half-open ``(row0, row1, col0, col1)`` of the frame (CoC map ``(H, W)`` px) to render for
     ``window`` ``(top, left, height, width)``: the pixels its distortion reads, grown by the
     blur margin of the frame's largest CoC (:func:`~dualpixel.synthesis.fast_renderer.
-    crop_margin`), from an origin on its coarsest resolution's grid, clipped to the frame."""
+    crop_margin`) and the reach of the in-focus blur, from an origin on its coarsest
+    resolution's grid, clipped to the frame."""
     height, width = coc.shape
     top, left, rows, cols = window
     needed = (top, top + rows, left, left + cols)
     if draw.distortion is not None:
         needed = window_sources(draw.distortion, (height, width), window)
     largest = float(coc.abs().max())
-    margin = crop_margin(largest, draw.psf_model, (draw.psf or PSFParams()).kappa)
+    margin = crop_margin(largest, draw.psf_model, (draw.psf or PSFParams()).kappa) \
+        + gaussian_reach(draw.base_blur)
     grid = downsample_factor(largest)  # the coarsest resolution's cells start on it
     return (max(needed[0] - margin, 0) // grid * grid, min(needed[1] + margin, height),
             max(needed[2] - margin, 0) // grid * grid, min(needed[3] + margin, width))
@@ -451,10 +489,12 @@ def _prepared(rgb, depth, draw: SequenceDraw, device) -> tuple[torch.Tensor, ...
 def _finished(image: torch.Tensor, scene: torch.Tensor, coc: torch.Tensor, left: torch.Tensor,
               right: torch.Tensor, draw: SequenceDraw, noise_seed: int,
               window: _Window | None = None) -> DPFrame:
-    """The rendered views through the rest of the formation: crosstalk, distortion, tone or raw
-    storage, noise, clipping and the combined image. ``window``: the inputs are a rendered
-    region of a frame and the result is that window of it."""
+    """The rendered views through the rest of the formation: in-focus blur, crosstalk,
+    distortion, tone or raw storage, noise, clipping and the combined image. ``window``: the
+    inputs are a rendered region of a frame and the result is that window of it."""
     linear = draw.light == "linear"
+    if draw.base_blur:  # the in-focus optics, in the light the lens blurs; not the target
+        left, right = gaussian_blur(torch.stack((left, right)), draw.base_blur).unbind()
     if draw.disparity_ratio is not None:
         columns = {} if window is None else {"first_column": window.origin[1],
                                               "frame_width": window.frame[1]}
