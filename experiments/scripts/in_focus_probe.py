@@ -91,7 +91,8 @@ def scores_of(label: str, model: str, out: Path, data: Path, real_pairs: bool) -
                             "../shared/data/dp-real-nogt", "--checkpoint", model,
                             "--brightness", "tied", "--overshoot", "model", "--flips", "off",
                             "-o", str(checks)], check=True, stdout=subprocess.DEVNULL)
-        rows = [r for r in csv.DictReader(open(checks / "target_free.csv"))
+        rows = [{**r, "pair": f"dp-real-nogt/{r['pair']}"}  # one input: names alone
+                for r in csv.DictReader(open(checks / "target_free.csv"))
                 if r["method"].endswith("+tied")]
         found["target-free failures"] = real_pair_failures(rows)
     return found
