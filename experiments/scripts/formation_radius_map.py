@@ -21,7 +21,9 @@ disparity ratio can change across the frame (``--ratio-profile``).
 
 ``--disparity`` measures instead how far apart the real views lie against ours (per textured
 tile blurred by at least a quarter of ``--max-radius``: the best horizontal shift of one view
-onto the other), by the tile's place across the frame.
+onto the other), by the tile's place across the frame. ``--bands`` measures instead, per blur
+bin, how the real views' detail energy compares with ours in octave bands (:data:`BANDS`):
+whether our blur at the fitted radius removes as much of each scale as the real optics.
 """
 
 from __future__ import annotations
@@ -46,6 +48,8 @@ from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 from dualpixel.synthesis.view_coding import h264_round_trip
 
 BINS = ((0.0, 2.0), (2.0, 4.5), (4.5, 9.0), (9.0, 20.1))
+#: ``--bands``: the detail between Gaussians of these stds (px; 0: the image itself).
+BANDS = (0.0, 1.0, 2.0, 4.0, 8.0)
 
 
 def renders(target: np.ndarray, radii: np.ndarray, camera: str,
@@ -157,6 +161,29 @@ def band_energy(image: np.ndarray, sigma: float = 1.0) -> float:
     return float(((grey - cv2.GaussianBlur(grey, (0, 0), sigma)) ** 2).mean()) + 1e-12
 
 
+def octave_bands(image: np.ndarray) -> list[np.ndarray]:
+    """``image``'s grey detail between consecutive Gaussians of :data:`BANDS`."""
+    levels = [image.mean(axis=-1)]
+    levels += [cv2.GaussianBlur(levels[0], (0, 0), sigma) for sigma in BANDS[1:]]
+    return [finer - coarser for finer, coarser in itertools.pairwise(levels)]
+
+
+def print_bands(rows: list[tuple]) -> None:
+    """The ``--bands`` table: per blur bin and side of the frame, the median ratio of the real
+    views' energy to ours in each band; ``rows``: ``(radius, |x|, ratio per band...)``."""
+    table = np.asarray(rows)
+    names = [f"{low:g}-{high:g} px" for low, high in itertools.pairwise(BANDS)]
+    print("\n| fitted radius | tiles | real / our views' detail energy, "
+          f"{' | '.join(names)} |\n|---|---|{'---|' * len(names)}")
+    for (low, high), (near, far) in itertools.product(BINS, ((0.0, 0.6), (0.6, 1.01))):
+        pick = ((table[:, 0] >= low) & (table[:, 0] < high) & (table[:, 1] >= near)
+                & (table[:, 1] < far))
+        if pick.any():
+            print(f"| {low:g}-{high:g} px, |x| {near:g}-{min(far, 1):g} | {pick.sum()} | "
+                  + " | ".join(f"{np.median(table[pick, 2 + k]):.2f}" for k in range(len(names)))
+                  + " |")
+
+
 def h264(views: np.ndarray, crf: int, hold: int = 10, loops: int = 3) -> np.ndarray:
     """The two views ``(2, H, W, 3)`` in [0, 1] coded as the 1620-px dev views were: an H.264
     animation showing each view ``hold`` frames, looped; each view back as the mean of its frames
@@ -221,6 +248,8 @@ def main() -> None:
                         "the frame (x from -1 to 1)")
     parser.add_argument("--disparity", action="store_true",
                         help="only measure the views' disparity against ours across the frame")
+    parser.add_argument("--bands", action="store_true",
+                        help="only compare the views' detail energy with ours in octave bands")
     parser.add_argument("--h264", type=int, default=0, metavar="CRF",
                         help="code our views as an H.264 animation at CRF (needs PyAV)")
     parser.add_argument("--jpeg", type=int, default=0, metavar="QUALITY",
@@ -240,6 +269,7 @@ def main() -> None:
                             np.arange(10.5, args.max_radius + 0.01, 0.5)])
     rows = []  # radius, real gain, ours gain, dpdnet gain, scene, detail ratio, |x|
     disparities = []  # x across the frame, real / our disparity
+    band_rows = []  # radius, |x|, real / our energy per band
     for number, scene in enumerate(sorted(glob.glob(os.path.join(args.root, "scene_*")))):
         if args.scenes and number not in args.scenes:
             continue
@@ -276,6 +306,23 @@ def main() -> None:
                     disparities.append(((col + 0.5) * args.tile / target.shape[1] * 2 - 1,
                                         real[row, col] / mine[row, col]))
             continue
+        if args.bands:
+            real_bands, our_bands = ([octave_bands(v) for v in pair]
+                                     for pair in ((left, right), ours))
+        for (row, col), index in np.ndenumerate(choice if args.bands else np.zeros((0, 0))):
+            box = (slice(row * args.tile, row * args.tile + args.tile),
+                   slice(col * args.tile, col * args.tile + args.tile))
+            grey = target[box].mean(axis=-1)
+            if (grey - cv2.GaussianBlur(grey, (0, 0), 2)).std() < 0.01 or radii[index] < 0.5:
+                continue  # flat, or our views are the target there
+            energy = [[sum((view[k][box] ** 2).mean() for view in views)
+                       for k in range(len(BANDS) - 1)] for views in (real_bands, our_bands)]
+            band_rows.append((radii[index],
+                              abs((col + 0.5) * args.tile / target.shape[1] * 2 - 1),
+                              *(r / o for r, o in zip(*energy))))
+        if args.bands:
+            print(os.path.basename(scene), flush=True)
+            continue
         real_out = dualpixel.deblur(left, right, model=args.model, device="cpu")
         ours_out = dualpixel.deblur(ours[0], ours[1], model=args.model, device="cpu")
         real_in, ours_in = (left + right) / 2, (ours[0] + ours[1]) / 2
@@ -302,6 +349,9 @@ def main() -> None:
               flush=True)
     if args.disparity:
         disparity_across(disparities)
+        return
+    if args.bands:
+        print_bands(band_rows)
         return
     table = np.asarray(rows)
     print("\n| fitted radius | tiles | real views | ours at the fitted blur | DPDNet (published) "
