@@ -23,7 +23,8 @@ disparity ratio can change across the frame (``--ratio-profile``).
 tile blurred by at least a quarter of ``--max-radius``: the best horizontal shift of one view
 onto the other), by the tile's place across the frame. ``--bands`` measures instead, per blur
 bin, how the real views' detail energy compares with ours in octave bands (:data:`BANDS`):
-whether our blur at the fitted radius removes as much of each scale as the real optics.
+whether our blur at the fitted radius removes as much of each scale as the real optics; and how
+well our views' sum and difference (detail of 1-8 px) correlate with the real views'.
 """
 
 from __future__ import annotations
@@ -170,9 +171,11 @@ def octave_bands(image: np.ndarray) -> list[np.ndarray]:
 
 def print_bands(rows: list[tuple]) -> None:
     """The ``--bands`` table: per blur bin and side of the frame, the median ratio of the real
-    views' energy to ours in each band; ``rows``: ``(radius, |x|, ratio per band...)``."""
+    views' energy to ours in each band, and of the correlations of their sums and differences;
+    ``rows``: ``(radius, |x|, ratio per band..., sum correlation, difference correlation)``."""
     table = np.asarray(rows)
     names = [f"{low:g}-{high:g} px" for low, high in itertools.pairwise(BANDS)]
+    names += ["sum, real with ours", "difference, real with ours"]
     print("\n| fitted radius | tiles | real / our views' detail energy, "
           f"{' | '.join(names)} |\n|---|---|{'---|' * len(names)}")
     for (low, high), (near, far) in itertools.product(BINS, ((0.0, 0.6), (0.6, 1.01))):
@@ -317,9 +320,14 @@ def main() -> None:
                 continue  # flat, or our views are the target there
             energy = [[sum((view[k][box] ** 2).mean() for view in views)
                        for k in range(len(BANDS) - 1)] for views in (real_bands, our_bands)]
+            # the sum and difference of the views' detail of 1-8 px, real against ours
+            detail = [[sum(view[k][box] for k in range(1, len(BANDS) - 1)) for view in views]
+                      for views in (real_bands, our_bands)]
+            relation = [np.corrcoef(op(*detail[0]).ravel(), op(*detail[1]).ravel())[0, 1]
+                        for op in (np.add, np.subtract)]
             band_rows.append((radii[index],
                               abs((col + 0.5) * args.tile / target.shape[1] * 2 - 1),
-                              *(r / o for r, o in zip(*energy))))
+                              *(r / o for r, o in zip(*energy)), *relation))
         if args.bands:
             print(os.path.basename(scene), flush=True)
             continue
