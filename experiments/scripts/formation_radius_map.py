@@ -24,7 +24,8 @@ tile blurred by at least a quarter of ``--max-radius``: the best horizontal shif
 onto the other), by the tile's place across the frame. ``--bands`` measures instead, per blur
 bin, how the real views' detail energy compares with ours in octave bands (:data:`BANDS`):
 whether our blur at the fitted radius removes as much of each scale as the real optics; and how
-well our views' sum and difference (detail of 1-8 px) correlate with the real views'.
+well our views' sum and difference (detail of 1-8 px) correlate with the real views', and
+the real difference's energy over ours.
 """
 
 from __future__ import annotations
@@ -172,10 +173,11 @@ def octave_bands(image: np.ndarray) -> list[np.ndarray]:
 def print_bands(rows: list[tuple]) -> None:
     """The ``--bands`` table: per blur bin and side of the frame, the median ratio of the real
     views' energy to ours in each band, and of the correlations of their sums and differences;
-    ``rows``: ``(radius, |x|, ratio per band..., sum correlation, difference correlation)``."""
+    ``rows``: ``(radius, |x|, ratio per band..., sum correlation, difference correlation,
+    real / our difference's energy)``."""
     table = np.asarray(rows)
     names = [f"{low:g}-{high:g} px" for low, high in itertools.pairwise(BANDS)]
-    names += ["sum, real with ours", "difference, real with ours"]
+    names += ["sum, real with ours", "difference, real with ours", "difference's energy"]
     print("\n| fitted radius | tiles | real / our views' detail energy, "
           f"{' | '.join(names)} |\n|---|---|{'---|' * len(names)}")
     for (low, high), (near, far) in itertools.product(BINS, ((0.0, 0.6), (0.6, 1.01))):
@@ -325,6 +327,8 @@ def main() -> None:
                       for views in (real_bands, our_bands)]
             relation = [np.corrcoef(op(*detail[0]).ravel(), op(*detail[1]).ravel())[0, 1]
                         for op in (np.add, np.subtract)]
+            relation.append(float((np.subtract(*detail[0]) ** 2).mean()
+                                  / ((np.subtract(*detail[1]) ** 2).mean() + 1e-12)))
             band_rows.append((radii[index],
                               abs((col + 0.5) * args.tile / target.shape[1] * 2 - 1),
                               *(r / o for r, o in zip(*energy)), *relation))
