@@ -54,7 +54,8 @@ def measures(view: np.ndarray, truth: np.ndarray, sharp: np.ndarray, box: tuple[
     (dx, dy), _ = cv2.phaseCorrelate(truth[box].astype(np.float64),
                                      view[box].astype(np.float64), window)
     rows, cols = box
-    around = (slice(rows.start - tile, rows.stop + tile), slice(cols.start - tile, cols.stop + tile))
+    around = (slice(rows.start - tile, rows.stop + tile),
+              slice(cols.start - tile, cols.stop + tile))
     moved = fine(shifted(sharp[around], dy, dx))[tile:-tile, tile:-tile]
     return {"slope": float((view[box] * truth[box]).mean() / energy),
             "aligned": float((view[box] * moved).mean() / (moved ** 2).mean()),
@@ -101,7 +102,8 @@ def main() -> None:
             found.setdefault(key, []).extend(values)
     print(f"{args.root.name}: {len(found['real'])} in-focus textured tiles, medians of the "
           "combined view's fine detail against the target's")
-    print("| views | slope | aligned slope | target's shift, px | RMS ratio |\n|---|---|---|---|---|")
+    print("| views | slope | aligned slope | target's shift, px | RMS ratio |\n"
+          "|---|---|---|---|---|")
     for key, values in found.items():
         row = (np.median([v[m] for v in values]) for m in ("slope", "aligned", "shift", "rms"))
         print(f"| {key} | " + " | ".join(f"{v:.2f}" for v in row) + " |")
