@@ -163,6 +163,38 @@ def band_energy(image: np.ndarray, sigma: float = 1.0) -> float:
     return float(((grey - cv2.GaussianBlur(grey, (0, 0), sigma)) ** 2).mean()) + 1e-12
 
 
+def scored_tiles(choice: np.ndarray, radii: np.ndarray, target: np.ndarray, tile: int):
+    """``(row, col, box, radius)`` of each tile a blur comparison reads: textured in the
+    target (flat tiles say nothing about blur) and fitted at 0.5 px or more (below, our views
+    are the target)."""
+    for (row, col), index in np.ndenumerate(choice):
+        box = (slice(row * tile, row * tile + tile), slice(col * tile, col * tile + tile))
+        grey = target[box].mean(axis=-1)
+        if (grey - cv2.GaussianBlur(grey, (0, 0), 2)).std() >= 0.01 and radii[index] >= 0.5:
+            yield row, col, box, radii[index]
+
+
+def band_rows_of(views: tuple[np.ndarray, np.ndarray], ours: np.ndarray, target: np.ndarray,
+                 choice: np.ndarray, radii: np.ndarray, tile: int) -> list[tuple]:
+    """The ``--bands`` rows of one scene (:func:`print_bands`): per scored tile, its radius and
+    ``|x|``, the real / our energy per band, and the sum's and difference's relation."""
+    real_bands, our_bands = ([octave_bands(v) for v in pair] for pair in (views, ours))
+    rows = []
+    for _, col, box, radius in scored_tiles(choice, radii, target, tile):
+        energy = [[sum((view[k][box] ** 2).mean() for view in bands)
+                   for k in range(len(BANDS) - 1)] for bands in (real_bands, our_bands)]
+        # the sum and difference of the views' detail of 1-8 px, real against ours
+        detail = [[sum(view[k][box] for k in range(1, len(BANDS) - 1)) for view in bands]
+                  for bands in (real_bands, our_bands)]
+        relation = [np.corrcoef(op(*detail[0]).ravel(), op(*detail[1]).ravel())[0, 1]
+                    for op in (np.add, np.subtract)]
+        relation.append(float((np.subtract(*detail[0]) ** 2).mean()
+                              / ((np.subtract(*detail[1]) ** 2).mean() + 1e-12)))
+        rows.append((radius, abs((col + 0.5) * tile / target.shape[1] * 2 - 1),
+                     *(r / o for r, o in zip(*energy)), *relation))
+    return rows
+
+
 def octave_bands(image: np.ndarray) -> list[np.ndarray]:
     """``image``'s grey detail between consecutive Gaussians of :data:`BANDS`."""
     levels = [image.mean(axis=-1)]
@@ -274,7 +306,7 @@ def main() -> None:
                             np.arange(10.5, args.max_radius + 0.01, 0.5)])
     rows = []  # radius, real gain, ours gain, dpdnet gain, scene, detail ratio, |x|
     disparities = []  # x across the frame, real / our disparity
-    band_rows = []  # radius, |x|, real / our energy per band
+    band_rows = []  # --bands: band_rows_of's rows
     for number, scene in enumerate(sorted(glob.glob(os.path.join(args.root, "scene_*")))):
         if args.scenes and number not in args.scenes:
             continue
@@ -312,27 +344,7 @@ def main() -> None:
                                         real[row, col] / mine[row, col]))
             continue
         if args.bands:
-            real_bands, our_bands = ([octave_bands(v) for v in pair]
-                                     for pair in ((left, right), ours))
-        for (row, col), index in np.ndenumerate(choice if args.bands else np.zeros((0, 0))):
-            box = (slice(row * args.tile, row * args.tile + args.tile),
-                   slice(col * args.tile, col * args.tile + args.tile))
-            grey = target[box].mean(axis=-1)
-            if (grey - cv2.GaussianBlur(grey, (0, 0), 2)).std() < 0.01 or radii[index] < 0.5:
-                continue  # flat, or our views are the target there
-            energy = [[sum((view[k][box] ** 2).mean() for view in views)
-                       for k in range(len(BANDS) - 1)] for views in (real_bands, our_bands)]
-            # the sum and difference of the views' detail of 1-8 px, real against ours
-            detail = [[sum(view[k][box] for k in range(1, len(BANDS) - 1)) for view in views]
-                      for views in (real_bands, our_bands)]
-            relation = [np.corrcoef(op(*detail[0]).ravel(), op(*detail[1]).ravel())[0, 1]
-                        for op in (np.add, np.subtract)]
-            relation.append(float((np.subtract(*detail[0]) ** 2).mean()
-                                  / ((np.subtract(*detail[1]) ** 2).mean() + 1e-12)))
-            band_rows.append((radii[index],
-                              abs((col + 0.5) * args.tile / target.shape[1] * 2 - 1),
-                              *(r / o for r, o in zip(*energy)), *relation))
-        if args.bands:
+            band_rows += band_rows_of((left, right), ours, target, choice, radii, args.tile)
             print(os.path.basename(scene), flush=True)
             continue
         real_out = dualpixel.deblur(left, right, model=args.model, device="cpu")
@@ -341,16 +353,10 @@ def main() -> None:
         images = (real_out, real_in, ours_out, ours_in, published)
         copies = [shifted_copies(i) if args.registered else [i] for i in images]
         t = args.tile
-        for (row, col), index in np.ndenumerate(choice):
-            box = (slice(row * t, row * t + t), slice(col * t, col * t + t))
-            grey = target[box].mean(axis=-1)
-            if (grey - cv2.GaussianBlur(grey, (0, 0), 2)).std() < 0.01:
-                continue  # flat tiles say nothing about blur
-            if radii[index] < 0.5:
-                continue  # our views equal the target there
+        for _, col, box, radius in scored_tiles(choice, radii, target, t):
             ro, ri, oo, oi, po = (best_shift(c, box, target) for c in copies)
             bands = [band_energy(v[box]) for v in (left, ours[0])]
-            rows.append((radii[index], gain(ro, ri, target[box]), gain(oo, oi, target[box]),
+            rows.append((radius, gain(ro, ri, target[box]), gain(oo, oi, target[box]),
                          gain(po, ri, target[box]), number, bands[0] / bands[1],
                          abs((col + 0.5) * t / target.shape[1] * 2 - 1)))
         whole = [gain(o, i, target) for o, i in ((real_out, real_in), (ours_out, ours_in))]

@@ -83,7 +83,8 @@ def scores_of(label: str, model: str, out: Path, data: Path, real_pairs: bool) -
     for camera in HELD_OUT:
         folder = evaluate(model, str(data / "data" / f"{camera}-test"),
                           out / "eval" / f"photo-{camera}" / label, "--split", "test")
-        found[f"photo-{camera}"] = sum(scene_gains(folder).values()) / len(scene_gains(folder))
+        gains = scene_gains(folder)
+        found[f"photo-{camera}"] = sum(gains.values()) / len(gains)
     if real_pairs:
         checks = out / "checks" / label
         if not (checks / "target_free.csv").is_file():
