@@ -36,6 +36,11 @@ the same settings (:mod:`dualpixel.synthesis.on_the_fly`), CPU loader (``--loade
 
     .venv/bin/python benchmarks/bench_synthesis.py --batched [--device cuda] [--batch 8]
     .venv/bin/python benchmarks/bench_synthesis.py --training [--loader-workers 0]
+
+``--profile`` with ``--batched`` or ``--training``: where the time goes instead of the tables:
+one batched call of set0 at the given size (``torch.profiler``: operators by host time and, on
+CUDA, by device time; then the Python functions by cumulative time), or the training run of each
+``--data`` source under ``cProfile`` (the training process only; loader workers are not seen).
 """
 
 from __future__ import annotations
@@ -274,8 +279,55 @@ def batched(sets: list[str], width: int, height: int, device: str, batch: int,
             print(f"peak GPU memory {torch.cuda.max_memory_allocated() / 2**30:.2f} GiB")
 
 
+def _functions(profiler, rows: int = 30) -> None:
+    """The package's and torch's functions of a ``cProfile.Profile`` by cumulative time."""
+    import io
+    import pstats
+
+    text = io.StringIO()
+    stats = pstats.Stats(profiler, stream=text).sort_stats("cumulative")
+    stats.print_stats("dualpixel|torch/nn/functional|numpy", rows)
+    print(text.getvalue())
+
+
+def profile_batched(width: int, height: int, device: str, batch: int) -> None:
+    """Where one :func:`render_batch` call of ``batch`` set0 frames spends its time."""
+    import cProfile
+
+    from torch.profiler import ProfilerActivity
+
+    from dualpixel.synthesis.batched_renderer import render_batch
+
+    frames = [render_scene_sequence(k, SceneConfig(width=width, height=height, frames=1,
+                                                   leaves=40))[0] for k in range(batch)]
+    images = torch.stack([torch.from_numpy(rgb).permute(2, 0, 1) for rgb, _ in frames])
+    coc = coc_radius(torch.stack([torch.from_numpy(depth) for _, depth in frames]),
+                     PAPER_LENS_SETS["set0"])
+    images, coc = images.to(device), coc.to(device)
+    params = PSFParams(n=6, alpha=0.6, beta=0.2)
+    _, warm, _ = timed(lambda: render_batch(images, coc, params), device)  # allocator, kernels
+    activities = [ProfilerActivity.CPU]
+    if device.startswith("cuda"):
+        activities.append(ProfilerActivity.CUDA)
+    with torch.profiler.profile(activities=activities) as prof:
+        _, seconds, _ = timed(lambda: render_batch(images, coc, params), device)
+    print(f"render_batch, {batch} set0 frames of {width}x{height} on {device}: warm-up "
+          f"{warm:.3f} s, under the profiler {seconds:.3f} s")
+    table = prof.key_averages()
+    print(table.table(sort_by="self_cpu_time_total", row_limit=20))
+    if device.startswith("cuda"):
+        print(table.table(sort_by="self_cuda_time_total", row_limit=20))
+    profiler = cProfile.Profile()
+    profiler.enable()
+    _, seconds, _ = timed(lambda: render_batch(images, coc, params), device)
+    profiler.disable()
+    print(f"under cProfile {seconds:.3f} s")
+    _functions(profiler)
+
+
 def training(iterations: int, loader_workers: int, device: str,
-             sources: tuple[str, ...] = ("written", "fly", "fly-device")) -> None:
+             sources: tuple[str, ...] = ("written", "fly", "fly-device"),
+             profile: bool = False) -> None:
     """Iterations per second of rdpd-light on written and on-the-fly data of one setting."""
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
     from dualpixel.synthesis.on_the_fly import write_on_the_fly
@@ -309,7 +361,16 @@ def training(iterations: int, loader_workers: int, device: str,
                 synthetic_as_frames=True, patch_size=256, sequence_batch=4, sequence_frames=2,
                 epochs=1, iterations_per_epoch=iterations, workers=loader_workers,
                 device=device, tensorboard=False, learning_rate=1e-4))
+            if profile:
+                import cProfile
+
+                profiler = cProfile.Profile()
+                profiler.enable()
             result = train(config, root / f"run-{name}", progress=False)
+            if profile:
+                profiler.disable()
+                print(f"{label}: the training process under cProfile")
+                _functions(profiler)
             seconds = result.history[-1]["seconds"]
             print(f"| {label} | {iterations / seconds:.3f} |", flush=True)
 
@@ -340,14 +401,19 @@ def main() -> None:
     parser.add_argument("--data", default="written,fly,fly-device",
                         help="with --training: which of written, fly (rendered by the loader) "
                              "and fly-device (rendered in training) to time")
+    parser.add_argument("--profile", action="store_true",
+                        help="with --batched or --training: where the time goes (see above)")
     args = parser.parse_args()
+    if args.batched and args.profile:
+        profile_batched(args.width, args.height, args.device, args.batch)
+        return
     if args.batched:
         batched(args.sets.split(","), args.width, args.height, args.device, args.batch,
                 args.repeat)
         return
     if args.training:
         training(args.iterations, args.loader_workers, args.device,
-                 tuple(args.data.split(",")))
+                 tuple(args.data.split(",")), args.profile)
         return
     if args.end_to_end:
         end_to_end(args.sets.split(","), args.width, args.height, args.repeat, args.authors_code,

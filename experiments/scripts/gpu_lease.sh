@@ -25,6 +25,9 @@
 #                               exact and its frames per second, training iterations per second
 #                               on written and on-the-fly data (loader and device rendering)
 #   tests                       issue #76's CUDA-path tests (tests/gpu) into $OUT/tests_gpu.txt
+#   profile                     where issue #71's GPU synthesis spends its time: one batched call
+#                               at 1920x1080 and at 840x560, and on-the-fly training rendered on
+#                               the device (bench_synthesis.py --profile) into $OUT (~2 minutes)
 #
 # Photographic recipes (rdpd-light-photographs*.yaml) read ../shared/data/photographs (61 MB),
 # which does not travel: a call sends the repository alone, at most 64 MiB with what it carries,
@@ -38,7 +41,7 @@
 # With 55 MiB of tree that is 9 parts: retire shipped weights first (release --replaces).
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, stop, collect, kit, figures, synthesis, tests, pack or unpack}; shift
+command=${1:?start, wait, stop, collect, kit, figures, synthesis, tests, profile, pack or unpack}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -142,6 +145,16 @@ tests)  # issue #76: the CUDA paths' tests (tests/gpu), their report into $OUT (
   python3 -c "import pytest" 2>/dev/null || python3 -m pip install --quiet pytest
   PYTHONPATH=src python3 -m pytest -q -p no:cacheprovider tests/gpu 2>&1 | tee "$OUT/tests_gpu.txt"
   ;;
+profile)  # issue #71: where the batched renderer and device-rendered training spend their time
+  : "${OUT:?set OUT to the device tool output folder}"
+  for size in "1920 1080" "840 560"; do
+    set -- $size
+    PYTHONPATH=src python3 benchmarks/bench_synthesis.py --batched --profile --device cuda \
+      --batch 16 --width "$1" --height "$2" 2>&1 | tee "$OUT/profile_batched_$1.txt"
+  done
+  PYTHONPATH=src python3 benchmarks/bench_synthesis.py --training --profile --device cuda \
+    --data fly-device --iterations 20 2>&1 | grep -v '^{' | tee "$OUT/profile_training_cuda.txt"
+  ;;
 pack)  # here: the photographs in parts that travel one a call (see the header)
   photos=${PHOTOS:-../shared/data/photographs}
   [ -d "$photos/train" ] || { echo "no $photos/train: set PHOTOS to the photographs" >&2; exit 1; }
@@ -186,7 +199,7 @@ unpack)  # on the device: part N of K into ../shared/data/photographs
   ;;
 *)
   echo "unknown command: $command (start, wait, stop, collect, kit, figures, synthesis," \
-       "tests, pack or unpack)" >&2
+       "tests, profile, pack or unpack)" >&2
   exit 2
   ;;
 esac

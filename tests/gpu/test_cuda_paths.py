@@ -15,8 +15,15 @@ from dualpixel.synthesis.renderer import render_dp_views
 from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
 
 
+def _host(value) -> torch.Tensor:
+    """A tensor (on any device) or an array, as float64 on the CPU."""
+    if isinstance(value, torch.Tensor):
+        return value.detach().to("cpu", torch.float64)
+    return torch.as_tensor(np.asarray(value), dtype=torch.float64)
+
+
 def _psnr(a, b) -> float:
-    a, b = (torch.as_tensor(np.asarray(v), dtype=torch.float64).cpu() for v in (a, b))
+    a, b = _host(a), _host(b)
     return float(10 * torch.log10(1.0 / ((a - b) ** 2).mean().clamp_min(1e-20)))
 
 
