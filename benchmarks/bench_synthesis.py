@@ -39,7 +39,9 @@ the same settings (:mod:`dualpixel.synthesis.on_the_fly`), CPU loader (``--loade
 
 ``--profile`` with ``--batched`` or ``--training``: where the time goes instead of the tables:
 one batched call of set0 at the given size (``torch.profiler``: operators by host time and, on
-CUDA, by device time; then the Python functions by cumulative time), or the training run of each
+CUDA, by device time; then the Python functions by cumulative time; then the operators it
+dispatches on the frames, each a kernel launch on a GPU, and on the kernels, made on the CPU
+whatever the device), or the training run of each
 ``--data`` source under ``cProfile`` (the training process only; loader workers are not seen).
 """
 
@@ -290,6 +292,32 @@ def _functions(profiler, rows: int = 30) -> None:
     print(text.getvalue())
 
 
+def operator_counts(fn) -> dict[str, int]:
+    """Torch operators one call of ``fn`` dispatches: on the kernels (made on the CPU by
+    ``_layer_kernels`` and stacked by ``_padded``, whatever the device) and on the frames
+    (each a kernel launch on an accelerator), and the frames' synchronisations (a value read
+    back to the host)."""
+    import traceback
+
+    from torch.utils._python_dispatch import TorchDispatchMode
+
+    counts = {"kernels": 0, "frames": 0, "synchronisations": 0}
+
+    class Count(TorchDispatchMode):
+        def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+            names = {frame.name for frame in traceback.extract_stack(limit=40)}
+            if names & {"_layer_kernels", "_padded"}:
+                counts["kernels"] += 1
+            else:
+                counts["frames"] += 1
+                counts["synchronisations"] += func is torch.ops.aten._local_scalar_dense.default
+            return func(*args, **(kwargs or {}))
+
+    with Count():
+        fn()
+    return counts
+
+
 def profile_batched(width: int, height: int, device: str, batch: int) -> None:
     """Where one :func:`render_batch` call of ``batch`` set0 frames spends its time."""
     import cProfile
@@ -323,6 +351,10 @@ def profile_batched(width: int, height: int, device: str, batch: int) -> None:
     profiler.disable()
     print(f"under cProfile {seconds:.3f} s")
     _functions(profiler)
+    for frames in sorted({1, batch}):
+        counts = operator_counts(lambda n=frames: render_batch(images[:n], coc[:n], params))
+        print(f"operators of one call of {frames} frame(s): " + ", ".join(
+            f"{value} {name}" for name, value in counts.items()))
 
 
 def training(iterations: int, loader_workers: int, device: str,

@@ -9,6 +9,12 @@ from dualpixel.errors import ParameterError
 from dualpixel.optics.psf import PSFParams
 from dualpixel.optics.thin_lens import PAPER_LENS_SETS, coc_radius
 from dualpixel.synthesis.batched_renderer import crop_margin, render_batch
+from dualpixel.synthesis.frame import (
+    common_regions,
+    draw_sequence,
+    synthesize_frame,
+    synthesize_frames,
+)
 from dualpixel.synthesis.layers import quantise_layers
 from dualpixel.synthesis.renderer import render_dp_views
 from dualpixel.synthesis.scenes import SceneConfig, render_scene_sequence
@@ -75,6 +81,39 @@ def test_a_crop_with_its_margin_is_that_region_of_the_whole_frame(frames):
     for crop, whole in ((crop_left, whole_left), (crop_right, whole_right)):
         torch.testing.assert_close(crop[0][:, inner[0], inner[1]],
                                    whole[0][:, y0:y0 + size, x0:x0 + size], atol=2e-5, rtol=0)
+
+
+def test_regions_grow_to_one_size_on_the_grid_inside_the_frame():
+    """Regions of a batch of windows share one size, each holds its own, starts on the 16-px
+    grid and stays in the frame, also where a region reaches the frame's far edge."""
+    regions = [(0, 70, 32, 90), (150, 224, 280, 320), (37 // 8 * 8, 120, 0, 47),
+               (200, 224, 300, 320)]
+    grown = common_regions(regions, (224, 320))
+    sizes = {(r1 - r0, c1 - c0) for r0, r1, c0, c1 in grown}
+    assert len(sizes) == 1
+    for (r0, r1, c0, c1), (g0, g1, g2, g3) in zip(regions, grown):
+        assert g0 <= r0 and g1 >= r1 and g2 <= c0 and g3 >= c1
+        assert g0 % 16 == 0 and g2 % 16 == 0 and g1 <= 224 and g3 <= 320
+    assert common_regions([(5, 219, 3, 40)], (224, 320)) == [(0, 224, 0, 53)]
+
+
+def test_windows_of_many_frames_render_as_those_regions_of_their_frames():
+    """synthesize_frames with windows (training crops rendered together, each frame its own
+    camera, blur margin, distortion and noise) gives each window of that frame's whole render."""
+    config = SceneConfig(width=256, height=176, frames=1, leaves=12)
+    scenes = [render_scene_sequence(seed, config)[0] for seed in (3, 4, 5)]
+    draws = [draw_sequence(7, "set0"), draw_sequence(8, "set4", distortion=False),
+             draw_sequence(9, "set2", light="linear")]
+    windows = [(0, 0, 64, 64), (176 - 64, 256 - 80, 64, 80), (37, 101, 48, 64)]
+    together = synthesize_frames(scenes, draws, [3, 4, 5], windows=windows)
+    for k, ((rgb, depth), draw, seed, (top, left, rows, cols), part) in enumerate(zip(
+            scenes, draws, (3, 4, 5), windows, together)):
+        whole = synthesize_frame(rgb, depth, draw, noise_seed=seed)
+        for name in ("left", "right", "combined", "target", "defocus"):
+            expected = getattr(whole, name)[..., top : top + rows, left : left + cols]
+            torch.testing.assert_close(getattr(part, name), expected, rtol=0,
+                                       atol=1e-4 if name != "defocus" else 2e-3,
+                                       msg=lambda m, n=name, k=k: f"frame {k} {n}: {m}")
 
 
 def test_deterministic_and_in_double_precision(frames):

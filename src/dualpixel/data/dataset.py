@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -25,7 +26,7 @@ from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
 from dualpixel.filters import gradient_magnitude, sharpness
 
-__all__ = ["ConcatPatches", "DPPatchDataset", "PatchConfig", "flip_horizontal",
+__all__ = ["ConcatPatches", "DPPatchDataset", "PatchConfig", "Placement", "flip_horizontal",
            "gradient_magnitude", "items_of", "random_flips", "sharpness"]
 
 
@@ -123,7 +124,9 @@ class DPPatchDataset(Dataset):
         return {key: expand(frame[key][top : top + height, left : left + width])
                 for key in frame}
 
-    def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
+    def placed(self, key: int | tuple[int, int]) -> Placement:
+        """Where item ``key`` comes from: its frames (as :meth:`_frames` gives them) and its
+        crop, chosen on the first frame's target; the generator left as the item goes on."""
         index, seed = key if isinstance(key, tuple) else (key, index_seed(key))
         rng = np.random.default_rng(seed)
         sequence = self.sequences[index]
@@ -140,7 +143,12 @@ class DPPatchDataset(Dataset):
                 if self.config.min_sharpness <= 0 or sharpness(crop) >= self.config.min_sharpness:
                     break
         h, w = (size, size) if size is not None else (height, width)
-        crops = [self._cut(frame, top, left, h, w) for frame in frames]
+        return Placement(sequence, frames, (top, left, h, w), rng)
+
+    def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
+        sequence, frames, window, rng = self.placed(key)
+        top, left, h, w = window
+        crops = [self._cut(frame, *window) for frame in frames]
         if self.transform is not None:
             crops = [self.transform(sequence, crop) for crop in crops]
         item = {
@@ -148,11 +156,21 @@ class DPPatchDataset(Dataset):
             .permute(0, 3, 1, 2).contiguous()
             for key in crops[0]
         }
-        radial = radial_distance(h, w, full_size=(height, width), top=top, left=left)
+        radial = radial_distance(h, w, full_size=(sequence.height, sequence.width), top=top,
+                                 left=left)
         item["radial"] = torch.from_numpy(radial)[None, None].expand(len(frames), 1, h, w).clone()
         if self.config.flips:
             item = random_flips(item, rng)
         return item
+
+
+class Placement(NamedTuple):
+    """An item's sequence, frames, crop ``(top, left, height, width)`` px and generator."""
+
+    sequence: DPSequence
+    frames: list
+    window: tuple[int, int, int, int]
+    rng: np.random.Generator
 
 
 class ConcatPatches(Dataset):

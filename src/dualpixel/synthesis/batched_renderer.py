@@ -49,19 +49,20 @@ class _Run:
     frame: int
     d: int
     layers: list[int]
-    kernels: list[torch.Tensor]  # (2, S, S) per layer, at 1/d
+    kernels: list[torch.Tensor]  # (2, S, S) per layer, at 1/d, on the CPU
     boxes: list[list[int]]  # (row0, row1, col0, col1) inclusive per layer, full resolution
 
 
 def _runs(labels: torch.Tensor, layer_coc: torch.Tensor, frame: int, params: PSFParams,
-          model: PSFModel, like: torch.Tensor) -> list[_Run]:
+          model: PSFModel, dtype: torch.dtype) -> list[_Run]:
     """The runs of one frame's layers present in ``labels`` (far to near, grouped as the
     default renderer groups them), with their kernels."""
     radii = layer_coc.tolist()
     boxes = bounding_boxes(labels, len(radii)).tolist()
     runs = [_Run(frame, d, group, [], []) for d, group in _groups(radii, boxes)]
     for run in runs:
-        run.kernels = _layer_kernels([radii[j] for j in run.layers], run.d, params, model, like)
+        run.kernels = _layer_kernels([radii[j] for j in run.layers], run.d, params, model,
+                                     dtype)
         run.boxes = [boxes[j] for j in run.layers]
     return runs
 
@@ -89,13 +90,14 @@ def _convolve(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor:
     return torch.fft.irfft2(spectrum, s=full)[..., half : half + height, half : half + width]
 
 
-def _padded(kernels: list[torch.Tensor], size: int) -> torch.Tensor:
-    """``(2, s, s)`` kernels, each zero-padded about its centre to ``(2, size, size)``."""
-    out = []
-    for k in kernels:
-        pad = (size - k.shape[-1]) // 2
-        out.append(F.pad(k, (pad, pad, pad, pad)))
-    return torch.stack(out)
+def _padded(kernels: list[torch.Tensor], size: int, device: torch.device) -> torch.Tensor:
+    """``(2, s, s)`` kernels (on the CPU), each zero-padded about its centre, stacked as
+    ``(K, 2, size, size)`` on ``device`` in one copy."""
+    out = torch.zeros(len(kernels), 2, size, size, dtype=kernels[0].dtype)
+    for k, kernel in zip(out, kernels):
+        pad = (size - kernel.shape[-1]) // 2
+        k[:, pad : size - pad, pad : size - pad] = kernel
+    return out.to(device, non_blocking=True)
 
 
 def _render_runs(runs: list[_Run], opaque: torch.Tensor, labels: torch.Tensor, d: int
@@ -127,7 +129,7 @@ def _render_runs(runs: list[_Run], opaque: torch.Tensor, labels: torch.Tensor, d
         planes = torch.where(mask, source[chosen, :, rows, cols], 0.0)  # [I m, m]
         if d > 1:
             planes = F.avg_pool2d(planes, d)
-        blurred = _convolve(planes, _padded(kernels, size))  # (R, 2, C + 1, h, w)
+        blurred = _convolve(planes, _padded(kernels, size, opaque.device))  # (R, 2, C + 1, h, w)
         previous = acc[index, :, :, r0:r1, c0:c1]
         acc[index, :, :, r0:r1, c0:c1] = blurred + (1.0 - blurred[:, :, -1:]) * previous
     return list(acc)
@@ -193,7 +195,7 @@ def render_batch(
                                      f"image {(height, width)} differ in size")
         labels[b] = frame_labels.to(coc.device)
         runs.append(_runs(labels[b], layer_coc.to(images.dtype), b,
-                          per_frame_params[b] or PSFParams(), models[b], images))
+                          per_frame_params[b] or PSFParams(), models[b], images.dtype))
     results: dict[tuple[int, int], torch.Tensor] = {}
     for d in sorted({run.d for frame in runs for run in frame}):
         same = [(b, k) for b, frame in enumerate(runs) for k, run in enumerate(frame)

@@ -378,15 +378,21 @@ def render_target(job: FrameJob, config: SynthConfig, scene: tuple[np.ndarray, n
 
 
 def render_jobs(jobs: list[FrameJob], fmt: InputFormat, config: SynthConfig,
-                device: str = "cpu") -> list[dict[str, np.ndarray]]:
+                device: str = "cpu", *,
+                windows: list[tuple[int, int, int, int] | None] | None = None,
+                scenes: list[tuple[np.ndarray, np.ndarray] | None] | None = None
+                ) -> list[dict[str, np.ndarray]]:
     """:func:`render_job` for many frames at once, rendered together on ``device``
-    (:func:`~dualpixel.synthesis.frame.synthesize_frames`: for accelerators)."""
+    (:func:`~dualpixel.synthesis.frame.synthesize_frames`: for accelerators); ``windows`` and
+    ``scenes`` per job as :func:`render_job` takes them."""
     from dualpixel.synthesis.frame import synthesize_frames
 
-    frames = [load_frame(job.frame, fmt, max_depth=config.max_depth,
-                         depth_scale=config.depth_scale) for job in jobs]
+    scenes = [None] * len(jobs) if scenes is None else scenes
+    frames = [scene or load_frame(job.frame, fmt, max_depth=config.max_depth,
+                                  depth_scale=config.depth_scale)
+              for job, scene in zip(jobs, scenes)]
     results = synthesize_frames(frames, [job.draw for job in jobs],
-                                [job.noise_seed for job in jobs], device=device)
+                                [job.noise_seed for job in jobs], device=device, windows=windows)
     return [_stored(result, job, config) for result, job in zip(results, jobs)]
 
 

@@ -18,8 +18,8 @@ compositing (Eq. 7), and saves work three ways:
 2. **Cheap convolutions.** On the CPU, OpenCV's ``filter2D`` on height x width x 4 planes (colour
    and mask together); kernels above :data:`CV_MAX_KERNEL` in bands of kernel rows, applied to
    bands of image rows as wide as the layer's pixels there; torch alone on other devices.
-3. **Batched, trimmed PSFs.** One :func:`dualpixel.optics.dp_psf` call per kernel size; outer
-   rings holding less than :data:`TRIM_MASS` are dropped.
+3. **Batched, trimmed PSFs.** One :func:`dualpixel.optics.dp_psf` call per kernel size, on the
+   CPU whatever device renders; outer rings holding less than :data:`TRIM_MASS` are dropped.
 
 Measured on a 1920x1080 dead-leaves frame (``benchmarks/bench_synthesis.py``, docs/benchmarks.md):
 >= 48.5 dB against exact for set0..set4 on left, right and combined, in 0.04-0.07 of the time of
@@ -58,32 +58,39 @@ def downsample_factor(radius: float) -> int:
     return d
 
 
-def _layer_kernels(radii: list[float], d: int, params, model, like: torch.Tensor):
+def _layer_kernels(radii: list[float], d: int, params, model, dtype: torch.dtype
+                   ) -> list[torch.Tensor]:
     """``(2 views, S, S)`` kernels per CoC radius (px) at 1/d resolution, each view summing to 1;
-    one batched :func:`dp_psf` call per kernel size (each radius keeps its own size)."""
+    one batched :func:`dp_psf` call per kernel size (each radius keeps its own size). Made on
+    the CPU whatever device renders: a few hundred small tensors, each step of which would be a
+    kernel launch on an accelerator (and each trimming test a synchronisation); the caller
+    moves them to its device."""
     kappa = (params or PSFParams()).kappa
     sizes = [kernel_size(r / d, model, kappa) for r in radii]
-    kernels: list[torch.Tensor] = [like.new_empty(0)] * len(radii)
+    kernels: list[torch.Tensor] = [torch.empty(0, dtype=dtype)] * len(radii)
     for size in sorted(set(sizes)):
         members = [i for i, s in enumerate(sizes) if s == size]
-        batch = torch.tensor([radii[i] / d for i in members], dtype=like.dtype, device=like.device)
+        batch = torch.tensor([radii[i] / d for i in members], dtype=dtype)
         left, right = dp_psf(batch, params, model=model, size=size)
         both = 2.0 * torch.stack((left, right), dim=1)
-        for k, i in enumerate(members):
-            kernels[i] = _trimmed(both[k])
+        for i, kernel in zip(members, _trimmed(both)):
+            kernels[i] = kernel
     return kernels
 
 
-def _trimmed(kernels: torch.Tensor) -> torch.Tensor:
-    """Drop outer rings of ``(2, S, S)`` kernels while each holds less than :data:`TRIM_MASS`
-    of either view (the support's safety margin: 3 sigma of the smoothing plus a pixel)."""
-    while kernels.shape[-1] > 1:
-        inner = kernels[:, 1:-1, 1:-1]
-        ring = kernels.sum(dim=(-2, -1)) - inner.sum(dim=(-2, -1))
-        if float(ring.abs().max()) >= TRIM_MASS:
-            break
-        kernels = inner
-    return kernels
+def _trimmed(kernels: torch.Tensor) -> list[torch.Tensor]:
+    """``(K, 2, S, S)`` kernels, each without the outer rings that hold less than
+    :data:`TRIM_MASS` of either view, counted from the outside in up to the first that holds
+    more (the support's safety margin: 3 sigma of the smoothing plus a pixel): K ``(2, s, s)``
+    views of the input."""
+    size = kernels.shape[-1]
+    half = size // 2
+    inside = torch.stack([kernels[..., j : size - j, j : size - j].sum(dim=(-2, -1))
+                          for j in range(half + 1)], dim=-1)  # (K, 2, half + 1)
+    rings = (inside[..., :-1] - inside[..., 1:]).abs().amax(dim=1)  # (K, half), outermost first
+    kept = rings >= TRIM_MASS
+    drop = torch.where(kept.any(dim=1), kept.int().argmax(dim=1), half).tolist()
+    return [k[:, j : size - j, j : size - j] for k, j in zip(kernels, drop)]
 
 
 #: Largest square kernel OpenCV's ``filter2D`` convolves directly (from 13 x 13 it switches to
@@ -122,6 +129,7 @@ def _convolve(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor:
     """
     size = kernels.shape[-1]
     if planes.device.type != "cpu" or planes.dtype != torch.float32:
+        kernels = kernels.to(planes.device, planes.dtype, non_blocking=True)
         return convolve_same(planes.permute(2, 0, 1), kernels).permute(0, 2, 3, 1)
     source = planes.contiguous().numpy()
     out = torch.empty((kernels.shape[0], *planes.shape), dtype=planes.dtype)
@@ -205,7 +213,7 @@ def render_fast(
     result = torch.zeros(2, height, width, channels + 1, dtype=image.dtype, device=image.device)
     for d, group in _groups(radii, boxes):
         if d == 1:
-            table = _layer_kernels([radii[j] for j in group], 1, params, model, image)
+            table = _layer_kernels([radii[j] for j in group], 1, params, model, image.dtype)
             unblurred: list[int] = []  # consecutive layers whose kernels are exactly [[1]]
             for j, kernels in zip(group, table):
                 if kernels.shape[-1] == 1 and bool((kernels == 1.0).all()):
@@ -369,7 +377,8 @@ def _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params
     low_rows, low_cols = (where // (c1 - c0)) // d, (where % (c1 - c0)) // d
     values = image_hwc[r0:r1, c0:c1].reshape(-1, channels)[where]
     layer = torch.zeros(2, lh, lw, channels + 1, dtype=image_hwc.dtype, device=image_hwc.device)
-    table = _layer_kernels([radii[j] for j in group], d, params, model, image_hwc)
+    table = _layer_kernels([radii[j] for j in group], d, params, model,
+                           image_hwc.dtype)
     for k, (j, kernels) in enumerate(zip(group, table)):
         row0, row1, col0, col1 = boxes[j]
         box = ((row0 - r0) // d, (row1 - r0) // d, (col0 - c0) // d, (col1 - c0) // d)

@@ -47,7 +47,12 @@ from dualpixel.optics.tone import (
     linear_to_srgb,
     srgb_to_linear,
 )
-from dualpixel.synthesis.fast_renderer import crop_margin, downsample_factor, render_fast
+from dualpixel.synthesis.fast_renderer import (
+    MAX_DOWNSAMPLE,
+    crop_margin,
+    downsample_factor,
+    render_fast,
+)
 from dualpixel.synthesis.layers import check_render_mode, quantise_layers
 from dualpixel.synthesis.renderer import render_dp_views
 
@@ -55,7 +60,8 @@ if TYPE_CHECKING:
     from dualpixel.optics.camera import DPCamera
 
 __all__ = ["MAX_BASE_BLUR", "CameraSettings", "DPFrame", "SequenceDraw", "camera_settings",
-           "check_base_blur", "check_base_blur_range", "draw_sequence", "render_region",
+           "check_base_blur", "check_base_blur_range", "common_regions", "draw_sequence",
+           "render_region",
            "sharp_target", "synthesize_frame", "synthesize_frames"]
 
 
@@ -442,32 +448,77 @@ def synthesize_frames(
     noise_seeds: list[int],
     *,
     device: str | torch.device = "cpu",
+    windows: list[tuple[int, int, int, int] | None] | None = None,
 ) -> list[DPFrame]:
     """:func:`synthesize_frame` for many frames at once: the frames of one size are rendered
     together by :func:`~dualpixel.synthesis.batched_renderer.render_batch` (the default
     renderer's layers and compositing, for accelerators), the rest of the formation per frame.
-    The draws' render mode must be "fast"; each frame keeps its own lens, PSF and noise."""
+    The draws' render mode must be "fast"; each frame keeps its own lens, PSF and noise.
+
+    ``windows``: per frame ``(top, left, height, width)`` px or None, as
+    :func:`synthesize_frame`'s ``window`` (training crops on the fly): the windows of one frame
+    size render together, each from a region of its frame grown to the group's common size
+    (:func:`common_regions`), and equal those windows of the whole frames' renders."""
     from dualpixel.synthesis.batched_renderer import render_batch
 
-    if not len(frames) == len(draws) == len(noise_seeds):
-        raise ParameterError("frames, draws and noise_seeds need one entry per frame")
+    windows = [None] * len(frames) if windows is None else list(windows)
+    if not len(frames) == len(draws) == len(noise_seeds) == len(windows):
+        raise ParameterError("frames, draws, noise_seeds and windows need one entry per frame")
     prepared = [_prepared(rgb, depth, draw, device) for (rgb, depth), draw in zip(frames, draws)]
-    views: list[tuple[torch.Tensor, torch.Tensor] | None] = [None] * len(frames)
+    places: list[_Window | None] = [None] * len(frames)
     groups: dict[tuple, list[int]] = {}
-    for k, ((_, scene, _), draw) in enumerate(zip(prepared, draws)):
+    for k, ((_, scene, coc), draw, window) in enumerate(zip(prepared, draws, windows)):
         if draw.render_mode != "fast":
             raise ParameterError("synthesize_frames renders the default (fast) layering")
-        groups.setdefault((tuple(scene.shape), draw.max_layers), []).append(k)
-    for (_, max_layers), members in groups.items():
+        if window is not None:
+            window = _checked_window(window, coc.shape)
+            places[k] = _Window(tuple(coc.shape), (0, 0), window)
+        groups.setdefault((tuple(scene.shape), draw.max_layers, window is not None),
+                          []).append(k)
+    views: list[tuple[torch.Tensor, torch.Tensor] | None] = [None] * len(frames)
+    for (_, max_layers, windowed), members in groups.items():
+        regions = [(0, prepared[k][2].shape[0], 0, prepared[k][2].shape[1]) for k in members]
+        layers = None
+        if windowed:
+            regions = common_regions([render_region(prepared[k][2], draws[k], windows[k])
+                                      for k in members], prepared[members[0]][2].shape)
+            layers = []
+            for k, (row0, row1, col0, col1) in zip(members, regions):
+                places[k] = _Window(places[k].frame, (row0, col0), places[k].window)
+                labels, layer_coc = quantise_layers(prepared[k][2], max_layers, mode="fast")
+                layers.append((labels[row0:row1, col0:col1], layer_coc))
+        cut = [(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in regions]
         left, right = render_batch(
-            torch.stack([prepared[k][1] for k in members]),
-            torch.stack([prepared[k][2] for k in members]),
+            torch.stack([prepared[k][1][:, rows, cols] for k, (rows, cols) in zip(members, cut)]),
+            torch.stack([prepared[k][2][rows, cols] for k, (rows, cols) in zip(members, cut)]),
             [draws[k].psf for k in members], model=[draws[k].psf_model for k in members],
-            max_layers=max_layers)
-        for i, k in enumerate(members):
+            max_layers=max_layers, layers=layers)
+        for i, (k, (rows, cols)) in enumerate(zip(members, cut)):
+            image, scene, coc = prepared[k]
+            prepared[k] = (image[:, rows, cols], scene[:, rows, cols], coc[rows, cols])
             views[k] = (left[i], right[i])
-    return [_finished(image, scene, coc, *pair, draw, seed)
-            for (image, scene, coc), pair, draw, seed in zip(prepared, views, draws, noise_seeds)]
+    return [_finished(*inputs, *pair, draw, seed, place)
+            for inputs, pair, draw, seed, place in zip(prepared, views, draws, noise_seeds, places)]
+
+
+def common_regions(regions: list[tuple[int, int, int, int]], frame: tuple[int, int]
+                   ) -> list[tuple[int, int, int, int]]:
+    """Half-open ``(row0, row1, col0, col1)`` regions of one ``(H, W)`` frame size, each grown to
+    hold the one given (:func:`render_region`) at a size common to all, from an origin on the
+    :data:`~dualpixel.synthesis.fast_renderer.MAX_DOWNSAMPLE` grid (every resolution's), inside
+    the frame: so they render as one batch, each as its own region would."""
+    sizes = []
+    for axis, total in enumerate(frame):
+        spans = [(r[2 * axis], r[2 * axis + 1]) for r in regions]
+        size = min(max(hi - lo for lo, hi in spans), total)
+        while True:  # one size for all: grown by the grid until every region fits
+            starts = [min(lo, total - size) // MAX_DOWNSAMPLE * MAX_DOWNSAMPLE
+                      for lo, _ in spans]
+            if all(start + size >= hi for start, (_, hi) in zip(starts, spans)):
+                break
+            size = min(size + MAX_DOWNSAMPLE, total)
+        sizes.append([(start, start + size) for start in starts])
+    return [(*rows, *cols) for rows, cols in zip(*sizes)]
 
 
 def _prepared(rgb, depth, draw: SequenceDraw, device) -> tuple[torch.Tensor, ...]:

@@ -165,8 +165,8 @@ class OnTheFlyDataset(DPPatchDataset):
         on): the views are rendered for the crop alone (:meth:`_cut`)."""
         seed = int(rng.integers(2**62))
         frames = range(start, start + self.config.frames)
-        if self._rendered is not None:  # rendered beforehand, all at once (render_items)
-            return [self._rendered[index, seed, k] for k in frames]
+        if self._batch is not None:  # render_items: each frame's target made once for its passes
+            return [self._batch.frame(self, (index, seed, k)) for k in frames]
         return [self._pending(self.job(index, seed, k)) for k in frames]
 
     def _pending(self, job) -> _Pending:
@@ -186,6 +186,8 @@ class OnTheFlyDataset(DPPatchDataset):
         frame's render to float rounding), the target cut from the frame's."""
         if not isinstance(frame, _Pending):
             return super()._cut(frame, top, left, height, width)
+        if self._batch is not None:  # rendered beforehand, all at once (render_items)
+            return self._batch.rendered[id(frame), (top, left, height, width)]
         from dualpixel.synthesis.dataset import render_job
 
         whole = (top, left, height, width) == (0, 0, *frame.target.shape[:2])
@@ -195,32 +197,35 @@ class OnTheFlyDataset(DPPatchDataset):
         return {"left": _as_read(stored["left"], bits), "right": _as_read(stored["right"], bits),
                 "target": frame.target[top : top + height, left : left + width]}
 
-    _rendered: dict | None = None
+    _batch: _Batch | None = None
 
     def render_items(self, keys: list[tuple[int, int]], device) -> list[dict[str, torch.Tensor]]:
-        """The items of ``keys`` (``(index, seed)``), as ``dataset[key]`` gives them, their frames
-        rendered together on ``device`` (:func:`~dualpixel.synthesis.dataset.render_jobs`):
-        training renders on its GPU so. The same crops, draws and flips as in the loader; the
-        noise is drawn by ``device``'s generator."""
+        """The items of ``keys`` (``(index, seed)``), as ``dataset[key]`` gives them, their crops
+        rendered together on ``device`` (:func:`~dualpixel.synthesis.dataset.render_jobs` with
+        windows): training renders on its GPU so. The same draws, crops and flips as in the
+        loader, each crop with its blur margin alone; the noise is drawn by ``device``'s
+        generator."""
         from dualpixel.synthesis.dataset import render_jobs
 
-        needed = {}
-        for index, seed in keys:  # the draws __getitem__ makes, in its order
-            rng = np.random.default_rng(seed)
-            sequence = self.sequences[index]
-            start = int(rng.integers(len(sequence.frames) - self.config.frames + 1))
-            sample = int(rng.integers(2**62))
-            for k in range(start, start + self.config.frames):
-                needed[index, sample, k] = self.job(index, sample, k)
-        stored = render_jobs(list(needed.values()), self.source.fmt, self.source.config, device)
-        bits = self.source.config.bit_depth
-        self._rendered = {key: {role: _as_read(frame[role], bits)
-                                for role in ("left", "right", "target")}
-                          for key, frame in zip(needed, stored)}
+        self._batch = batch = _Batch()
         try:
+            wanted = {}  # (frame, window) of every crop, in the order the items cut them
+            for key in keys:
+                placement = self.placed(key)
+                for frame in placement.frames:
+                    wanted[id(frame), placement.window] = (frame, placement.window)
+            stored = render_jobs([frame.job for frame, _ in wanted.values()], self.source.fmt,
+                                 self.source.config, device,
+                                 windows=[window for _, window in wanted.values()],
+                                 scenes=[frame.scene for frame, _ in wanted.values()])
+            bits = self.source.config.bit_depth
+            for (name, (frame, (top, left, height, width))), views in zip(wanted.items(), stored):
+                batch.rendered[name] = {
+                    "left": _as_read(views["left"], bits), "right": _as_read(views["right"], bits),
+                    "target": frame.target[top : top + height, left : left + width]}
             return [self[key] for key in keys]
         finally:
-            self._rendered = None
+            self._batch = None
 
     def _frames_of_job(self, job) -> dict[str, np.ndarray]:
         """One job's frame as :func:`~dualpixel.data.layout.read_frame` reads it from the files
@@ -245,6 +250,21 @@ class _Pending:
         if key != "target":
             raise KeyError(key)
         return self.target
+
+
+class _Batch:
+    """What :meth:`OnTheFlyDataset.render_items` keeps between its passes over the items: each
+    frame made once (its draw, scene and target), and the crops rendered for them."""
+
+    def __init__(self) -> None:
+        self.frames: dict[tuple[int, int, int], _Pending] = {}
+        self.rendered: dict[tuple[int, tuple[int, int, int, int]], dict[str, np.ndarray]] = {}
+
+    def frame(self, dataset: OnTheFlyDataset, key: tuple[int, int, int]) -> _Pending:
+        """Frame ``key`` ``(sequence index, seed, frame)`` of ``dataset``, made on first use."""
+        if key not in self.frames:
+            self.frames[key] = dataset._pending(dataset.job(*key))
+        return self.frames[key]
 
 
 class SceneCache:
