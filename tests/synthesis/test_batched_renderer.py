@@ -50,6 +50,20 @@ def test_batch_is_the_default_renderer_and_near_exact(frames, name):
             assert _psnr(mine, reference) >= max(45.0, _psnr(default, reference) - 0.05), name
 
 
+@pytest.mark.parametrize("factor", [0, 16])
+def test_tiles_and_boxes_render_alike(frames, monkeypatch, factor):
+    """Every resolution rendered in boxes (no tiles), or in tiles (up to 1/16), gives the
+    default renderer's views: the two ways differ in what they convolve, not in the result."""
+    import dualpixel.synthesis.batched_renderer as batched
+
+    monkeypatch.setattr(batched, "TILED_MAX_FACTOR", factor)
+    images, depths = frames
+    coc = coc_radius(depths[:1], PAPER_LENS_SETS["set4"])  # layers from 1/1 to 1/8
+    left, right = render_batch(images[:1], coc)
+    fast = render_dp_views(images[0], coc[0])
+    assert _psnr(left[0], fast[0]) > 90 and _psnr(right[0], fast[1]) > 90
+
+
 def test_each_frame_keeps_its_own_psf_and_model(frames):
     images, depths = frames
     coc = coc_radius(depths, PAPER_LENS_SETS["set2"])

@@ -42,13 +42,18 @@ __all__ = ["DIRECT_MAX_KERNEL", "crop_margin", "render_batch"]
 #: S = 3, 0.11 s at 11, 0.36 s at 25; FFT 0.07-0.11 s whatever S. On a GPU every kernel of the
 #: full-resolution layers (|r| < 4 px: S <= 15) and of the reduced ones (S <= 21) goes direct.
 DIRECT_MAX_KERNEL = {"cpu": 7, "other": 21}
-#: Full-resolution layers (d = 1) are convolved and composited in output tiles of this many
-#: pixels square, only those their blur reaches; reduced ones (d > 1) in the union of their boxes,
-#: a small frame that tiles' halos would cover several times over. The union of the boxes
-#: covered 63 times the layers' own pixels on 16 set0 frames of 1920x1080. Measured on 2 CPU
-#: cores (set0; 2 frames of 1920x1080 / 4 of 840x560): boxes alone 4.9 / 5.3 s, tiles of 8 px
-#: 2.8 / 1.9 s, 16 px 2.3 / 1.5 s, 32 px 2.8 / 2.3 s, 64 px 5.1 s.
+#: Layers at full resolution (d <= :data:`TILED_MAX_FACTOR`) are convolved and composited in
+#: output tiles of this many pixels square, only those their blur reaches; reduced ones in the
+#: union of their boxes, a small frame that tiles' halos would cover several times over. The
+#: union of the boxes covered 63 times the layers' own pixels on 16 set0 frames of 1920x1080.
+#: Measured on 2 CPU cores (set0; 2 frames of 1920x1080 / 4 of 840x560): boxes alone 4.9 /
+#: 5.3 s, tiles of 8 px 2.8 / 1.9 s, 16 px 2.3 / 1.5 s, 32 px 2.8 / 2.3 s, 64 px 5.1 s.
 TILE = 16
+#: The coarsest resolution rendered in tiles. Tiles up to d = 2 against d = 1 alone (2 CPU
+#: cores): set2 at 1920x1080 6.1 s against 14.3, but set0 and set4 10-20 % slower and
+#: on-the-fly training crops (dslr-840, `bench_synthesis.py --training`) 5 % slower; up to
+#: d = 4, set4 1.5x slower.
+TILED_MAX_FACTOR = 1
 
 
 @dataclass
@@ -322,12 +327,14 @@ def render_batch(
         runs.append(_runs(labels[b], layer_coc.to(images.dtype), b,
                           per_frame_params[b] or PSFParams(), models[b], images.dtype))
     results: dict[tuple[int, int], torch.Tensor] = {}
+    presence: list[torch.Tensor] = []  # per frame, made once a tiled factor needs it
     for d in sorted({run.d for frame in runs for run in frame}):
         same = [(b, k) for b, frame in enumerate(runs) for k, run in enumerate(frame)
                 if run.d == d]
         chosen = [runs[b][k] for b, k in same]
-        if d == 1:
-            presence = [_tile_presence(labels[b], count) for b, count in enumerate(counts)]
+        if d <= TILED_MAX_FACTOR:
+            presence = presence or [_tile_presence(labels[b], count)
+                                    for b, count in enumerate(counts)]
             rendered = _render_runs_in_tiles(chosen, opaque, labels, presence, d)
         else:
             rendered = _render_runs_in_boxes(chosen, opaque, labels, d)
