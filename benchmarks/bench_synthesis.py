@@ -293,21 +293,21 @@ def _functions(profiler, rows: int = 30) -> None:
 
 
 def operator_counts(fn) -> dict[str, int]:
-    """Torch operators one call of ``fn`` dispatches: on the kernels (made on the CPU by
-    ``_layer_kernels`` and stacked by ``_padded``, whatever the device) and on the frames
-    (each a kernel launch on an accelerator), and the frames' synchronisations (a value read
-    back to the host)."""
+    """Torch operators one call of ``fn`` dispatches: on the frames (each a kernel launch on an
+    accelerator), of them the synchronisations (a value read back to the host), and on the CPU
+    whatever the device (the kernels, made by ``_layer_kernels`` and stacked by ``_padded``,
+    and the tiles chosen by ``_reached_tiles``)."""
     import traceback
 
     from torch.utils._python_dispatch import TorchDispatchMode
 
-    counts = {"kernels": 0, "frames": 0, "synchronisations": 0}
+    counts = {"frames": 0, "synchronisations": 0, "cpu": 0}
+    on_cpu = {"_layer_kernels", "_padded", "_reached_tiles"}
 
     class Count(TorchDispatchMode):
         def __torch_dispatch__(self, func, types, args=(), kwargs=None):
-            names = {frame.name for frame in traceback.extract_stack(limit=40)}
-            if names & {"_layer_kernels", "_padded"}:
-                counts["kernels"] += 1
+            if {frame.name for frame in traceback.extract_stack(limit=40)} & on_cpu:
+                counts["cpu"] += 1
             else:
                 counts["frames"] += 1
                 counts["synchronisations"] += func is torch.ops.aten._local_scalar_dense.default

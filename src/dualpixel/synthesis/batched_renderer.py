@@ -129,14 +129,14 @@ def _convolve_valid(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor
                                                            size - 1 : size_in]
 
 
-def _padded(kernels: list[torch.Tensor], size: int, device: torch.device) -> torch.Tensor:
+def _padded(kernels: list[torch.Tensor], size: int) -> torch.Tensor:
     """``(2, s, s)`` kernels (on the CPU), each zero-padded about its centre, stacked as
-    ``(K, 2, size, size)`` on ``device`` in one copy."""
+    ``(K, 2, size, size)`` on the CPU (to go to the device in one copy)."""
     out = torch.zeros(len(kernels), 2, size, size, dtype=kernels[0].dtype)
     for k, kernel in zip(out, kernels):
         pad = (size - kernel.shape[-1]) // 2
         k[:, pad : size - pad, pad : size - pad] = kernel
-    return out.to(device, non_blocking=True)
+    return out
 
 
 def _tile_presence(labels: torch.Tensor, count: int) -> torch.Tensor:
@@ -170,7 +170,8 @@ def _render_runs_in_tiles(runs: list[_Run], opaque: torch.Tensor, labels: torch.
     colour and coverage per run, composited back to front at 1/d. Layer k of every run is
     convolved in one call, on the :data:`TILE`-px output tiles (at 1/d) its blur reaches alone,
     each from its input tile and halo. ``presence``: :func:`_tile_presence` per frame (tiles of
-    TILE px at full resolution)."""
+    TILE px at full resolution), on the CPU: the tiles are chosen there, without waiting for the
+    device."""
     planes_count, height, width = opaque.shape[1:]
     device = opaque.device
     low = (-(-height // d), -(-width // d))
@@ -185,32 +186,24 @@ def _render_runs_in_tiles(runs: list[_Run], opaque: torch.Tensor, labels: torch.
     layer_map = _tiled(F.pad(labels, pad, value=-1), TILE * d, window)  # (B, ty, tx, w, w)
     # premultiplied colour and coverage per run, tile by tile
     acc = opaque.new_zeros(len(runs), *tiles, 2, planes_count, TILE, TILE)
-    frames = torch.tensor([run.frame for run in runs], device=device)
     for position in range(max(len(run.layers) for run in runs)):
         active = [k for k, run in enumerate(runs) if position < len(run.layers)]
         kernels = [runs[k].kernels[position] for k in active]
         size = max(k.shape[-1] for k in kernels)
         half = size // 2
-        # the tiles (at 1/d) that hold the layer, grown by the tiles its blur reaches
-        held = torch.stack([_coarse(presence[runs[k].frame][runs[k].layers[position]], d,
-                                    tiles) for k in active])
-        grow = -(-half // TILE)
-        if grow:
-            held = F.max_pool2d(held[:, None].float(), 2 * grow + 1, stride=1,
-                                padding=grow)[:, 0] > 0
-        which, tile_row, tile_col = torch.nonzero(held, as_tuple=True)
-        if which.numel() == 0:
+        chosen = _reached_tiles([runs[k] for k in active], active, position, presence, d,
+                                tiles, half)
+        if chosen.shape[1] == 0:
             continue
-        run = torch.tensor(active, device=device)[which]  # the run of each tile
-        layer = torch.tensor([runs[k].layers[position] for k in active], device=device)[which]
+        # every tile's indices to the device in one copy
+        which, run, frame, tile_row, tile_col, layer = chosen.to(device, non_blocking=True)
         inner = slice((halo - half) * d, (halo + half + TILE) * d)  # this layer's halo
-        frame = frames[run]
         mask = layer_map[frame, tile_row, tile_col][:, inner, inner] == layer[:, None, None]
         planes = torch.where(mask[:, None], source[frame, tile_row, tile_col][..., inner, inner],
                              0.0)
         if d > 1:
             planes = F.avg_pool2d(planes, d)  # [I m, m] at 1/d
-        blurred = _convolve_valid(planes, _padded(kernels, size, device)[which])
+        blurred = _convolve_valid(planes, _padded(kernels, size).to(device)[which])
         previous = acc[run, tile_row, tile_col]  # (N, 2, C + 1, TILE, TILE)
         acc[run, tile_row, tile_col] = blurred + (1.0 - blurred[:, :, -1:]) * previous
     image = acc.permute(0, 3, 4, 1, 5, 2, 6).reshape(len(runs), 2, planes_count,
@@ -247,10 +240,36 @@ def _render_runs_in_boxes(runs: list[_Run], opaque: torch.Tensor, labels: torch.
         planes = torch.where(mask, source[chosen, :, rows, cols], 0.0)  # [I m, m]
         if d > 1:
             planes = F.avg_pool2d(planes, d)
-        blurred = _convolve(planes, _padded(kernels, size, opaque.device))  # (R, 2, C + 1, h, w)
+        blurred = _convolve(planes, _padded(kernels, size).to(opaque.device))  # (R, 2, C + 1, h, w)
         previous = acc[index, :, :, r0:r1, c0:c1]
         acc[index, :, :, r0:r1, c0:c1] = blurred + (1.0 - blurred[:, :, -1:]) * previous
     return list(acc)
+
+
+def _reached_tiles(runs: list[_Run], active: list[int], position: int,
+                   presence: list[torch.Tensor], d: int, tiles: tuple[int, int], half: int
+                   ) -> torch.Tensor:
+    """The output tiles (of :data:`TILE` px at 1/d, ``tiles`` of them) that layer ``position``
+    of each of ``runs`` (numbered ``active`` in the call) reaches: those holding it (its
+    frame's ``presence``, on the CPU) grown by ``half`` px. ``(6, N)`` on the CPU, per tile:
+    its run among ``runs``, its run's number, frame, tile row, tile column and layer."""
+    reached = torch.stack([_coarse(presence[run.frame][run.layers[position]], d, tiles)
+                           for run in runs])
+    grow = -(-half // TILE)
+    if grow:
+        reached = F.max_pool2d(reached[:, None].float(), 2 * grow + 1, stride=1,
+                               padding=grow)[:, 0] > 0
+    which, row, col = torch.nonzero(reached, as_tuple=True)
+    frame = torch.tensor([run.frame for run in runs])[which]
+    layer = torch.tensor([run.layers[position] for run in runs])[which]
+    return torch.stack((which, torch.tensor(active)[which], frame, row, col, layer))
+
+
+def _on_cpu(tensors: list[torch.Tensor]) -> list[torch.Tensor]:
+    """``tensors`` copied to the CPU in one transfer (one wait for the device)."""
+    flat = torch.cat([t.flatten() for t in tensors]).cpu()
+    return [part.view(t.shape) for part, t in zip(flat.split([t.numel() for t in tensors]),
+                                                    tensors)]
 
 
 def _coarse(held: torch.Tensor, d: int, tiles: tuple[int, int]) -> torch.Tensor:
@@ -333,8 +352,8 @@ def render_batch(
                 if run.d == d]
         chosen = [runs[b][k] for b, k in same]
         if d <= TILED_MAX_FACTOR:
-            presence = presence or [_tile_presence(labels[b], count)
-                                    for b, count in enumerate(counts)]
+            presence = presence or _on_cpu([_tile_presence(labels[b], count)
+                                            for b, count in enumerate(counts)])
             rendered = _render_runs_in_tiles(chosen, opaque, labels, presence, d)
         else:
             rendered = _render_runs_in_boxes(chosen, opaque, labels, d)
