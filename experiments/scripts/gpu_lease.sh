@@ -28,6 +28,8 @@
 #   profile                     where issue #71's GPU synthesis spends its time: one batched call
 #                               at 1920x1080 and at 840x560, and on-the-fly training rendered on
 #                               the device (bench_synthesis.py --profile) into $OUT (~2 minutes)
+#   checks                      tests, synthesis and profile in one call (7 files, ~5 minutes):
+#                               what a lease without a training run should do first
 #
 # Photographic recipes (rdpd-light-photographs*.yaml) read ../shared/data/photographs (61 MB),
 # which does not travel: a call sends the repository alone, at most 64 MiB with what it carries,
@@ -41,7 +43,7 @@
 # With 55 MiB of tree that is 9 parts: retire shipped weights first (release --replaces).
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, stop, collect, kit, figures, synthesis, tests, profile, pack or unpack}; shift
+command=${1:?start, wait, stop, collect, kit, figures, synthesis, tests, profile, checks, pack or unpack}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -155,6 +157,13 @@ profile)  # issue #71: where the batched renderer and device-rendered training s
   PYTHONPATH=src python3 benchmarks/bench_synthesis.py --training --profile --device cuda \
     --data fly-device --iterations 20 2>&1 | grep -v '^{' | tee "$OUT/profile_training_cuda.txt"
   ;;
+checks)  # the GPU checks of issues #71 and #76 in one call: one machine start for all
+  failed=""
+  for step in tests synthesis profile; do  # each runs whatever the one before gave
+    "$0" "$step" || failed="$failed $step"
+  done
+  [ -z "$failed" ] || { echo "failed:$failed" >&2; exit 1; }
+  ;;
 pack)  # here: the photographs in parts that travel one a call (see the header)
   photos=${PHOTOS:-../shared/data/photographs}
   [ -d "$photos/train" ] || { echo "no $photos/train: set PHOTOS to the photographs" >&2; exit 1; }
@@ -199,7 +208,7 @@ unpack)  # on the device: part N of K into ../shared/data/photographs
   ;;
 *)
   echo "unknown command: $command (start, wait, stop, collect, kit, figures, synthesis," \
-       "tests, profile, pack or unpack)" >&2
+       "tests, profile, checks, pack or unpack)" >&2
   exit 2
   ;;
 esac
