@@ -130,6 +130,16 @@ def test_windows_of_many_frames_render_as_those_regions_of_their_frames():
                                        msg=lambda m, n=name, k=k: f"frame {k} {n}: {m}")
 
 
+def test_bad_windows_are_refused():
+    rgb, depth = render_scene_sequence(3, SceneConfig(width=64, height=48, frames=1,
+                                                      leaves=4))[0]
+    draw = draw_sequence(7, "set0")
+    with pytest.raises(ParameterError, match="one entry per frame"):
+        synthesize_frames([(rgb, depth)], [draw], [0], windows=[None, None])
+    with pytest.raises(ParameterError, match="does not lie inside the 64x48 frame"):
+        synthesize_frames([(rgb, depth)], [draw], [0], windows=[(40, 0, 16, 16)])
+
+
 def test_deterministic_and_in_double_precision(frames):
     images, depths = frames[0][:1], frames[1][:1]
     coc = coc_radius(depths, PAPER_LENS_SETS["set1"])
