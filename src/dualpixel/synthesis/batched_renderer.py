@@ -81,11 +81,15 @@ def _runs(labels: torch.Tensor, layer_coc: torch.Tensor, frame: int, params: PSF
     return runs
 
 
-def _convolve(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor:
-    """``(R, P, h, w)`` planes, each run's with its own ``(R, 2, S, S)`` kernels (true
-    convolution, zero padding, output the input's size): ``(R, 2, P, h, w)``."""
+def _convolve(planes: torch.Tensor, kernels: torch.Tensor, *, valid: bool = False
+              ) -> torch.Tensor:
+    """``(R, P, h, w)`` planes, each with its own ``(R, 2, S, S)`` kernels (true convolution):
+    ``(R, 2, P, h, w)`` with zero padding, or with ``valid`` only where the kernel lies wholly
+    inside, ``(R, 2, P, h - S + 1, w - S + 1)``."""
     runs, count, height, width = planes.shape
     size = kernels.shape[-1]
+    crop = size - 1 if valid else size // 2  # where the output starts in the full convolution
+    out_size = (height - size + 1, width - size + 1) if valid else (height, width)
     cpu = planes.device.type == "cpu"
     if size <= DIRECT_MAX_KERNEL["cpu" if cpu else "other"]:
         weight = torch.flip(kernels, dims=(-2, -1))  # conv2d correlates
@@ -93,40 +97,20 @@ def _convolve(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor:
         source = planes.reshape(1, runs * count, height, width)
         if cpu:  # oneDNN's depthwise kernels want channels last: 2-3x faster
             source = source.contiguous(memory_format=torch.channels_last)
-        out = F.conv2d(source, weight.contiguous(), padding=size // 2, groups=runs * count)
-        return out.reshape(runs, count, 2, height, width).transpose(1, 2)
+        out = F.conv2d(source, weight.contiguous(), padding=0 if valid else size // 2,
+                       groups=runs * count)
+        return out.reshape(runs, count, 2, *out_size).transpose(1, 2)
     from scipy.fft import next_fast_len
 
-    full = (next_fast_len(height + size - 1, real=True), next_fast_len(width + size - 1, real=True))
+    if valid:  # overlap-save: a circular convolution of period >= h, w leaves this part exact
+        full = (next_fast_len(height, real=True), next_fast_len(width, real=True))
+    else:
+        full = (next_fast_len(height + size - 1, real=True),
+                next_fast_len(width + size - 1, real=True))
     spectrum = (torch.fft.rfft2(planes, s=full)[:, None]
                 * torch.fft.rfft2(kernels, s=full)[:, :, None])
-    half = size // 2
-    return torch.fft.irfft2(spectrum, s=full)[..., half : half + height, half : half + width]
-
-
-def _convolve_valid(planes: torch.Tensor, kernels: torch.Tensor) -> torch.Tensor:
-    """``(N, P, s, s)`` planes, each tile's with its own ``(N, 2, S, S)`` kernels (true
-    convolution), where the kernel lies wholly inside: ``(N, 2, P, s - S + 1, s - S + 1)``."""
-    count, planes_count, size_in = planes.shape[:3]
-    size = kernels.shape[-1]
-    out_size = size_in - size + 1
-    if size <= DIRECT_MAX_KERNEL["cpu" if planes.device.type == "cpu" else "other"]:
-        weight = torch.flip(kernels, dims=(-2, -1))  # conv2d correlates
-        weight = weight[:, None].expand(count, planes_count, 2, size, size)
-        source = planes.reshape(1, count * planes_count, size_in, size_in)
-        if planes.device.type == "cpu":  # oneDNN's depthwise kernels want channels last: 2-3x
-            source = source.contiguous(memory_format=torch.channels_last)
-        out = F.conv2d(source, weight.reshape(-1, 1, size, size).contiguous(),
-                       groups=count * planes_count)
-        return out.reshape(count, planes_count, 2, out_size, out_size).transpose(1, 2)
-    from scipy.fft import next_fast_len
-
-    # overlap-save: a circular convolution of period >= s leaves the valid part exact
-    period = next_fast_len(size_in, real=True)
-    spectrum = (torch.fft.rfft2(planes, s=(period, period))[:, None]
-                * torch.fft.rfft2(kernels, s=(period, period))[:, :, None])
-    return torch.fft.irfft2(spectrum, s=(period, period))[..., size - 1 : size_in,
-                                                           size - 1 : size_in]
+    return torch.fft.irfft2(spectrum, s=full)[..., crop : crop + out_size[0],
+                                              crop : crop + out_size[1]]
 
 
 def _padded(kernels: list[torch.Tensor], size: int) -> torch.Tensor:
@@ -191,8 +175,7 @@ def _render_runs_in_tiles(runs: list[_Run], opaque: torch.Tensor, labels: torch.
         kernels = [runs[k].kernels[position] for k in active]
         size = max(k.shape[-1] for k in kernels)
         half = size // 2
-        chosen = _reached_tiles([runs[k] for k in active], active, position, presence, d,
-                                tiles, half)
+        chosen = _reached_tiles([runs[k] for k in active], active, position, presence, d, half)
         if chosen.shape[1] == 0:
             continue
         # every tile's indices to the device in one copy
@@ -203,7 +186,8 @@ def _render_runs_in_tiles(runs: list[_Run], opaque: torch.Tensor, labels: torch.
                              0.0)
         if d > 1:
             planes = F.avg_pool2d(planes, d)  # [I m, m] at 1/d
-        blurred = _convolve_valid(planes, _padded(kernels, size).to(device)[which])
+        blurred = _convolve(planes, _padded(kernels, size).to(device)[which],
+                             valid=True)
         previous = acc[run, tile_row, tile_col]  # (N, 2, C + 1, TILE, TILE)
         acc[run, tile_row, tile_col] = blurred + (1.0 - blurred[:, :, -1:]) * previous
     image = acc.permute(0, 3, 4, 1, 5, 2, 6).reshape(len(runs), 2, planes_count,
@@ -247,13 +231,12 @@ def _render_runs_in_boxes(runs: list[_Run], opaque: torch.Tensor, labels: torch.
 
 
 def _reached_tiles(runs: list[_Run], active: list[int], position: int,
-                   presence: list[torch.Tensor], d: int, tiles: tuple[int, int], half: int
-                   ) -> torch.Tensor:
-    """The output tiles (of :data:`TILE` px at 1/d, ``tiles`` of them) that layer ``position``
-    of each of ``runs`` (numbered ``active`` in the call) reaches: those holding it (its
-    frame's ``presence``, on the CPU) grown by ``half`` px. ``(6, N)`` on the CPU, per tile:
+                   presence: list[torch.Tensor], d: int, half: int) -> torch.Tensor:
+    """The output tiles (of :data:`TILE` px at 1/d) that layer ``position`` of each of ``runs``
+    (numbered ``active`` in the call) reaches: those holding it (its frame's ``presence``, on
+    the CPU) grown by ``half`` px. ``(6, N)`` on the CPU, per tile:
     its run among ``runs``, its run's number, frame, tile row, tile column and layer."""
-    reached = torch.stack([_coarse(presence[run.frame][run.layers[position]], d, tiles)
+    reached = torch.stack([_coarse(presence[run.frame][run.layers[position]], d)
                            for run in runs])
     grow = -(-half // TILE)
     if grow:
@@ -272,14 +255,13 @@ def _on_cpu(tensors: list[torch.Tensor]) -> list[torch.Tensor]:
                                                     tensors)]
 
 
-def _coarse(held: torch.Tensor, d: int, tiles: tuple[int, int]) -> torch.Tensor:
-    """A layer's full-resolution tile presence ``(h, w)`` as tiles of ``TILE * d`` px: which of
-    the ``tiles`` of TILE px at 1/d hold it."""
-    if d > 1:
-        held = F.max_pool2d(held[None, None].float(), d, ceil_mode=True)[0, 0] > 0
-    out = torch.zeros(tiles, dtype=torch.bool, device=held.device)
-    out[: held.shape[0], : held.shape[1]] = held[: tiles[0], : tiles[1]]
-    return out
+def _coarse(held: torch.Tensor, d: int) -> torch.Tensor:
+    """A layer's full-resolution tile presence ``(ceil(H / TILE), ceil(W / TILE))`` as tiles of
+    ``TILE * d`` px: which of the tiles of TILE px at 1/d hold it (as many:
+    ``ceil(ceil(H / TILE) / d) = ceil(ceil(H / d) / TILE)``)."""
+    if d == 1:
+        return held
+    return F.max_pool2d(held[None, None].float(), d, ceil_mode=True)[0, 0] > 0
 
 
 def _upsampled(layer: torch.Tensor, d: int, height: int, width: int) -> torch.Tensor:
