@@ -193,6 +193,13 @@ class OnTheFlyDataset(DPPatchDataset):
         whole = (top, left, height, width) == (0, 0, *frame.target.shape[:2])
         stored = render_job(frame.job, self.source.fmt, self.source.config, scene=frame.scene,
                             window=None if whole else (top, left, height, width))
+        return self._as_crop(frame, stored, (top, left, height, width))
+
+    def _as_crop(self, frame: _Pending, stored: dict[str, np.ndarray],
+                 window: tuple[int, int, int, int]) -> dict[str, np.ndarray]:
+        """A crop's rendered views (stored integers) as read from files, with the target cut
+        from the frame's."""
+        top, left, height, width = window
         bits = self.source.config.bit_depth
         return {"left": _as_read(stored["left"], bits), "right": _as_read(stored["right"], bits),
                 "target": frame.target[top : top + height, left : left + width]}
@@ -218,11 +225,8 @@ class OnTheFlyDataset(DPPatchDataset):
                                  self.source.config, device,
                                  windows=[window for _, window in wanted.values()],
                                  scenes=[frame.scene for frame, _ in wanted.values()])
-            bits = self.source.config.bit_depth
-            for (name, (frame, (top, left, height, width))), views in zip(wanted.items(), stored):
-                batch.rendered[name] = {
-                    "left": _as_read(views["left"], bits), "right": _as_read(views["right"], bits),
-                    "target": frame.target[top : top + height, left : left + width]}
+            for (name, (frame, window)), views in zip(wanted.items(), stored):
+                batch.rendered[name] = self._as_crop(frame, views, window)
             return [self[key] for key in keys]
         finally:
             self._batch = None
