@@ -233,16 +233,23 @@ def end_to_end(sets: list[str], width: int, height: int, repeat: int,
                   f"{command_s / baseline_s:.3f} |{theirs}", flush=True)
 
 
+def dead_leaves_frames(width: int, height: int, count: int, device: str
+                       ) -> tuple[torch.Tensor, torch.Tensor]:
+    """``count`` dead-leaves frames on ``device``: images ``(B, 3, H, W)`` and depths
+    ``(B, H, W)``."""
+    frames = [render_scene_sequence(k, SceneConfig(width=width, height=height, frames=1,
+                                                   leaves=40))[0] for k in range(count)]
+    images = torch.stack([torch.from_numpy(rgb).permute(2, 0, 1) for rgb, _ in frames])
+    depths = torch.stack([torch.from_numpy(depth) for _, depth in frames])
+    return images.to(device), depths.to(device)
+
+
 def batched(sets: list[str], width: int, height: int, device: str, batch: int,
             repeat: int) -> None:
     """Accuracy of the batched renderer against exact per set, and frames per second."""
     from dualpixel.synthesis.batched_renderer import render_batch
 
-    frames = [render_scene_sequence(k, SceneConfig(width=width, height=height, frames=1,
-                                                   leaves=40))[0] for k in range(batch)]
-    images = torch.stack([torch.from_numpy(rgb).permute(2, 0, 1) for rgb, _ in frames])
-    depths = torch.stack([torch.from_numpy(depth) for _, depth in frames])
-    images, depths = images.to(device), depths.to(device)
+    images, depths = dead_leaves_frames(width, height, batch, device)
     params = PSFParams(n=6, alpha=0.6, beta=0.2)
     print(f"frame {width}x{height} on {device}, torch threads {torch.get_num_threads()}")
     print("| set | PSNR default vs exact L / R / C (dB) | PSNR batched vs exact L / R / C (dB) |")
@@ -326,12 +333,8 @@ def profile_batched(width: int, height: int, device: str, batch: int) -> None:
 
     from dualpixel.synthesis.batched_renderer import render_batch
 
-    frames = [render_scene_sequence(k, SceneConfig(width=width, height=height, frames=1,
-                                                   leaves=40))[0] for k in range(batch)]
-    images = torch.stack([torch.from_numpy(rgb).permute(2, 0, 1) for rgb, _ in frames])
-    coc = coc_radius(torch.stack([torch.from_numpy(depth) for _, depth in frames]),
-                     PAPER_LENS_SETS["set0"])
-    images, coc = images.to(device), coc.to(device)
+    images, depths = dead_leaves_frames(width, height, batch, device)
+    coc = coc_radius(depths, PAPER_LENS_SETS["set0"])
     params = PSFParams(n=6, alpha=0.6, beta=0.2)
     _, warm, _ = timed(lambda: render_batch(images, coc, params), device)  # allocator, kernels
     activities = [ProfilerActivity.CPU]
