@@ -362,8 +362,9 @@ def profile_batched(width: int, height: int, device: str, batch: int) -> None:
 
 def training(iterations: int, loader_workers: int, device: str,
              sources: tuple[str, ...] = ("written", "fly", "fly-device"),
-             profile: bool = False) -> None:
-    """Iterations per second of rdpd-light on written and on-the-fly data of one setting."""
+             profile: bool = False, cache: bool = False) -> None:
+    """Iterations per second of rdpd-light on written and on-the-fly data of one setting;
+    ``cache``: each process keeps the scenes it decoded (training's ``cache``)."""
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
     from dualpixel.synthesis.on_the_fly import write_on_the_fly
     from dualpixel.synthesis.scenes import write_scene_folder
@@ -381,7 +382,8 @@ def training(iterations: int, loader_workers: int, device: str,
         writing = time.perf_counter() - started
         write_on_the_fly(root / "fly", root / "scenes", "rgbd", settings)
         print(f"rdpd-light, 8 crops of 256 px, {iterations} iterations on {device}, "
-              f"{loader_workers} loader workers; writing the 8 frames took {writing:.1f} s")
+              f"{loader_workers} loader workers{', scenes kept decoded' if cache else ''}; "
+              f"writing the 8 frames took {writing:.1f} s")
         print("| data | iterations/s |")
         print("|---|---|")
         labels = {"written": "written", "fly": "on the fly, rendered by the loader",
@@ -395,7 +397,7 @@ def training(iterations: int, loader_workers: int, device: str,
                 synthetic_data=str(root / name.removesuffix("-device")),
                 synthetic_as_frames=True, patch_size=256, sequence_batch=4, sequence_frames=2,
                 epochs=1, iterations_per_epoch=iterations, workers=loader_workers,
-                device=device, tensorboard=False, learning_rate=1e-4))
+                device=device, tensorboard=False, learning_rate=1e-4, cache=cache))
             if profile:
                 import cProfile
 
@@ -438,6 +440,8 @@ def main() -> None:
                              "and fly-device (rendered in training) to time")
     parser.add_argument("--profile", action="store_true",
                         help="with --batched or --training: where the time goes (see above)")
+    parser.add_argument("--cache", action="store_true",
+                        help="with --training: keep decoded scenes in memory (`cache`)")
     args = parser.parse_args()
     if args.batched and args.profile:
         profile_batched(args.width, args.height, args.device, args.batch)
@@ -448,7 +452,7 @@ def main() -> None:
         return
     if args.training:
         training(args.iterations, args.loader_workers, args.device,
-                 tuple(args.data.split(",")), args.profile)
+                 tuple(args.data.split(",")), args.profile, args.cache)
         return
     if args.end_to_end:
         end_to_end(args.sets.split(","), args.width, args.height, args.repeat, args.authors_code,

@@ -22,8 +22,11 @@
 #                               (render only) on cuda, nvidia-smi (~5 minutes);
 #                               not while a run trains (they would share the GPU)
 #   synthesis                   issue #71's GPU figures into $OUT: the batched renderer against
-#                               exact and its frames per second, training iterations per second
-#                               on written and on-the-fly data (loader and device rendering)
+#                               exact and its frames per second, then `training`
+#   training                    training iterations per second on written and on-the-fly data
+#                               (6, 12 and 15 loader processes; rendering on the device, scenes kept
+#                               decoded or not), and a
+#                               crop's cost to one host core under cProfile (~4 minutes)
 #   tests                       issue #76's CUDA-path tests (tests/gpu) into $OUT/tests_gpu.txt
 #   profile                     where issue #71's GPU synthesis spends its time: one batched call
 #                               at 1920x1080 and at 840x560, and on-the-fly training rendered on
@@ -43,7 +46,7 @@
 # With 55 MiB of tree that is 9 parts: retire shipped weights first (release --replaces).
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, stop, collect, kit, figures, synthesis, tests, profile, checks, pack or unpack}; shift
+command=${1:?start, wait, stop, collect, kit, figures, synthesis, training, tests, profile, checks, pack or unpack}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -139,8 +142,22 @@ synthesis)  # issue #71's GPU figures: the batched renderer and on-the-fly train
   nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1 || true
   PYTHONPATH=src python3 benchmarks/bench_synthesis.py --batched --device cuda --batch 16 \
     --repeat 3 2>&1 | tee "$OUT/bench_batched_cuda.txt"
-  PYTHONPATH=src python3 benchmarks/bench_synthesis.py --training --device cuda --iterations 40 \
-    --loader-workers 12 2>&1 | grep -v '^{' | tee "$OUT/bench_training_cuda.txt"
+  "$0" training
+  ;;
+training)  # issue #71: training iterations per second, long enough that the loader's start is
+  # a small part (240 iterations), at 6, 12 and 15 loader processes; one process rendering
+  # in the training process on the CPU under cProfile: what a crop costs one of these cores
+  : "${OUT:?set OUT to the device tool output folder}"
+  bench() { PYTHONPATH=src python3 benchmarks/bench_synthesis.py --training --device cuda "$@" \
+              2>&1 | grep -v '^{'; }
+  { bench --data written,fly --iterations 240 --loader-workers 12
+    bench --data fly-device --iterations 40
+    bench --data fly-device --iterations 40 --cache
+    bench --data fly --iterations 240 --loader-workers 15
+  } | tee "$OUT/bench_training_cuda.txt"
+  bench --data fly --iterations 12 --loader-workers 0 --profile \
+    | tee "$OUT/profile_training_loader.txt"
+  bench --data fly --iterations 240 --loader-workers 6 | tee -a "$OUT/bench_training_cuda.txt"
   ;;
 tests)  # issue #76: the CUDA paths' tests (tests/gpu), their report into $OUT (~2 minutes)
   : "${OUT:?set OUT to the device tool output folder}"

@@ -82,3 +82,19 @@ def test_cached_grid_gives_the_same_warp_and_keeps_gradients():
     source = image.clone().requires_grad_(True)
     distort_image(source, d).sum().backward()
     assert source.grad is not None and float(source.grad.abs().sum()) > 0
+
+
+def test_grid_cache_holds_every_preset_in_every_variant_a_gpu_run_asks_for():
+    """On-the-fly training that renders on a GPU asks for each preset's grid in float32 and
+    float64 on the CPU and on the GPU, at each frame size: a second round of those (here two
+    dtypes on the CPU stand in for four variants, at four sizes) is read from the cache."""
+    from dualpixel.optics.distortion import _sampling_grid
+
+    _sampling_grid.cache_clear()
+    variants = [(preset, size, dtype) for preset in DISTORTION_PRESETS.values()
+                for size in ((12, 9), (14, 10), (16, 11), (18, 13))
+                for dtype in (torch.float32, torch.float64)]
+    for _ in range(2):
+        for preset, (width, height), dtype in variants:
+            _sampling_grid(preset, width, height, dtype, torch.device("cpu"))
+    assert _sampling_grid.cache_info().misses == len(variants)

@@ -114,7 +114,9 @@ def undistort_points(
     return centre + offset * scale
 
 
-@functools.lru_cache(maxsize=12)  # the five presets and one more, in two precisions
+# the five presets and one more, at two frame sizes, in the four variants a process rendering
+# on a GPU asks for (float32 and float64, on the CPU and on the GPU)
+@functools.lru_cache(maxsize=48)
 def _sampling_grid(distortion: DivisionDistortion, width: int, height: int, dtype: torch.dtype,
                    device: torch.device) -> torch.Tensor:
     """``grid_sample``'s ``(H, W, 2)`` grid of the undistorted source of every output pixel, in
