@@ -59,6 +59,7 @@ def test_statistics_of_a_synthetic_dataset(tiny_synthetic_dataset):
     """The dataset's statistics pool those of its frames, each measured alone (issue #76: the
     blur was only checked to be present)."""
     from dualpixel.data.layout import discover_any, read_frame
+    from dualpixel.io.images import read_rgb
 
     stats = dataset_statistics(tiny_synthetic_dataset, split="train", patch=32)
     summary = stats.summary()
@@ -66,7 +67,7 @@ def test_statistics_of_a_synthetic_dataset(tiny_synthetic_dataset):
     assert json.loads(json.dumps(summary)) == summary
     frames = [f for s in discover_any(tiny_synthetic_dataset, "train") for f in s.frames]
     alone = [frame_statistics(*(read_frame(f)[k] for k in ("left", "right", "target")),
-                              patch=32) for f in frames]
+                              read_rgb(f.combined), patch=32) for f in frames]
     np.testing.assert_array_equal(stats.blur, np.concatenate([a.blur for a in alone]))
     np.testing.assert_array_equal(stats.disparity, np.concatenate([a.disparity for a in alone]))
     assert summary["blur_sigma_px"]["p50"] == pytest.approx(

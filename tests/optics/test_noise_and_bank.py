@@ -64,3 +64,23 @@ def test_bank_sampling_is_reproducible_and_custom_banks_work():
         PSFBank([])
     with pytest.raises(ParameterError, match="sigma"):
         add_noise(torch.ones(2), -0.1)
+
+
+def test_tiled_normals_give_a_window_the_whole_frames_draws_there():
+    """A frame's noise is drawn in tiles, each from its own seed: any window (across tile
+    borders, at the frame's edges) equals that window of the whole frame's draws, the draws
+    are standard normal, independent between tiles, and another seed draws others."""
+    from dualpixel.optics.noise import NOISE_TILE, tiled_normals
+
+    frame = (NOISE_TILE * 2 + 37, NOISE_TILE * 3 - 5)
+    whole = tiled_normals(3, frame, 17)
+    assert whole.shape == (3, *frame)
+    for top, left, rows, cols in [(0, 0, *frame), (5, 9, 40, 60), (NOISE_TILE - 3, 1, 9, 300),
+                                  (frame[0] - 7, frame[1] - 11, 7, 11), (NOISE_TILE, 0, 128, 1)]:
+        window = tiled_normals(3, frame, 17, (top, left, rows, cols))
+        assert torch.equal(window, whole[:, top : top + rows, left : left + cols])
+    assert abs(float(whole.mean())) < 0.01 and abs(float(whole.std()) - 1.0) < 0.01
+    tile = NOISE_TILE
+    first, second = whole[:, :tile, :tile], whole[:, :tile, tile : 2 * tile]
+    assert abs(float((first * second).mean())) < 0.02  # tiles are not copies of each other
+    assert not torch.equal(tiled_normals(3, frame, 18), whole)

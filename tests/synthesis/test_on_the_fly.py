@@ -263,3 +263,37 @@ def test_cached_scenes_give_the_same_items_without_reading_the_files_again(scene
             assert all(torch.equal(want[k], item[k]) for k in want)
     with pytest.raises(InputFileError):
         read[(3, 11)]  # without the cache the files are read, and they are gone
+
+
+def test_scenes_in_a_frame_store_are_decoded_once_for_every_process(scenes, tmp_path,
+                                                                     monkeypatch):
+    """With a frame store (training's ``frame_store``) each scene's RGB and depth are decoded
+    once into the store: the items equal those read from the files, and another process's
+    sources (a new cache on the same folder) render them without decoding a scene."""
+    import dualpixel.synthesis.inputs as inputs
+    from dualpixel.training.trainer import _synthetic_dataset
+
+    keys = [(3, 11), (0, 5), (9, 77)]
+    expected = [OnTheFlyDataset(source_of(scenes, tmp_path), PatchConfig(patch_size=64))[key]
+                for key in keys]
+    store = tmp_path / "store"
+    config = _config(tmp_path / "source", tmp_path, frame_store=str(store), patch_size=64)
+    got = [_synthetic_dataset(config, PatchConfig(patch_size=64), {})[key] for key in keys]
+    assert len(list(store.glob("*.rgb.npy"))) == len(list(store.glob("*.depth.npy"))) == 3
+
+    def no_decoding(*args, **kwargs):
+        raise AssertionError("a scene was decoded again")
+
+    monkeypatch.setattr(inputs, "load_frame", no_decoding)
+    other = OnTheFlyDataset(tmp_path / "source", PatchConfig(patch_size=64),
+                            scenes=SceneCache(store))
+    again = [other[key] for key in keys]
+    for want, *items in zip(expected, got, again):
+        for item in items:
+            assert all(torch.equal(want[k], item[k]) for k in want)
+
+
+def source_of(scenes: Path, tmp_path: Path) -> Path:
+    folder = tmp_path / "source"
+    write_on_the_fly(folder, scenes, "rgbd", SynthConfig(**SETTINGS))
+    return folder

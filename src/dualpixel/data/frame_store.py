@@ -52,18 +52,33 @@ class FrameStore:
 
     def entry(self, frame: DPFramePaths) -> Path:
         """The file that holds ``frame`` (it may not exist yet)."""
-        digest = hashlib.sha1()
-        for role, path in (("left", frame.left), ("right", frame.right),
-                           ("target", frame.target)):
-            if path is None:
-                continue
-            try:
-                stat = path.stat()
-            except OSError as error:
-                raise InputFileError(path, f"cannot be read ({error.strerror})") from None
-            digest.update(f"{role}\0{path.resolve()}\0{stat.st_size}\0{stat.st_mtime_ns}\n"
-                          .encode())
-        return self.folder / f"{digest.hexdigest()}.npy"
+        roles = (("left", frame.left), ("right", frame.right), ("target", frame.target))
+        return self.folder / f"{_digest(roles)}.npy"
+
+    def scene_entries(self, frame, fmt: str, *, max_depth: float, depth_scale: float
+                      ) -> tuple[Path, Path]:
+        """The files that hold an RGB-D scene frame (:class:`~dualpixel.synthesis.inputs.
+        InputFrame`) as read with these settings: its RGB and its depth."""
+        name = _digest((("rgb", frame.rgb), ("depth", frame.depth)),
+                       f"{fmt}\0{max_depth!r}\0{depth_scale!r}")
+        return self.folder / f"{name}.rgb.npy", self.folder / f"{name}.depth.npy"
+
+    def load_scene(self, frame, fmt: str, *, max_depth: float, depth_scale: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """A scene frame's RGB ``(H, W, 3)`` (uint8 where that is lossless, else float32 in
+        [0, 1]) and depth ``(H, W)`` float32, as :func:`~dualpixel.synthesis.inputs.load_frame`
+        reads them, read-only and mapped from the store: decoded by the first process that
+        asks (training crops rendered on the fly read a whole scene for each crop)."""
+        from dualpixel.synthesis.inputs import load_frame
+
+        paths = self.scene_entries(frame, fmt, max_depth=max_depth, depth_scale=depth_scale)
+        if not all(path.is_file() for path in paths):
+            rgb, depth = load_frame(frame, fmt, max_depth=max_depth, depth_scale=depth_scale)
+            self.folder.mkdir(parents=True, exist_ok=True)
+            for path, image in zip(paths[::-1], (depth.astype(np.float32), _compact(rgb))):
+                with atomic_path(path) as tmp:  # the RGB last: it marks the entry whole
+                    np.save(tmp, image)
+        return tuple(_mapped(path) for path in paths)
 
     def load(self, frame: DPFramePaths) -> dict[str, np.ndarray]:
         """``left``, ``right`` (and ``target``) as read-only ``(H, W, 3)`` arrays, uint8 or
@@ -81,10 +96,30 @@ class FrameStore:
             self.folder.mkdir(parents=True, exist_ok=True)
             with atomic_path(path) as tmp:
                 np.save(tmp, stacked)
-        try:
-            mapped = np.load(path, mmap_mode="r", allow_pickle=False)
-        except (OSError, ValueError) as error:
-            raise InputFileError(path, f"frame store entry cannot be read ({error}); delete it "
-                                       "to decode the frame again") from None
+        mapped = _mapped(path)
         return {role: mapped[index] for index, role in enumerate(roles)}
+
+
+def _digest(paths, settings: str = "") -> str:
+    """A hash of ``(role, path)`` files' resolved paths, sizes and modification times (and
+    ``settings``): an edited source gets a new entry."""
+    digest = hashlib.sha1(settings.encode())
+    for role, path in paths:
+        if path is None:
+            continue
+        try:
+            stat = path.stat()
+        except OSError as error:
+            raise InputFileError(path, f"cannot be read ({error.strerror})") from None
+        digest.update(f"{role}\0{path.resolve()}\0{stat.st_size}\0{stat.st_mtime_ns}\n"
+                      .encode())
+    return digest.hexdigest()
+
+
+def _mapped(path: Path) -> np.ndarray:
+    try:
+        return np.load(path, mmap_mode="r", allow_pickle=False)
+    except (OSError, ValueError) as error:
+        raise InputFileError(path, f"frame store entry cannot be read ({error}); delete it "
+                                   "to decode the frame again") from None
 

@@ -16,7 +16,8 @@ import torch
 from dualpixel.errors import ParameterError, check_range
 
 __all__ = [
-    "PAPER_NOISE_SIGMAS", "NoiseModel", "add_noise", "check_noise_sigmas", "sample_noise_sigma",
+    "NOISE_TILE", "PAPER_NOISE_SIGMAS", "NoiseModel", "add_noise", "check_noise_sigmas",
+    "sample_noise_sigma", "tiled_normals",
 ]
 
 NoiseModel = Literal["multiplicative", "poisson-gaussian"]
@@ -25,6 +26,38 @@ NoiseModel = Literal["multiplicative", "poisson-gaussian"]
 PAPER_NOISE_SIGMAS: tuple[float, ...] = tuple(
     round(0.05 + 0.005 * i, 4) for i in range(91)
 )
+
+
+#: Side (px) of the tiles a frame's noise is drawn in, each from its own seed: a window of the
+#: frame (a training crop) draws only the tiles it touches and gets the frame's noise there.
+NOISE_TILE = 128
+
+
+def tiled_normals(channels: int, frame: tuple[int, int], seed: int,
+                  window: tuple[int, int, int, int] | None = None, *,
+                  dtype: torch.dtype = torch.float32, device: torch.device | str = "cpu"
+                  ) -> torch.Tensor:
+    """Standard normal draws for a ``(channels, H, W)`` frame (``frame`` ``(H, W)``), fixed by
+    ``seed``: ``(channels, h, w)`` of ``window`` ``(top, left, h, w)`` px, or of the whole frame.
+    The frame is drawn in :data:`NOISE_TILE` tiles, each with its own generator (seeded from
+    ``seed`` and its place), so a window draws only the tiles it touches and equals that
+    window of the whole frame's draws."""
+    height, width = frame
+    top, left, rows, cols = window if window is not None else (0, 0, height, width)
+    out = torch.empty((channels, rows, cols), dtype=dtype, device=device)
+    tile = NOISE_TILE
+    for row in range(top // tile * tile, top + rows, tile):
+        for col in range(left // tile * tile, left + cols, tile):
+            state = np.random.SeedSequence((seed, row // tile, col // tile)).generate_state(
+                1, dtype=np.uint64)[0]
+            generator = torch.Generator(device=device).manual_seed(int(state))
+            draws = torch.randn((channels, min(tile, height - row), min(tile, width - col)),
+                                generator=generator, dtype=dtype, device=device)
+            r0, c0 = max(row, top), max(col, left)
+            r1, c1 = min(row + tile, top + rows), min(col + tile, left + cols)
+            out[:, r0 - top : r1 - top, c0 - left : c1 - left] = \
+                draws[:, r0 - row : r1 - row, c0 - col : c1 - col]
+    return out
 
 
 def check_noise_sigmas(sigmas) -> tuple[float, ...]:

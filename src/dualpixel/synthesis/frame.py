@@ -35,6 +35,7 @@ from dualpixel.optics.noise import (
     add_noise,
     check_noise_sigmas,
     sample_noise_sigma,
+    tiled_normals,
 )
 from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
 from dualpixel.optics.psf_bank import PAPER_PSF_BANK, PSFBank
@@ -337,15 +338,14 @@ class _Window:
 
 def _noisy_view(view: torch.Tensor, draw: SequenceDraw, seed: int,
                 window: _Window | None = None) -> torch.Tensor:
-    generator = torch.Generator(device=view.device).manual_seed(seed)
-    gaussian = None
-    if window is not None:  # the whole frame's draws, so a window's noise is the frame's there
-        gaussian = window.of_frame(torch.randn((view.shape[0], *window.frame),
-                                               generator=generator, dtype=view.dtype,
-                                               device=view.device))
+    """``view`` ``(C, h, w)`` with its noise: the whole frame's draws (:func:`tiled_normals`),
+    so a window's noise is the frame's there."""
+    frame = tuple(view.shape[1:]) if window is None else window.frame
+    gaussian = tiled_normals(view.shape[0], frame, seed,
+                             None if window is None else window.window,
+                             dtype=view.dtype, device=view.device)
     # Noise is added to the paper's half-brightness view I_l = view / 2 (Eq. 7).
-    half = add_noise(view / 2.0, draw.noise_sigma, generator=generator, model=draw.noise_model,
-                     gaussian=gaussian)
+    half = add_noise(view / 2.0, draw.noise_sigma, model=draw.noise_model, gaussian=gaussian)
     return 2.0 * half
 
 

@@ -21,7 +21,8 @@ none does.
 Training names such a folder wherever it names a dataset (``synthetic_data``; a recipe's synth
 step with ``source: on-the-fly``); validation stays on datasets written once. Sources given
 one :class:`SceneCache` (training's ``cache``, ``reproduce --cache``) decode each scene's RGB
-and depth once per process and share them: about 3.3 MB a 840x560 scene.
+and depth once per process and share them: about 3.3 MB a 840x560 scene; with training's
+``frame_store`` (``reproduce --frame-store``) once for all processes, mapped from that folder.
 """
 
 from __future__ import annotations
@@ -273,10 +274,15 @@ class _Batch:
 
 class SceneCache:
     """Scene frames decoded once and kept in memory (RGB as 8-bit where that is lossless),
-    for the on-the-fly sources of one process that read the same scenes."""
+    for the on-the-fly sources of one process that read the same scenes; or, given ``store``
+    (a :class:`~dualpixel.data.frame_store.FrameStore` folder), decoded once for every process
+    and mapped from there (loader processes, which end every epoch, and runs after)."""
 
-    def __init__(self) -> None:
+    def __init__(self, store: str | Path | None = None) -> None:
+        from dualpixel.data.frame_store import FrameStore
+
         self._scenes: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self._store = None if store is None else FrameStore(store)
 
     def __len__(self) -> int:
         return len(self._scenes)
@@ -289,13 +295,17 @@ class SceneCache:
         from dualpixel.data.frame_store import compact_frame, expand
         from dualpixel.synthesis.inputs import load_frame
 
-        key = (str(frame.rgb), str(frame.depth), fmt, max_depth, depth_scale)
-        if key not in self._scenes:
-            rgb, depth = load_frame(frame, fmt, max_depth=max_depth, depth_scale=depth_scale)
-            self._scenes[key] = (compact_frame({"rgb": rgb})["rgb"], depth)
-        rgb, depth = self._scenes[key]
+        read = dict(max_depth=max_depth, depth_scale=depth_scale)
+        if self._store is not None:
+            rgb, depth = self._store.load_scene(frame, fmt, **read)
+        else:
+            key = (str(frame.rgb), str(frame.depth), fmt, max_depth, depth_scale)
+            if key not in self._scenes:
+                rgb, depth = load_frame(frame, fmt, **read)
+                self._scenes[key] = (compact_frame({"rgb": rgb})["rgb"], depth)
+            rgb, depth = self._scenes[key]
         image = expand(rgb)
-        return (image.copy() if image is rgb else image), depth.copy()
+        return (np.array(image) if image is rgb else image), np.array(depth)
 
 
 def _as_read(image: np.ndarray, bit_depth: int) -> np.ndarray:

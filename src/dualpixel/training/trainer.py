@@ -123,7 +123,8 @@ def _synthetic_dataset(config: TrainConfig, patches: PatchConfig, stored: dict[s
         transform = raw_views_transform(folders, config.raw_views)
         return DPPatchDataset(sequences, patches, **stored, transform=transform)
     parts = []
-    scenes = SceneCache() if config.cache else None  # shared by the sources
+    scenes = (SceneCache(config.frame_store) if config.frame_store is not None  # shared by
+              else SceneCache() if config.cache else None)                     # the sources
     for folder in folders:
         if is_on_the_fly(folder):
             part = OnTheFlyDataset(folder, patches, scenes=scenes)
