@@ -302,14 +302,14 @@ def _functions(profiler, rows: int = 30) -> None:
 def operator_counts(fn) -> dict[str, int]:
     """Torch operators one call of ``fn`` dispatches: on the frames (each a kernel launch on an
     accelerator), of them the synchronisations (a value read back to the host), and on the CPU
-    whatever the device (the kernels, made by ``_layer_kernels`` and stacked by ``_padded``,
+    whatever the device (the kernels, made by ``layer_kernels`` and stacked by ``_padded``,
     and the tiles chosen by ``_reached_tiles``)."""
     import traceback
 
     from torch.utils._python_dispatch import TorchDispatchMode
 
     counts = {"frames": 0, "synchronisations": 0, "cpu": 0}
-    on_cpu = {"_layer_kernels", "_padded", "_reached_tiles"}
+    on_cpu = {"layer_kernels", "_padded", "_reached_tiles"}
 
     class Count(TorchDispatchMode):
         def __torch_dispatch__(self, func, types, args=(), kwargs=None):

@@ -107,3 +107,22 @@ def test_bad_radius_and_size_are_rejected():
         dp_psf(3.0, size=10)
     with pytest.raises(ParameterError, match="model must be one of"):
         dp_psf(3.0, model="airy")
+
+
+def test_psfs_each_with_its_own_shape_equal_each_made_alone():
+    """One batch of radii each with its own shape parameters (the layers of many frames in one
+    call) gives exactly the kernels each radius gets alone, smoothed or not (kappa 0)."""
+    from dualpixel.optics.psf import dp_psf_each
+
+    shapes = [PSFParams(), PSFParams(n=5.3, alpha=0.77, beta=0.31, kappa=0.0),
+              PSFParams(n=2.1, alpha=1.3, beta=0.9, kappa=0.27),
+              PSFParams(n=11.0, alpha=0.33, beta=0.07, kappa=0.11)]
+    radii = torch.tensor([3.3, -5.7, 0.2, 9.1] * 9, dtype=torch.float32)  # over one chunk of 32
+    params = [shapes[k % 4] if k < 18 else shapes[(k + 1) % 4] for k in range(len(radii))]
+    each = dp_psf_each(radii, params, 25)
+    for k, (radius, shape) in enumerate(zip(radii.tolist(), params)):
+        alone = dp_psf(torch.tensor([radius]), shape, size=25)
+        assert torch.equal(alone.left[0], each.left[k]) and torch.equal(alone.right[0],
+                                                                       each.right[k])
+    with pytest.raises(ParameterError, match="one PSFParams per radius"):
+        dp_psf_each(radii, params[:3], 25)

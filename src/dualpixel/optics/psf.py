@@ -39,6 +39,7 @@ __all__ = [
     "check_psf_model",
     "disk_psf",
     "dp_psf",
+    "dp_psf_each",
     "gaussian_blur_kernels",
     "gaussian_psf",
     "kernel_size",
@@ -193,7 +194,7 @@ def gaussian_blur_kernels(kernels: torch.Tensor, sigma: torch.Tensor) -> torch.T
 
 
 def butterworth_disk_terms(
-    radius: torch.Tensor, n: float, alpha: float, size: int
+    radius: torch.Tensor, n: float | torch.Tensor, alpha: float | torch.Tensor, size: int
 ) -> tuple[torch.Tensor, torch.Tensor]:
     r"""The two pixel-integrated terms of Eq. 2-3 whose mix is our combined PSF: the disk ``[C]``
     and the Butterworth-weighted disk ``[B o C]``, each ``(K, S, S)``.
@@ -205,22 +206,42 @@ def butterworth_disk_terms(
     The calibration fit reuses them for every beta and kappa.
     """
     rho = _subpixel_radius(size, radius)
-    cutoff = 2.0 * alpha * radius.abs()[:, None, None]
+    cutoff = _per_kernel(2.0 * alpha, radius) * radius.abs()[:, None, None]
     tiny = torch.finfo(radius.dtype).tiny
-    butterworth = torch.sigmoid(2.0 * n * (torch.log(rho + tiny) - torch.log(cutoff + tiny)))
+    butterworth = torch.sigmoid(_per_kernel(2.0 * n, radius)
+                                * (torch.log(rho + tiny) - torch.log(cutoff + tiny)))
     disk = _disk_samples(radius, rho)
     return _pixel_integral(disk), _pixel_integral(butterworth * disk)
 
 
 def mix_butterworth_terms(
     disk: torch.Tensor, butter_disk: torch.Tensor, radius: torch.Tensor, beta: float | torch.Tensor,
-    kappa: float,
+    kappa: float | torch.Tensor,
 ) -> torch.Tensor:
-    r"""``H = G_{\kappa |r|} * ((\beta + (1 - \beta) B) o C)`` from the terms, sums to 1."""
-    combined = beta * disk + (1.0 - beta) * butter_disk
-    if kappa > 0:
-        combined = gaussian_blur_kernels(combined, kappa * radius.abs())
+    r"""``H = G_{\kappa |r|} * ((\beta + (1 - \beta) B) o C)`` from the terms, sums to 1.
+    ``beta`` and ``kappa``: one value, or one per kernel ``(K,)`` (float64 gives the same
+    values as each alone)."""
+    combined = (_per_kernel(beta, radius) * disk
+                + _per_kernel(1.0 - beta, radius) * butter_disk)
+    if not isinstance(kappa, torch.Tensor):
+        if kappa > 0:
+            combined = gaussian_blur_kernels(combined, kappa * radius.abs())
+        return _normalise(combined)
+    smoothed = kappa > 0  # the others as a float kappa of 0 leaves them: unsmoothed
+    if bool(smoothed.any()):
+        sigma = _per_kernel(kappa[smoothed], radius)[:, 0, 0] * radius[smoothed].abs()
+        combined = combined.clone()
+        combined[smoothed] = gaussian_blur_kernels(combined[smoothed], sigma)
     return _normalise(combined)
+
+
+def _per_kernel(value: float | torch.Tensor, like: torch.Tensor) -> float | torch.Tensor:
+    """A shape parameter as it multiplies ``(K, S, S)`` kernels: a ``(K,)`` tensor (computed in
+    float64, like Python's floats) as ``(K, 1, 1)`` in ``like``'s dtype; a float, or a tensor
+    already shaped to broadcast (the calibration's betas), as it is."""
+    if not isinstance(value, torch.Tensor) or value.ndim != 1:
+        return value
+    return value.to(dtype=like.dtype, device=like.device)[:, None, None]
 
 
 def butterworth_combined_psf(radius: torch.Tensor, params: PSFParams, size: int) -> torch.Tensor:
@@ -231,6 +252,26 @@ def butterworth_combined_psf(radius: torch.Tensor, params: PSFParams, size: int)
     """
     disk, butter_disk = butterworth_disk_terms(radius, params.n, params.alpha, size)
     return mix_butterworth_terms(disk, butter_disk, radius, params.beta, params.kappa)
+
+
+def dp_psf_each(radius: torch.Tensor, params: Sequence[PSFParams], size: int) -> DPKernels:
+    """Our model's left and right PSFs (Eq. 2-4) for ``(K,)`` radii, each with its own shape
+    ``params`` (K of them), all of one odd ``size``: ``(K, S, S)`` each, the same values as
+    :func:`dp_psf` gives each radius with its parameters. For renderers whose frames each
+    have their own PSF shape: one batch for all their layers."""
+    if len(params) != radius.numel():
+        raise ParameterError(f"dp_psf_each needs one PSFParams per radius ({radius.numel()}), "
+                             f"got {len(params)}")
+    columns = torch.tensor([[p.n, p.alpha, p.beta, p.kappa] for p in params],
+                           dtype=torch.float64)
+    views = []
+    for start in range(0, radius.numel(), _CHUNK):
+        part = slice(start, start + _CHUNK)
+        n, alpha, beta, kappa = columns[part].unbind(dim=1)
+        disk, butter_disk = butterworth_disk_terms(radius[part], n, alpha, size)
+        combined = mix_butterworth_terms(disk, butter_disk, radius[part], beta, kappa)
+        views.append(split_views(combined, radius[part]))
+    return DPKernels(*(torch.cat(side) for side in zip(*views)))
 
 
 def gaussian_psf(radius: torch.Tensor, size: int) -> torch.Tensor:

@@ -25,14 +25,14 @@ frame's render does, which is what on-the-fly training crops need.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import torch
 import torch.nn.functional as F
 
 from dualpixel.errors import ParameterError
 from dualpixel.optics.psf import PSFModel, PSFParams, check_psf_model
-from dualpixel.synthesis.fast_renderer import _groups, _layer_kernels, crop_margin
+from dualpixel.synthesis.fast_renderer import _groups, crop_margin, layer_kernels
 from dualpixel.synthesis.layers import bounding_boxes, quantise_layers
 
 __all__ = ["DIRECT_MAX_KERNEL", "crop_margin", "render_batch"]
@@ -63,22 +63,39 @@ class _Run:
     frame: int
     d: int
     layers: list[int]
-    kernels: list[torch.Tensor]  # (2, S, S) per layer, at 1/d, on the CPU
+    radii: list[float]  # CoC radius (px, full resolution) per layer
     boxes: list[list[int]]  # (row0, row1, col0, col1) inclusive per layer, full resolution
+    kernels: list[torch.Tensor] = field(default_factory=list)  # (2, S, S) per layer, at 1/d,
+    # on the CPU
 
 
-def _runs(labels: torch.Tensor, layer_coc: torch.Tensor, frame: int, params: PSFParams,
-          model: PSFModel, dtype: torch.dtype) -> list[_Run]:
+def _runs(labels: torch.Tensor, layer_coc: torch.Tensor, frame: int) -> list[_Run]:
     """The runs of one frame's layers present in ``labels`` (far to near, grouped as the
-    default renderer groups them), with their kernels."""
+    default renderer groups them), their kernels not made yet (:func:`_with_kernels`)."""
     radii = layer_coc.tolist()
     boxes = bounding_boxes(labels, len(radii)).tolist()
-    runs = [_Run(frame, d, group, [], []) for d, group in _groups(radii, boxes)]
-    for run in runs:
-        run.kernels = _layer_kernels([radii[j] for j in run.layers], run.d, params, model,
-                                     dtype)
-        run.boxes = [boxes[j] for j in run.layers]
-    return runs
+    return [_Run(frame, d, group, radii=[radii[j] for j in group],
+                 boxes=[boxes[j] for j in group]) for d, group in _groups(radii, boxes)]
+
+
+def _with_kernels(runs: list[list[_Run]], params: list[PSFParams | None],
+                  models: list[PSFModel], dtype: torch.dtype) -> None:
+    """Every run's kernels (its frame's PSF shape and model, at 1/d), made in one
+    :func:`~dualpixel.synthesis.fast_renderer.layer_kernels` call for all the frames."""
+    radii: list[float] = []
+    shapes: list[PSFParams | None] = []
+    kinds: list[PSFModel] = []
+    for b, frame in enumerate(runs):
+        for run in frame:
+            radii += [r / run.d for r in run.radii]
+            shapes += [params[b]] * len(run.radii)
+            kinds += [models[b]] * len(run.radii)
+    kernels = layer_kernels(radii, shapes, kinds, dtype)
+    start = 0
+    for frame in runs:
+        for run in frame:
+            run.kernels = kernels[start : start + len(run.layers)]
+            start += len(run.layers)
 
 
 def _convolve(planes: torch.Tensor, kernels: torch.Tensor, *, valid: bool = False
@@ -325,8 +342,8 @@ def render_batch(
                                      f"image {(height, width)} differ in size")
         labels[b] = frame_labels.to(coc.device)
         counts.append(layer_coc.numel())
-        runs.append(_runs(labels[b], layer_coc.to(images.dtype), b,
-                          per_frame_params[b] or PSFParams(), models[b], images.dtype))
+        runs.append(_runs(labels[b], layer_coc.to(images.dtype), b))
+    _with_kernels(runs, per_frame_params, models, images.dtype)
     results: dict[tuple[int, int], torch.Tensor] = {}
     presence: list[torch.Tensor] = []  # per frame, made once a tiled factor needs it
     for d in sorted({run.d for frame in runs for run in frame}):

@@ -33,7 +33,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from dualpixel.optics.psf import PSFModel, PSFParams, dp_psf, kernel_size
+from dualpixel.optics.psf import PSFModel, PSFParams, dp_psf, dp_psf_each, kernel_size
 from dualpixel.synthesis.convolution import convolve_same
 from dualpixel.synthesis.layers import bounding_boxes, grown_box, quantise_layers, row_extents
 
@@ -58,20 +58,37 @@ def downsample_factor(radius: float) -> int:
     return d
 
 
-def _layer_kernels(radii: list[float], d: int, params, model, dtype: torch.dtype
-                   ) -> list[torch.Tensor]:
-    """``(2 views, S, S)`` kernels per CoC radius (px) at 1/d resolution, each view summing to 1;
-    one batched :func:`dp_psf` call per kernel size (each radius keeps its own size). Made on
-    the CPU whatever device renders: a few hundred small tensors, each step of which would be a
+def _group_kernels(groups: list[tuple[int, list[int]]], radii: list[float], params, model,
+                   dtype: torch.dtype) -> list[list[torch.Tensor]]:
+    """Per group ``(d, layers)``, its layers' ``(2 views, S, S)`` kernels at 1/d resolution, each
+    view summing to 1: :func:`layer_kernels` of one PSF shape and model, one call for all."""
+    flat = [radii[j] / d for d, group in groups for j in group]
+    kernels = layer_kernels(flat, [params] * len(flat), [model] * len(flat), dtype)
+    tables, start = [], 0
+    for _, group in groups:
+        tables.append(kernels[start : start + len(group)])
+        start += len(group)
+    return tables
+
+
+def layer_kernels(radii: list[float], params: list[PSFParams | None], models: list[PSFModel],
+                  dtype: torch.dtype) -> list[torch.Tensor]:
+    """``(2 views, S, S)`` kernels per CoC radius (px, at the resolution rendered), each with its
+    own PSF shape and model, each view summing to 1: one batched PSF call per model and kernel
+    size (each radius keeps its own size), so the layers of many frames cost one. Made on the
+    CPU whatever device renders: a few hundred small tensors, each step of which would be a
     kernel launch on an accelerator (and each trimming test a synchronisation); the caller
     moves them to its device."""
-    kappa = (params or PSFParams()).kappa
-    sizes = [kernel_size(r / d, model, kappa) for r in radii]
+    shapes = [p or PSFParams() for p in params]
+    sizes = [kernel_size(r, m, p.kappa) for r, p, m in zip(radii, shapes, models)]
     kernels: list[torch.Tensor] = [torch.empty(0, dtype=dtype)] * len(radii)
-    for size in sorted(set(sizes)):
-        members = [i for i, s in enumerate(sizes) if s == size]
-        batch = torch.tensor([radii[i] / d for i in members], dtype=dtype)
-        left, right = dp_psf(batch, params, model=model, size=size)
+    for model, size in sorted(set(zip(models, sizes))):
+        members = [i for i, key in enumerate(zip(models, sizes)) if key == (model, size)]
+        batch = torch.tensor([radii[i] for i in members], dtype=dtype)
+        if model == "ours":
+            left, right = dp_psf_each(batch, [shapes[i] for i in members], size)
+        else:  # the baselines have no shape parameters
+            left, right = dp_psf(batch, model=model, size=size)
         both = 2.0 * torch.stack((left, right), dim=1)
         for i, kernel in zip(members, _trimmed(both)):
             kernels[i] = kernel
@@ -211,9 +228,10 @@ def render_fast(
     radii = layer_coc.tolist()
     # (views, H, W, C + 1): premultiplied colour and coverage
     result = torch.zeros(2, height, width, channels + 1, dtype=image.dtype, device=image.device)
-    for d, group in _groups(radii, boxes):
+    groups = _groups(radii, boxes)
+    tables = _group_kernels(groups, radii, params, model, image.dtype)
+    for (d, group), table in zip(groups, tables):
         if d == 1:
-            table = _layer_kernels([radii[j] for j in group], 1, params, model, image.dtype)
             unblurred: list[int] = []  # consecutive layers whose kernels are exactly [[1]]
             for j, kernels in zip(group, table):
                 if kernels.shape[-1] == 1 and bool((kernels == 1.0).all()):
@@ -225,7 +243,8 @@ def render_fast(
                                   kernels)
             _paste_unblurred(result, opaque, labels, unblurred)
         else:
-            _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params, model)
+            _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params, model,
+                               table)
     cover = result[..., channels:].clamp_min(torch.finfo(image.dtype).eps)
     views = (result[..., :channels] / cover).permute(0, 3, 1, 2)
     return views[0], views[1]
@@ -352,9 +371,11 @@ def _paste_unblurred(result, opaque, labels, layers: list[int]) -> None:
     result.view(2, height * width, planes).index_copy_(1, where, values.expand(2, -1, -1))
 
 
-def _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params, model) -> None:
-    """Layers of one downsampling factor ``d`` (far to near): area-averaged to 1/d, blurred and
-    composited there, then upsampled (bicubic) and composited over ``result``."""
+def _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params, model,
+                       table) -> None:
+    """Layers of one downsampling factor ``d`` (far to near), with their kernels at 1/d
+    (``table``): area-averaged to 1/d, blurred and composited there, then upsampled (bicubic)
+    and composited over ``result``."""
     height, width, channels = image_hwc.shape
     largest = max(abs(radii[j]) for j in group)
     half = kernel_size(largest, model, (params or PSFParams()).kappa) // 2
@@ -377,8 +398,6 @@ def _composite_reduced(result, image_hwc, labels, group, boxes, radii, d, params
     low_rows, low_cols = (where // (c1 - c0)) // d, (where % (c1 - c0)) // d
     values = image_hwc[r0:r1, c0:c1].reshape(-1, channels)[where]
     layer = torch.zeros(2, lh, lw, channels + 1, dtype=image_hwc.dtype, device=image_hwc.device)
-    table = _layer_kernels([radii[j] for j in group], d, params, model,
-                           image_hwc.dtype)
     for k, (j, kernels) in enumerate(zip(group, table)):
         row0, row1, col0, col1 = boxes[j]
         box = ((row0 - r0) // d, (row1 - r0) // d, (col0 - c0) // d, (col1 - c0) // d)
