@@ -254,6 +254,15 @@ def butterworth_combined_psf(radius: torch.Tensor, params: PSFParams, size: int)
     return mix_butterworth_terms(disk, butter_disk, radius, params.beta, params.kappa)
 
 
+def _require_kernel_memory(radii: torch.Tensor, size: int) -> None:
+    """Refuse kernels of ``size`` for ``radii`` that would not fit in memory: three kernels per
+    radius, plus the temporaries of a chunk (measured 260 bytes per kernel pixel in float32 at
+    r = 500 and 1000 px, about 64 kernel-sized arrays per radius)."""
+    itemsize = torch.finfo(radii.dtype).bits // 8
+    require_memory(itemsize * size * size * (3 * radii.numel() + 64 * min(radii.numel(), _CHUNK)),
+                   f"DP PSFs of size {size}x{size} for {radii.numel()} radii")
+
+
 def dp_psf_each(radius: torch.Tensor, params: Sequence[PSFParams], size: int) -> DPKernels:
     """Our model's left and right PSFs (Eq. 2-4) for ``(K,)`` radii, each with its own shape
     ``params`` (K of them), all of one odd ``size``: ``(K, S, S)`` each, the same values as
@@ -262,6 +271,7 @@ def dp_psf_each(radius: torch.Tensor, params: Sequence[PSFParams], size: int) ->
     if len(params) != radius.numel():
         raise ParameterError(f"dp_psf_each needs one PSFParams per radius ({radius.numel()}), "
                              f"got {len(params)}")
+    _require_kernel_memory(radius, size)
     columns = torch.tensor([[p.n, p.alpha, p.beta, p.kappa] for p in params],
                            dtype=torch.float64)
     views = []
@@ -373,11 +383,7 @@ def dp_psf(
     elif size < 1 or size % 2 == 0:
         raise ParameterError(f"size must be a positive odd integer, got {size!r}")
 
-    # Three kernels per radius, plus the temporaries of a chunk: measured 260 bytes per kernel
-    # pixel in float32 (r = 500 and 1000 px), i.e. about 64 kernel-sized arrays per radius.
-    itemsize = torch.finfo(radii.dtype).bits // 8
-    require_memory(itemsize * size * size * (3 * radii.numel() + 64 * min(radii.numel(), _CHUNK)),
-                   f"DP PSFs of size {size}x{size} for {radii.numel()} radii")
+    _require_kernel_memory(radii, size)
     chunks = [_model_kernels(chunk, params, model, size) for chunk in radii.split(_CHUNK)]
     kernels = DPKernels(*(torch.cat(views) for views in zip(*chunks)))
     if scalar:

@@ -65,8 +65,8 @@ class _Run:
     layers: list[int]
     radii: list[float]  # CoC radius (px, full resolution) per layer
     boxes: list[list[int]]  # (row0, row1, col0, col1) inclusive per layer, full resolution
-    kernels: list[torch.Tensor] = field(default_factory=list)  # (2, S, S) per layer, at 1/d,
-    # on the CPU
+    # (2, S, S) per layer, at 1/d, on the CPU
+    kernels: list[torch.Tensor] = field(default_factory=list)
 
 
 def _runs(labels: torch.Tensor, layer_coc: torch.Tensor, frame: int) -> list[_Run]:

@@ -82,8 +82,10 @@ def layer_kernels(radii: list[float], params: list[PSFParams | None], models: li
     shapes = [p or PSFParams() for p in params]
     sizes = [kernel_size(r, m, p.kappa) for r, p, m in zip(radii, shapes, models)]
     kernels: list[torch.Tensor] = [torch.empty(0, dtype=dtype)] * len(radii)
-    for model, size in sorted(set(zip(models, sizes))):
-        members = [i for i, key in enumerate(zip(models, sizes)) if key == (model, size)]
+    batches: dict[tuple[str, int], list[int]] = {}
+    for i, key in enumerate(zip(models, sizes)):
+        batches.setdefault(key, []).append(i)
+    for (model, size), members in sorted(batches.items()):
         batch = torch.tensor([radii[i] for i in members], dtype=dtype)
         if model == "ours":
             left, right = dp_psf_each(batch, [shapes[i] for i in members], size)
