@@ -31,8 +31,8 @@
 #   profile                     where issue #71's GPU synthesis spends its time: one batched call
 #                               at 1920x1080 and at 840x560, and on-the-fly training rendered on
 #                               the device (bench_synthesis.py --profile) into $OUT (~2 minutes)
-#   checks                      tests, synthesis and profile in one call (7 files, ~5 minutes):
-#                               what a lease without a training run should do first
+#   checks                      tests and synthesis in one call (5 files, ~7 minutes): what a
+#                               lease without a training run should do first
 #
 # Photographic recipes (rdpd-light-photographs*.yaml) read ../shared/data/photographs (61 MB),
 # which does not travel: a call sends the repository alone, at most 64 MiB with what it carries,
@@ -176,7 +176,7 @@ profile)  # issue #71: where the batched renderer and device-rendered training s
   ;;
 checks)  # the GPU checks of issues #71 and #76 in one call: one machine start for all
   failed=""
-  for step in tests synthesis profile; do  # each runs whatever the one before gave
+  for step in tests synthesis; do  # each runs whatever the one before gave
     "$0" "$step" || failed="$failed $step"
   done
   [ -z "$failed" ] || { echo "failed:$failed" >&2; exit 1; }

@@ -7,6 +7,9 @@ writes each frame's views and target once as one ``.npy`` file (``(roles, H, W, 
 that is lossless, else float32) and every process maps it read-only: the operating system's page
 cache holds one copy for all, and cropping a patch touches only its rows.
 
+On-the-fly sources keep their scenes' RGB and depth there too (:meth:`FrameStore.load_scene`),
+decoded by whichever loader process first renders a crop of them.
+
 Files are named by a hash of the frame's source paths, sizes and modification times, so an edited
 source is decoded again, never served stale; entries are written atomically, so processes racing
 on the same frame are safe. Old entries are never removed: delete the folder to reclaim it.
@@ -15,6 +18,7 @@ on the same frame are safe. Old entries are never removed: delete the folder to 
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -55,29 +59,26 @@ class FrameStore:
         roles = (("left", frame.left), ("right", frame.right), ("target", frame.target))
         return self.folder / f"{_digest(roles)}.npy"
 
-    def scene_entries(self, frame, fmt: str, *, max_depth: float, depth_scale: float
-                      ) -> tuple[Path, Path]:
-        """The files that hold an RGB-D scene frame (:class:`~dualpixel.synthesis.inputs.
-        InputFrame`) as read with these settings: its RGB and its depth."""
-        name = _digest((("rgb", frame.rgb), ("depth", frame.depth)),
-                       f"{fmt}\0{max_depth!r}\0{depth_scale!r}")
+    def scene_entries(self, rgb: Path, depth: Path, settings: str) -> tuple[Path, Path]:
+        """The files that hold an RGB-D scene frame (its ``rgb`` and ``depth`` files, read with
+        ``settings``): its RGB and its depth."""
+        name = _digest((("rgb", rgb), ("depth", depth)), settings)
         return self.folder / f"{name}.rgb.npy", self.folder / f"{name}.depth.npy"
 
-    def load_scene(self, frame, fmt: str, *, max_depth: float, depth_scale: float
+    def load_scene(self, rgb: Path, depth: Path, settings: str,
+                   decode: Callable[[], tuple[np.ndarray, np.ndarray]]
                    ) -> tuple[np.ndarray, np.ndarray]:
         """A scene frame's RGB ``(H, W, 3)`` (uint8 where that is lossless, else float32 in
-        [0, 1]) and depth ``(H, W)`` float32, as :func:`~dualpixel.synthesis.inputs.load_frame`
-        reads them, read-only and mapped from the store: decoded by the first process that
+        [0, 1]) and depth ``(H, W)`` float32, read-only and mapped from the store; ``decode()``
+        reads them from ``rgb`` and ``depth`` (with ``settings``) for the first process that
         asks (training crops rendered on the fly read a whole scene for each crop)."""
-        from dualpixel.synthesis.inputs import load_frame
-
-        paths = self.scene_entries(frame, fmt, max_depth=max_depth, depth_scale=depth_scale)
+        paths = self.scene_entries(rgb, depth, settings)
         if not all(path.is_file() for path in paths):
-            rgb, depth = load_frame(frame, fmt, max_depth=max_depth, depth_scale=depth_scale)
+            image, distance = decode()
             self.folder.mkdir(parents=True, exist_ok=True)
-            for path, image in zip(paths[::-1], (depth.astype(np.float32), _compact(rgb))):
+            for path, array in zip(paths[::-1], (distance.astype(np.float32), _compact(image))):
                 with atomic_path(path) as tmp:  # the RGB last: it marks the entry whole
-                    np.save(tmp, image)
+                    np.save(tmp, array)
         return tuple(_mapped(path) for path in paths)
 
     def load(self, frame: DPFramePaths) -> dict[str, np.ndarray]:

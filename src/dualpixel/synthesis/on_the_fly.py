@@ -297,7 +297,9 @@ class SceneCache:
 
         read = dict(max_depth=max_depth, depth_scale=depth_scale)
         if self._store is not None:
-            rgb, depth = self._store.load_scene(frame, fmt, **read)
+            rgb, depth = self._store.load_scene(frame.rgb, frame.depth,
+                                                f"{fmt}\0{max_depth!r}\0{depth_scale!r}",
+                                                lambda: load_frame(frame, fmt, **read))
         else:
             key = (str(frame.rgb), str(frame.depth), fmt, max_depth, depth_scale)
             if key not in self._scenes:
