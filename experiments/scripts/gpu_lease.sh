@@ -154,6 +154,7 @@ training)  # issue #71: training iterations per second, long enough that the loa
     bench --data fly-device --iterations 40
     bench --data fly-device --iterations 40 --cache
     bench --data fly --iterations 240 --loader-workers 15
+    bench --data fly --iterations 240 --loader-workers 15 --cache  # as a frame store serves
   } | tee "$OUT/bench_training_cuda.txt"
   bench --data fly --iterations 12 --loader-workers 0 --profile \
     | tee "$OUT/profile_training_loader.txt"
