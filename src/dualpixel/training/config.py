@@ -98,8 +98,9 @@ class TrainConfig:
     formation_weight: float = 1.0
     in_focus_weight: float = 1.0
     # Where on-the-fly training frames (dualpixel.synthesis.on_the_fly) are rendered: "loader"
-    # (the loader's worker processes, CPU) or "device" (in the training process on its device,
-    # many frames at once: dualpixel.synthesis.batched_renderer, for GPUs).
+    # (the loader's worker processes, CPU; the faster on a 16-core GPU machine, measured) or
+    # "device" (in the training process on its device, many frames at once:
+    # dualpixel.synthesis.batched_renderer).
     render_on: str = "loader"
     # Optimisation.
     epochs: int = 140
