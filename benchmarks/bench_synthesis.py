@@ -387,7 +387,8 @@ def training(iterations: int, loader_workers: int, device: str,
         print("| data | iterations/s |")
         print("|---|---|")
         labels = {"written": "written", "fly": "on the fly, rendered by the loader",
-                  "fly-device": f"on the fly, rendered on {device} in training"}
+                  "fly-device": f"on the fly, rendered on {device} "
+                                + ("by each loader process" if loader_workers else "in training")}
         for name, label in labels.items():
             if name not in sources:
                 continue

@@ -24,8 +24,8 @@
 #   synthesis                   issue #71's GPU figures into $OUT: the batched renderer against
 #                               exact and its frames per second, then `training`
 #   training                    training iterations per second on written and on-the-fly data
-#                               (6, 12 and 15 loader processes; rendering on the device, scenes kept
-#                               decoded or not), and a
+#                               (6, 12 and 15 loader processes; rendering on the device, in the
+#                               training process or by 15 loader processes), and a
 #                               crop's cost to one host core under cProfile (~4 minutes)
 #   tests                       issue #76's CUDA-path tests (tests/gpu) into $OUT/tests_gpu.txt
 #   profile                     where issue #71's GPU synthesis spends its time: one batched call
@@ -153,6 +153,7 @@ training)  # issue #71: training iterations per second, long enough that the loa
   { bench --data written,fly --iterations 240 --loader-workers 12
     bench --data fly-device --iterations 40
     bench --data fly-device --iterations 40 --cache
+    bench --data fly-device --iterations 240 --loader-workers 15  # each renders on the GPU
     bench --data fly --iterations 240 --loader-workers 15
     bench --data fly --iterations 240 --loader-workers 15 --cache  # as a frame store serves
   } | tee "$OUT/bench_training_cuda.txt"

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 import torch
 from scipy.stats import ks_2samp
+from torch.utils.data import DataLoader, default_collate
 
-from dualpixel.data.dataset import PatchConfig
+from dualpixel.data.dataset import PatchConfig, RenderedOn
 from dualpixel.data.statistics import dataset_statistics
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.io.images import read_rgb
@@ -217,7 +218,9 @@ def test_synth_command_writes_a_source_and_names_bad_depth(scenes, tmp_path):
 def test_rendering_on_the_device_gives_the_loaders_items(source, scenes, tmp_path):
     """render_items (the training process, all frames of a batch at once; here on CPU tensors)
     gives the items the loader makes one by one: the same draws, crops and flips; the frames
-    equal to a level of rounding (the batched renderer is the default one to 100 dB)."""
+    equal to a level of rounding (the batched renderer is the default one to 100 dB). Loader
+    processes that render their batches on the device train exactly as the training process
+    rendering them does."""
     dataset = OnTheFlyDataset(source, PatchConfig(patch_size=64, min_sharpness=0.01))
     keys = [(3, 11), (0, 5), (9, 77), (3, 12)]
     together = dataset.render_items(keys, "cpu")
@@ -235,6 +238,16 @@ def test_rendering_on_the_device_gives_the_loaders_items(source, scenes, tmp_pat
                   tmp_path / f"device{k}", progress=False) for k in range(2)]
     assert runs[0].step == 2 and runs[0].history == [
         {**r, "seconds": s["seconds"]} for r, s in zip(runs[1].history, runs[0].history)]
+    # a loader process rendering its batches as the training process does (one thread there:
+    # the same to float rounding), spawned as training spawns them for a GPU
+    loader = DataLoader(RenderedOn(dataset, "cpu"), batch_sampler=[keys], num_workers=1,
+                        multiprocessing_context="spawn")
+    batch, expected = next(iter(loader)), default_collate(together)
+    for name in expected:
+        assert float((batch[name] - expected[name]).abs().max()) < 1e-5, name
+    workers = train(_config(source, validation, render_on="device", epochs=1, workers=1),
+                    tmp_path / "device-workers", progress=False)
+    assert workers.history[0]["loss"] == pytest.approx(runs[0].history[0]["loss"], rel=1e-5)
     with pytest.raises(ParameterError, match="render_on"):
         _config(source, validation, render_on="gpu")
 

@@ -52,7 +52,8 @@ def _tag_files(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
 @click.option("--render-on", type=click.Choice(RENDER_ON), default=None,
               help="Where on-the-fly training frames are rendered: the loader processes (the "
                    "faster, also beside a GPU: give them the cores), or the training device, "
-                   "many at once [default: loader].")
+                   "a batch at once (by each loader process where there are some) "
+                   "[default: loader].")
 @click.option("--checkpoint-minutes", type=click.FloatRange(0, 1e5), default=None,
               help="Also save the training state within an epoch this often, so a killed run "
                    "resumes from there [default: 20].")

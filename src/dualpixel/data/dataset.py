@@ -26,8 +26,8 @@ from dualpixel.data.radial import radial_distance
 from dualpixel.errors import ParameterError
 from dualpixel.filters import gradient_magnitude, sharpness
 
-__all__ = ["ConcatPatches", "DPPatchDataset", "PatchConfig", "Placement", "flip_horizontal",
-           "gradient_magnitude", "items_of", "random_flips", "sharpness"]
+__all__ = ["ConcatPatches", "DPPatchDataset", "PatchConfig", "Placement", "RenderedOn",
+           "flip_horizontal", "gradient_magnitude", "items_of", "random_flips", "sharpness"]
 
 
 @dataclass(frozen=True)
@@ -214,6 +214,26 @@ def items_of(dataset: Dataset, keys: list[tuple[int, int]], device
         return []
     render = getattr(dataset, "render_items", None)
     return render(keys, device) if render is not None else [dataset[key] for key in keys]
+
+
+class RenderedOn(Dataset):
+    """``dataset``'s items, each batch of keys rendered together on ``device``
+    (:func:`items_of`), for loader processes that render on an accelerator: a
+    :class:`~torch.utils.data.DataLoader` with a batch sampler hands each process whole batches
+    (``__getitems__``), so every process launches its own batches' work and the host's cores
+    share what one training process would do alone. The items come back on the CPU."""
+
+    def __init__(self, dataset: Dataset, device: torch.device | str):
+        self.dataset, self.device = dataset, torch.device(device)
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, key):
+        return self.dataset[key]
+
+    def __getitems__(self, keys: list[tuple[int, int]]) -> list[dict[str, torch.Tensor]]:
+        return items_of(self.dataset, keys, self.device)
 
 
 def index_seed(index: int) -> int:

@@ -99,8 +99,8 @@ class TrainConfig:
     in_focus_weight: float = 1.0
     # Where on-the-fly training frames (dualpixel.synthesis.on_the_fly) are rendered: "loader"
     # (the loader's worker processes, CPU; the faster on a 16-core GPU machine, measured) or
-    # "device" (in the training process on its device, many frames at once:
-    # dualpixel.synthesis.batched_renderer).
+    # "device" (on the training device, many frames at once: dualpixel.synthesis.
+    # batched_renderer; by the loader's processes, each its own batches, where ``workers``).
     render_on: str = "loader"
     # Optimisation.
     epochs: int = 140

@@ -42,7 +42,7 @@ from torch.optim.swa_utils import AveragedModel
 from torch.utils.data import DataLoader, Dataset
 from tqdm import tqdm
 
-from dualpixel.data.dataset import DPPatchDataset, PatchConfig
+from dualpixel.data.dataset import DPPatchDataset, PatchConfig, RenderedOn
 from dualpixel.data.layout import DPSequence, discover_dp_dataset
 from dualpixel.device import resolve_device
 from dualpixel.errors import InputFileError, ParameterError
@@ -581,9 +581,18 @@ class Trainer:
             count = len(range(index, self.iterations, len(kinds)))
             batches = _epoch_batches(config, index, kind, epoch, count, self.rank, self.world)
             batches = batches[len(range(index, first, len(kinds))):]  # those not yet trained on
-            if config.render_on == "device" and kind.name == "synthetic":
+            if config.render_on == "device" and kind.name == "synthetic" and not config.workers:
                 # on-the-fly frames rendered here, all of a batch at once, on the device
                 loaders.append(_rendered_batches(kind.dataset, batches, device))
+                continue
+            if config.render_on == "device" and kind.name == "synthetic":
+                # each loader process renders its batches on the device (spawned: CUDA cannot
+                # start in a forked process)
+                loaders.append(iter(DataLoader(
+                    RenderedOn(kind.dataset, device), batch_sampler=batches,
+                    num_workers=config.workers, pin_memory=use_cuda, persistent_workers=False,
+                    multiprocessing_context="spawn" if device.type != "cpu" else None,
+                )))
                 continue
             loaders.append(iter(DataLoader(
                 kind.dataset, batch_sampler=batches, num_workers=config.workers,
