@@ -79,10 +79,11 @@ def test_a_window_renders_on_the_gpu_as_on_the_cpu(gpu, frame):
         assert _psnr(getattr(device, name), getattr(cpu, name)) > 70, name
 
 
-def test_training_renders_its_frames_on_the_gpu(gpu, tmp_path):
-    """Two iterations with on-the-fly frames rendered in the training process on the device
-    (`render_on: device`), bfloat16 autocast where the device has it: finite losses, weights
-    written."""
+@pytest.mark.parametrize("workers", [0, 1])
+def test_training_renders_its_frames_on_the_gpu(gpu, tmp_path, workers):
+    """Two iterations with on-the-fly frames rendered on the device (`render_on: device`) in
+    the training process, or by a (spawned) loader process, bfloat16 autocast where the device
+    has it: finite losses, weights written."""
     from dualpixel.synthesis.dataset import SynthConfig, synthesize_dataset
     from dualpixel.synthesis.on_the_fly import write_on_the_fly
     from dualpixel.synthesis.scenes import write_scene_folder
@@ -98,7 +99,7 @@ def test_training_renders_its_frames_on_the_gpu(gpu, tmp_path):
         model="rdpd", width=0.25, residual=True, synthetic_data=str(tmp_path / "fly"),
         synthetic_as_frames=True, val_data=str(tmp_path / "val"), val_split="train",
         patch_size=64, sequence_batch=2, sequence_frames=1, epochs=1, iterations_per_epoch=2,
-        workers=0, device=str(gpu), render_on="device", tensorboard=False))
+        workers=workers, device=str(gpu), render_on="device", tensorboard=False))
     result = train(config, tmp_path / "run", progress=False)
     assert result.step == 2 and np.isfinite(result.history[-1]["loss"])
     assert (tmp_path / "run" / "last.safetensors").is_file()
