@@ -227,7 +227,7 @@ unpack)  # on the device: part N of K into ../shared/data/photographs
   ;;
 *)
   echo "unknown command: $command (start, wait, stop, collect, kit, figures, synthesis," \
-       "tests, profile, checks, pack or unpack)" >&2
+       "training, tests, profile, checks, pack or unpack)" >&2
   exit 2
   ;;
 esac

@@ -82,20 +82,10 @@ def _with_kernels(runs: list[list[_Run]], params: list[PSFParams | None],
                   models: list[PSFModel], dtype: torch.dtype) -> None:
     """Every run's kernels (its frame's PSF shape and model, at 1/d), made in one
     :func:`~dualpixel.synthesis.fast_renderer.layer_kernels` call for all the frames."""
-    radii: list[float] = []
-    shapes: list[PSFParams | None] = []
-    kinds: list[PSFModel] = []
-    for b, frame in enumerate(runs):
-        for run in frame:
-            radii += [r / run.d for r in run.radii]
-            shapes += [params[b]] * len(run.radii)
-            kinds += [models[b]] * len(run.radii)
-    kernels = layer_kernels(radii, shapes, kinds, dtype)
-    start = 0
-    for frame in runs:
-        for run in frame:
-            run.kernels = kernels[start : start + len(run.layers)]
-            start += len(run.layers)
+    every = [(run, b) for b, frame in enumerate(runs) for run in frame]
+    tables = layer_kernels([(run.d, run.radii, params[b], models[b]) for run, b in every], dtype)
+    for (run, _), table in zip(every, tables):
+        run.kernels = table
 
 
 def _convolve(planes: torch.Tensor, kernels: torch.Tensor, *, valid: bool = False

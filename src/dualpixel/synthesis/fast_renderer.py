@@ -58,28 +58,18 @@ def downsample_factor(radius: float) -> int:
     return d
 
 
-def _group_kernels(groups: list[tuple[int, list[int]]], radii: list[float], params, model,
-                   dtype: torch.dtype) -> list[list[torch.Tensor]]:
-    """Per group ``(d, layers)``, its layers' ``(2 views, S, S)`` kernels at 1/d resolution, each
-    view summing to 1: :func:`layer_kernels` of one PSF shape and model, one call for all."""
-    flat = [radii[j] / d for d, group in groups for j in group]
-    kernels = layer_kernels(flat, [params] * len(flat), [model] * len(flat), dtype)
-    tables, start = [], 0
-    for _, group in groups:
-        tables.append(kernels[start : start + len(group)])
-        start += len(group)
-    return tables
-
-
-def layer_kernels(radii: list[float], params: list[PSFParams | None], models: list[PSFModel],
-                  dtype: torch.dtype) -> list[torch.Tensor]:
-    """``(2 views, S, S)`` kernels per CoC radius (px, at the resolution rendered), each with its
-    own PSF shape and model, each view summing to 1: one batched PSF call per model and kernel
-    size (each radius keeps its own size), so the layers of many frames cost one. Made on the
-    CPU whatever device renders: a few hundred small tensors, each step of which would be a
+def layer_kernels(groups: list[tuple[int, list[float], PSFParams | None, PSFModel]],
+                  dtype: torch.dtype) -> list[list[torch.Tensor]]:
+    """Per group ``(d, radii, params, model)`` (CoC radii in px at full resolution, the group's
+    PSF shape and model), its ``(2 views, S, S)`` kernels at 1/d resolution, each view summing
+    to 1: one batched PSF call per model and kernel size over all the groups (each radius keeps
+    its own size and shape), so the layers of many groups and frames cost one. Made on the CPU
+    whatever device renders: a few hundred small tensors, each step of which would be a
     kernel launch on an accelerator (and each trimming test a synchronisation); the caller
     moves them to its device."""
-    shapes = [p or PSFParams() for p in params]
+    radii = [r / d for d, group, _, _ in groups for r in group]
+    shapes = [p or PSFParams() for _, group, p, _ in groups for _ in group]
+    models = [m for _, group, _, m in groups for _ in group]
     sizes = [kernel_size(r, m, p.kappa) for r, p, m in zip(radii, shapes, models)]
     kernels: list[torch.Tensor] = [torch.empty(0, dtype=dtype)] * len(radii)
     batches: dict[tuple[str, int], list[int]] = {}
@@ -94,7 +84,11 @@ def layer_kernels(radii: list[float], params: list[PSFParams | None], models: li
         both = 2.0 * torch.stack((left, right), dim=1)
         for i, kernel in zip(members, _trimmed(both)):
             kernels[i] = kernel
-    return kernels
+    tables, start = [], 0
+    for _, group, _, _ in groups:
+        tables.append(kernels[start : start + len(group)])
+        start += len(group)
+    return tables
 
 
 def _trimmed(kernels: torch.Tensor) -> list[torch.Tensor]:
@@ -231,7 +225,8 @@ def render_fast(
     # (views, H, W, C + 1): premultiplied colour and coverage
     result = torch.zeros(2, height, width, channels + 1, dtype=image.dtype, device=image.device)
     groups = _groups(radii, boxes)
-    tables = _group_kernels(groups, radii, params, model, image.dtype)
+    tables = layer_kernels([(d, [radii[j] for j in group], params, model)
+                            for d, group in groups], image.dtype)
     for (d, group), table in zip(groups, tables):
         if d == 1:
             unblurred: list[int] = []  # consecutive layers whose kernels are exactly [[1]]

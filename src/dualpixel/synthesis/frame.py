@@ -330,11 +330,6 @@ class _Window:
         top, left = top - self.origin[0], left - self.origin[1]
         return region[..., top : top + rows, left : left + cols]
 
-    def of_frame(self, values: torch.Tensor) -> torch.Tensor:
-        """The window of ``(..., H, W)`` values of the whole frame."""
-        top, left, rows, cols = self.window
-        return values[..., top : top + rows, left : left + cols]
-
 
 def _noisy_view(view: torch.Tensor, draw: SequenceDraw, seed: int,
                 window: _Window | None = None) -> torch.Tensor:

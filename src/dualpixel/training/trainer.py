@@ -581,22 +581,18 @@ class Trainer:
             count = len(range(index, self.iterations, len(kinds)))
             batches = _epoch_batches(config, index, kind, epoch, count, self.rank, self.world)
             batches = batches[len(range(index, first, len(kinds))):]  # those not yet trained on
-            if config.render_on == "device" and kind.name == "synthetic" and not config.workers:
-                # on-the-fly frames rendered here, all of a batch at once, on the device
-                loaders.append(_rendered_batches(kind.dataset, batches, device))
-                continue
+            source, context = kind.dataset, None
             if config.render_on == "device" and kind.name == "synthetic":
+                if not config.workers:  # rendered here, all of a batch at once, on the device
+                    loaders.append(_rendered_batches(kind.dataset, batches, device))
+                    continue
                 # each loader process renders its batches on the device (spawned: CUDA cannot
                 # start in a forked process)
-                loaders.append(iter(DataLoader(
-                    RenderedOn(kind.dataset, device), batch_sampler=batches,
-                    num_workers=config.workers, pin_memory=use_cuda, persistent_workers=False,
-                    multiprocessing_context="spawn" if device.type != "cpu" else None,
-                )))
-                continue
+                source = RenderedOn(kind.dataset, device)
+                context = "spawn" if device.type != "cpu" else None
             loaders.append(iter(DataLoader(
-                kind.dataset, batch_sampler=batches, num_workers=config.workers,
-                pin_memory=use_cuda, persistent_workers=False,
+                source, batch_sampler=batches, num_workers=config.workers,
+                pin_memory=use_cuda, persistent_workers=False, multiprocessing_context=context,
             )))
         views = None
         if self.views is not None:  # one batch of them with every iteration's
