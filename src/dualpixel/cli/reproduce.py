@@ -51,9 +51,9 @@ def _tag_files(_ctx, _param, values: tuple[str, ...]) -> dict[str, Path]:
                    "(made on first use).")
 @click.option("--render-on", type=click.Choice(RENDER_ON), default=None,
               help="Where on-the-fly training frames are rendered: the loader processes (the "
-                   "faster, also beside a GPU: give them the cores), or the training device, "
-                   "a batch at once (by each loader process where there are some) "
-                   "[default: loader].")
+                   "faster, also beside a GPU: give them the cores and a --frame-store), or "
+                   "the training device, a batch at once (by each loader process where there "
+                   "are some) [default: loader].")
 @click.option("--checkpoint-minutes", type=click.FloatRange(0, 1e5), default=None,
               help="Also save the training state within an epoch this often, so a killed run "
                    "resumes from there [default: 20].")
