@@ -366,9 +366,13 @@ def _convolution_times(cin: int, cout: int, height: int, width: int, repeats: in
 
 
 def sequence_time(checkpoint: str, device: str, frames: int, repeats: int,
-                  fuse_frames: int = 1) -> dict:
+                  fuse_frames: int | None = None) -> dict:
     """Best seconds of a sequence's first frame and mean of its later frames (state carried),
-    over ``repeats`` sequences of ``frames`` random 1680x1120 pairs, on the default path."""
+    over ``repeats`` sequences of ``frames`` random 1680x1120 pairs, on the default path;
+    ``fuse_frames`` None: the model's own (a preset's, e.g. ``rdpd-light-video``)."""
+    from dualpixel.weights import run_settings
+
+    fuse_frames = run_settings(checkpoint, fuse_frames=fuse_frames)["fuse_frames"]
     deblurrer, _, left, right = prepare({"model": "shipped", "checkpoint": checkpoint,
                                          "fuse_frames": fuse_frames}, device)
     first, later = [], []
@@ -376,7 +380,8 @@ def sequence_time(checkpoint: str, device: str, frames: int, repeats: int,
         times = [timed_pass(deblurrer, left, right, device, reset=n == 0) for n in range(frames)]
         first.append(times[0])
         later.append(sum(times[1:]) / (frames - 1))
-    return {"temporal": deblurrer.model.temporal, "first": min(first), "later": min(later),
+    return {"temporal": deblurrer.model.temporal, "fuse_frames": fuse_frames,
+            "first": min(first), "later": min(later),
             "precision": deblurrer.numerics.name,
             "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
 
@@ -425,8 +430,9 @@ def main() -> None:
                         help="instead: the whole dualpixel deblur command on a 1680x1120 pair")
     parser.add_argument("--sequence", type=int, metavar="N",
                         help="instead: a temporal model on N frames in a sequence")
-    parser.add_argument("--fuse-frames", type=int, default=1, metavar="K",
-                        help="with --sequence: views averaged with up to K-1 earlier frames")
+    parser.add_argument("--fuse-frames", type=int, default=None, metavar="K",
+                        help="with --sequence: views averaged with up to K-1 earlier frames "
+                             "(default: the model's own)")
     parser.add_argument("--int8-convs", action="store_true",
                         help="instead: one 3x3 convolution in fp32, bf16 and int8 (oneDNN) at "
                              "the default network's sizes, CPU")
@@ -485,9 +491,9 @@ def main() -> None:
             parser.error(f"--sequence must be at least 2 frames, got {args.sequence}")
         r = sequence_time(checkpoint, args.device, args.sequence, args.repeats,
                           args.fuse_frames)
-        kind = "temporal" if r["temporal"] else "single frames: no state to carry"
-        if args.fuse_frames > 1:
-            kind += f", views fused with up to {args.fuse_frames - 1} earlier frames"
+        kind = "temporal" if r["temporal"] else "no state to carry"
+        if r["fuse_frames"] > 1:
+            kind += f", views fused with up to {r['fuse_frames'] - 1} earlier frames"
         print(f"{checkpoint} ({kind}), 1680x1120, {r['precision']}: first frame "
               f"{r['first']:.2f} s, frames 2-{args.sequence} {r['later']:.2f} s each (ratio "
               f"{r['later'] / r['first']:.2f}), peak RSS {r['peak_rss_gib']:.2f} GiB")

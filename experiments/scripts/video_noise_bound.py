@@ -64,7 +64,12 @@ def main() -> None:
     parser.add_argument("--model", default="rdpd-light.v16")
     parser.add_argument("--frames", type=int, default=6)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--arms", default=",".join(ARMS),
+                        help="comma-separated, of: " + ", ".join(ARMS))
     args = parser.parse_args()
+    arms = [arm.strip() for arm in args.arms.split(",")]
+    if unknown := set(arms) - set(ARMS):
+        parser.error(f"--arms: unknown {', '.join(sorted(unknown))} (of {', '.join(ARMS)})")
     recipe = load_recipe(args.recipe)
     steps = {step.name: step for step in recipe.data}
     config, sequences, seed, photos = scene_config(steps["scenes-test"])
@@ -75,7 +80,7 @@ def main() -> None:
     scores: dict[str, dict[str, dict]] = {}
     for camera in cameras:
         settings, source, fmt = synth_config(recipe, steps[f"{camera}-test"], args.output)
-        for arm in ARMS:
+        for arm in arms:
             folder = args.output / "data" / camera / ("as made" if arm == "fused" else arm)
             synthesize_dataset(source, fmt, folder, views(settings, arm, args.frames),
                                workers=args.workers, progress=False)
@@ -88,24 +93,25 @@ def main() -> None:
                                                  figures=0), deblurrer, "model")
             scores.setdefault(camera, {})[arm] = json.loads(
                 (report / "summary.json").read_text())
-    figure(args.output / "data" / "phone" / "as made", args.model, args.frames,
-           args.output / "fuse_frames.png")
+    if {"as made", "fused"} <= set(arms):
+        figure(args.output / "data" / "phone" / "as made", args.model, args.frames,
+               args.output / "fuse_frames.png")
     print(f"{args.model}, PSNR (dB) on each camera's held-out sequences:\n")
     print("| views | " + " | ".join(cameras) + " | mean |")
     print("|---|" + "---|" * (len(cameras) + 1))
-    for arm in ARMS:
+    for arm in arms:
         values = [scores[c][arm]["summary"]["model"]["combined"]["psnr"] for c in cameras]
         print(f"| {arm} | " + " | ".join(f"{v:.2f}" for v in values)
               + f" | {sum(values) / len(values):.3f} |")
     print("\nBy frame position (mean of the cameras):\n")
     print("| views | " + " | ".join(f"frame {k + 1}" for k in range(args.frames)) + " |")
     print("|---|" + "---|" * args.frames)
-    for arm in ARMS:
+    for arm in arms:
         rows = [scores[c][arm]["by_position"]["model"] for c in cameras]
         means = [sum(r[k]["psnr"] for r in rows) / len(rows) for k in range(len(rows[0]))]
         print(f"| {arm} | " + " | ".join(f"{v:.3f}" for v in means) + " |")
     print("\nFlicker, excess change in static regions (levels of 255, mean of the cameras):\n")
-    for arm in ARMS:
+    for arm in arms:
         values = [scores[c][arm]["flicker"]["model"]["excess"] for c in cameras]
         print(f"- {arm}: {sum(values) / len(values):+.3f}")
 

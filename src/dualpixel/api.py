@@ -79,7 +79,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
            white_level: float | None = None, right_gain: float | np.ndarray = 1.0,
            auto_exposure: bool = True, brightness: str | None = None,
            overshoot: str | None = None, sequence: bool = False,
-           fuse_frames: int = 1) -> np.ndarray | torch.Tensor:
+           fuse_frames: int | None = None) -> np.ndarray | torch.Tensor:
     """Deblur a DP pair (or a batch of independent pairs; with ``sequence=True``, the batch
     is one sequence's frames in order, and a temporal model carries its state from each frame
     to the next, as ``dualpixel deblur`` on folders of frames): views at the combined image's
@@ -88,7 +88,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     path or a loaded network. ``flips``, ``brightness``, ``overshoot``: None takes the
     model's own setting, which travels with it (a name, its file, or the network
     :func:`load_model` gave: :func:`dualpixel.weights.run_settings`; ``list_models`` shows
-    them), else as the network gives it. ``flips``:
+    them), else as the network gives it; ``fuse_frames`` likewise. ``flips``:
     average over the flips that keep DP geometry (self-ensemble, 4x the time; ``Deblurrer``).
     ``multiscale``: fuse with a pass at half resolution (at most 1.25x the time;
     :mod:`dualpixel.inference.multiscale`). ``precision``: ``auto`` (bf16 where the device
@@ -100,7 +100,8 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     within the input's local range (no halos), ``"model"`` leaves it
     (:mod:`dualpixel.inference.overshoot`). ``fuse_frames`` (with ``sequence=True``): each
     frame's views averaged with those of up to ``fuse_frames - 1`` earlier frames, registered
-    onto it, before the network (:mod:`dualpixel.inference.frame_fusion`; 1: off).
+    onto it, before the network (:mod:`dualpixel.inference.frame_fusion`; 1: off; the preset
+    ``rdpd-light-video``: 6).
 
     Phone and raw views (:mod:`dualpixel.inference.encoding`): grey views (one channel, such as
     a Pixel's green-only DP data) come back grey, in the layout they came in. ``encoding``:
@@ -128,7 +129,7 @@ def deblur(left: Any, right: Any = None, *, model: Any = DEFAULT_CHECKPOINT, dev
     )
     from dualpixel.inference.frame_fusion import check_fuse_frames
 
-    if check_fuse_frames(fuse_frames) > 1 and not sequence:
+    if fuse_frames is not None and check_fuse_frames(fuse_frames) > 1 and not sequence:
         raise ParameterError("fuse_frames averages the frames of a sequence: give "
                              "sequence=True (independent pairs have no earlier frames)")
     view_encoding = ViewEncoding(encoding, black_level, white_level, right_gain,

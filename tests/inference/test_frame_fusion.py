@@ -145,3 +145,40 @@ def test_deblur_fuses_a_frame_folder_and_says_when_there_is_nothing_to_fuse(
         "deblur", "--left", str(pair), "--right", str(right / pair.name), "--output",
         str(tmp_path / "pair.png"), "--checkpoint", str(tiny_checkpoint), "--fuse-frames", "3"])
     assert result.exit_code == 0 and "every input here is a single pair" in result.output
+
+
+def test_the_video_preset_fuses_six_frames_of_a_sequence_and_nothing_of_single_pairs():
+    """``rdpd-light-video`` is the default's weights with frame fusion: on a sequence it runs
+    as ``fuse_frames=6`` does, on independent pairs as the default; a value given wins."""
+    _, views = noisy_pan(3)
+    lefts, rights = (np.stack([pair[side] for pair in views]).clip(0, 1) for side in (0, 1))
+    common = {"precision": "fp32", "device": "cpu"}
+    preset = dualpixel.deblur(lefts, rights, model="rdpd-light-video", sequence=True, **common)
+    fused = dualpixel.deblur(lefts, rights, model="rdpd-light.v18", sequence=True,
+                             fuse_frames=6, **common)
+    alone = dualpixel.deblur(lefts, rights, model="rdpd-light.v18", sequence=True, **common)
+    assert np.array_equal(preset, fused)
+    assert not np.array_equal(preset[-1], alone[-1])
+    told = dualpixel.deblur(lefts, rights, model="rdpd-light-video", sequence=True,
+                            fuse_frames=1, **common)
+    assert np.array_equal(told, alone)
+    pairs = dualpixel.deblur(lefts, rights, model="rdpd-light-video", **common)
+    assert np.array_equal(pairs, dualpixel.deblur(lefts, rights, model="rdpd-light.v18",
+                                                  **common))
+
+
+def test_eval_reports_the_frames_a_preset_fuses(tiny_synthetic_dataset, tmp_path):
+    """``eval --checkpoint rdpd-light-video`` runs with the preset's fusion and says so in its
+    report; ``--fuse-frames 1`` turns it off."""
+    import json
+
+    for option, frames in (([], 6), (["--fuse-frames", "1"], 1)):
+        out = tmp_path / f"eval{frames}"
+        result = CliRunner().invoke(cli, [
+            "eval", "--dataset", str(tiny_synthetic_dataset), "--split", "train",
+            "--checkpoint", "rdpd-light-video", "--device", "cpu", "--no-niqe",
+            "--figures", "0", "-o", str(out), *option])
+        assert result.exit_code == 0, result.output
+        report = json.loads((out / "summary.json").read_text())
+        assert report["fuse_frames"] == frames and report["checkpoint"] == "rdpd-light-video"
+        assert ("+fuse6" in result.output) == (frames == 6)

@@ -133,6 +133,16 @@ def test_release_refuses_before_writing(finished_run, tmp_path):
     refused(_release(finished_run, weights, results, "--tag", TAG, "--replaces", "nothing.v1"),
             "--replaces")
     refused(_release(finished_run, weights, results, "--tag", TAG, "--default"), "--alias")
+    # weights a preset runs are not retired from under it; a preset's name is no alias
+    registry = json.loads(before)
+    registry["presets"] = {"base-video": {"weights": "rdpd-light-base.v6",
+                                          "output": {"fuse_frames": 6}, "doc": "video"}}
+    (weights / "registry.json").write_text(json.dumps(registry))
+    before = (weights / "registry.json").read_text()
+    refused(_release(finished_run, weights, results, "--tag", TAG, "--replaces",
+                     "rdpd-light-base.v6"), "base-video", "--replaces")
+    refused(_release(finished_run, weights, results, "--tag", TAG, "--alias", "base-video"),
+            "--alias")
     refused(CliRunner().invoke(cli, ["release", str(finished_run), "--tag", TAG,
                                      "--weights-dir", str(weights), "--results-dir",
                                      str(results), "--recipes-dir", str(tmp_path)]),

@@ -13,11 +13,14 @@ from dualpixel.weights import (
     ALIASES,
     DEFAULT_CHECKPOINT,
     DEPRECATED,
+    PRESETS,
     WEIGHTS,
     file_sha256,
     model_info,
+    output_settings,
     resolve_checkpoint,
     resolve_tag,
+    run_settings,
 )
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -127,11 +130,34 @@ def test_tags_are_checked_and_aliases_are_no_tags(tmp_path):
         resolve_tag("rdpd-light.v999")
 
 
+def test_presets_run_shipped_weights_with_their_own_settings():
+    """A preset (``rdpd-light-video``) names shipped weights and settings over theirs: it
+    loads their file, runs with both, is listed as temporal when it fuses frames, and its name
+    is no tag, alias or retired name."""
+    assert "rdpd-light-video" in PRESETS
+    assert not set(PRESETS) & (set(WEIGHTS) | set(ALIASES) | set(DEPRECATED))
+    info = model_info()
+    for name, preset in PRESETS.items():
+        assert preset.weights in WEIGHTS and preset.doc and preset.output
+        assert resolve_checkpoint(name) == WEIGHTS[preset.weights].path
+        assert output_settings(name) == {**WEIGHTS[preset.weights].output, **preset.output}
+        assert run_settings(name, fuse_frames=1)["fuse_frames"] == 1
+        assert info[name]["preset_of"] == preset.weights
+        assert info[name]["temporal"] == (output_settings(name).get("fuse_frames", 1) > 1)
+        for scores in preset.metrics.values():
+            assert scores["psnr"] > scores["input_psnr"]
+    assert run_settings("rdpd-light-video")["fuse_frames"] == 6
+    assert run_settings("rdpd-light-video")["brightness"] == "tied"
+    with pytest.raises(ParameterError, match="no shipped weights tagged"):
+        resolve_tag("rdpd-light-video")  # a recipe starts from weights, not from a preset
+
+
 def test_model_info_reads_headers_only():
     info = model_info()
-    assert set(info) == set(WEIGHTS)
+    assert set(info) == set(WEIGHTS) | set(PRESETS)
     for tag, row in info.items():
-        assert row["parameters"] == WEIGHTS[tag].num_params and row["metrics"]
+        weights = WEIGHTS[PRESETS[tag].weights if tag in PRESETS else tag]
+        assert row["parameters"] == weights.num_params and row["metrics"]
 
 
 @pytest.mark.parametrize("name", sorted(DEPRECATED))
@@ -160,7 +186,7 @@ def test_a_shipped_model_runs_with_its_own_settings_unless_told(monkeypatch):
     tag = ALIASES[DEFAULT_CHECKPOINT]
     own = {"brightness": "tied", "overshoot": "limited"}
     monkeypatch.setitem(registry.WEIGHTS, tag, dataclasses.replace(WEIGHTS[tag], output=own))
-    assert run_settings(DEFAULT_CHECKPOINT) == {**own, "flips": False}
+    assert run_settings(DEFAULT_CHECKPOINT) == {**own, "flips": False, "fuse_frames": 1}
     assert run_settings(tag, brightness="model")["brightness"] == "model"  # told: as told
     assert run_settings("any/file.safetensors")["brightness"] == "model"  # a file: as given
     assert list(method_settings([DEFAULT_CHECKPOINT])) == [DEFAULT_CHECKPOINT + "+limited+tied"]

@@ -70,10 +70,10 @@ _MULTISCALE_OPTION = click.option(
          "1.25x the time).")
 
 _FUSE_FRAMES_OPTION = click.option(
-    "--fuse-frames", type=click.IntRange(1), default=1, show_default=True,
+    "--fuse-frames", type=click.IntRange(1), default=None,
     help="Sequences: average each frame's views with those of up to N-1 earlier frames, "
          "registered onto it (temporal noise reduction before the network; 1: each frame "
-         "alone).")
+         "alone) [default: the model's own: 6 for the preset rdpd-light-video, else 1].")
 
 
 def _network_name(checkpoint: str) -> str:
@@ -144,7 +144,7 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
            white_level: float | None, right_gain: float, flat_field: tuple[Path, Path] | None,
            auto_exposure: bool, strict: bool, checkpoint: str,
            tile: int | None, overlap: int | None, device: str, precision: str, half: bool,
-           backend: str, flips: bool | None, multiscale: bool, fuse_frames: int,
+           backend: str, flips: bool | None, multiscale: bool, fuse_frames: int | None,
            brightness: str | None, overshoot: str | None) -> None:
     """Deblur a DP pair, a sequence of pairs (state carried), or a DPDD-layout folder.
 
@@ -174,7 +174,8 @@ def deblur(left: Path | None, right: Path | None, dataset: Path | None, combined
                                 precision="fp16" if half else precision, multiscale=multiscale,
                                 fuse_frames=fuse_frames)
     total = sum(len(sequence) for sequence in jobs)
-    if fuse_frames > 1 and all(len(sequence) == 1 for sequence in jobs):
+    if fuse_frames is not None and fuse_frames > 1 and all(len(sequence) == 1
+                                                          for sequence in jobs):
         click.echo("Warning: --fuse-frames averages the frames of a sequence, and every input "
                    "here is a single pair: nothing to fuse", err=True)
 
@@ -275,9 +276,9 @@ def evaluate_command(dataset, split, pred, target, checkpoint, no_model, compare
                     "flips": deblurrer.flips}
         method = checkpoint_label(str(checkpoint)) + output_modes_suffix(
             settings["brightness"], settings["overshoot"], flips=settings["flips"],
-            multiscale=multiscale, fuse_frames=fuse_frames)
+            multiscale=multiscale, fuse_frames=deblurrer.fuse_frames)
         meta = {"checkpoint": str(checkpoint), "multiscale": multiscale, "afresh": afresh,
-                "fuse_frames": fuse_frames,
+                "fuse_frames": deblurrer.fuse_frames,
                 **settings,
                 "precision": deblurrer.numerics.name, "backend": deblurrer.backend}
     summary = run_evaluation(request, deblurrer, method, meta)

@@ -37,19 +37,23 @@ def models(width: float) -> None:
         click.echo(f"  {name}: {settings['model']}, {described}, {count:,} parameters")
     from dualpixel.weights import DEPRECATED, model_info
 
-    click.echo("\nshipped weights (dualpixel.load_model(NAME), --checkpoint NAME):")
+    click.echo("\nshipped weights and presets (dualpixel.load_model(NAME), --checkpoint NAME):")
     for tag, info in model_info().items():
         aliases = f" (alias {', '.join(info['aliases'])})" if info["aliases"] else ""
+        if "preset_of" in info:
+            aliases = f" (preset: {info['preset_of']} with its own settings)"
         click.echo(f"  {tag}{aliases}: {info['description']}")
         refiner = f", refiner {info['refiner']}" if info["refiner"] else ""
-        frames = ("temporal: carries its state along a sequence's frames" if info["temporal"]
-                  else "single frames: each frame afresh")
+        fused = info["output"]["fuse_frames"]
+        frames = (f"temporal: each frame fused with up to {fused - 1} earlier ones" if fused > 1
+                  else "temporal: carries its state along a sequence's frames"
+                  if info["temporal"] else "single frames: each frame afresh")
         click.echo(f"    {info['model']} width {info['width']:g}, residual {info['residual']}"
                    f"{refiner}, {frames}, {info['parameters']:,} parameters, "
                    f"{info['bytes'] / 1e6:.1f} MB, "
                    f"sha256 {info['sha256'][:16]}...; made by recipes/{info['recipe']} phase "
                    f"{info['phase']}")
-        settings = ", ".join(f"--{k} {v}" if not isinstance(v, bool) else
+        settings = ", ".join(f"--{k.replace('_', '-')} {v}" if not isinstance(v, bool) else
                              f"--{'' if v else 'no-'}{k}" for k, v in info["output"].items())
         click.echo(f"    runs with {settings} unless told")
         for dataset, scores in info["metrics"].items():

@@ -69,11 +69,14 @@ def load_network(source: Any, *, device: str | torch.device = "auto",
 
 def build_deblurrer(source: Any, *, device: str | torch.device = "auto", backend: str = "torch",
                     brightness: str | None = None, overshoot: str | None = None,
-                    flips: bool | None = None, **options: Any) -> Deblurrer:
+                    flips: bool | None = None, fuse_frames: int | None = None,
+                    **options: Any) -> Deblurrer:
     """A :class:`~dualpixel.inference.Deblurrer` for ``source`` (:func:`load_network`) running
-    as its weights run: ``brightness``, ``overshoot`` and ``flips`` None take the model's own
-    setting, a value given wins. ``options``: the rest of ``Deblurrer`` (``tile``, ``overlap``,
-    ``precision``, ``multiscale``, ...)."""
+    as its weights run: ``brightness``, ``overshoot``, ``flips`` and ``fuse_frames`` None take
+    the model's own setting (a preset's: ``rdpd-light-video`` fuses frames), a value given wins.
+    ``options``: the rest of ``Deblurrer`` (``tile``, ``overlap``, ``precision``,
+    ``multiscale``, ...)."""
     loaded = load_network(source, device=device, backend=backend)
-    settings = run_settings(loaded.net, brightness=brightness, overshoot=overshoot, flips=flips)
+    settings = run_settings(loaded.net, brightness=brightness, overshoot=overshoot, flips=flips,
+                            fuse_frames=fuse_frames)
     return Deblurrer(loaded.net, device=loaded.device, **loaded.runtime, **settings, **options)

@@ -79,10 +79,10 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     """The architecture and ``extra`` stored in a checkpoint, with clear errors for bad files."""
     path = Path(path)
     if not path.is_file():
-        from dualpixel.weights import ALIASES, WEIGHTS
+        from dualpixel.weights import ALIASES, PRESETS, WEIGHTS
 
         hint = (f"; {str(path)!r} is a shipped model's name: dualpixel.load_model({str(path)!r}) "
-                "loads it" if str(path) in (*ALIASES, *WEIGHTS) else "")
+                "loads it" if str(path) in (*ALIASES, *WEIGHTS, *PRESETS) else "")
         raise InputFileError(path, "checkpoint not found" + hint)
     try:
         from safetensors import safe_open

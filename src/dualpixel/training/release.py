@@ -161,7 +161,7 @@ def _checked_registry(path: Path) -> dict:
     registry = read_mapping(path, "weights registry")
     if "weights" not in registry:
         raise InputFileError(path, "has no 'weights' table: not a weights registry")
-    for table in ("weights", "deprecated", "aliases"):
+    for table in ("weights", "deprecated", "aliases", "presets"):
         if not isinstance(registry.get(table, {}), dict):
             raise InputFileError(path, f"its {table!r} entry must be a table of tags")
         registry.setdefault(table, {})
@@ -202,7 +202,8 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
     folder = Path(weights_dir) if weights_dir is not None else weights_folder()
     registry_path = folder / "registry.json"
     registry = _checked_registry(registry_path)
-    names = {*registry["weights"], *registry["deprecated"], *registry["aliases"]}
+    names = {*registry["weights"], *registry["deprecated"], *registry["aliases"],
+             *registry["presets"]}
     if tag in names:
         raise ParameterError(f"--tag {tag} already exists in {registry_path}: a tag is "
                              "written once (take the next vN)")
@@ -210,8 +211,13 @@ def release_run(run: str | Path, tag: str, *, weights_dir: str | Path | None = N
     for old in replaces:
         if old not in registry["weights"]:
             raise ParameterError(f"--replaces {old}: no shipped tag of that name")
+        using = [name for name, row in registry["presets"].items()
+                 if isinstance(row, dict) and row.get("weights") == old]
+        if using:
+            raise ParameterError(f"--replaces {old}: the preset(s) {', '.join(using)} run those "
+                                 f"weights; point them at other weights in {registry_path} first")
     if alias is not None and (alias in registry["weights"] or alias in registry["deprecated"]
-                              or ".v" in alias):
+                              or alias in registry["presets"] or ".v" in alias):
         raise ParameterError(f"--alias {alias}: an alias is a name without .vN that is no tag")
     if default and alias is None:
         raise ParameterError("--default needs --alias (the default is an alias)")

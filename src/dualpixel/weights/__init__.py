@@ -5,12 +5,14 @@ immutable *tag* (``rdpd-light.v12``) with its sha256, the recipe and phase that 
 (``dualpixel reproduce recipes/RECIPE --until PHASE``) and where that phase started (a phase of
 the same recipe or a shipped tag, with the sha256 of those weights), its parameter count,
 metrics, a one-line doc and the output settings it runs with by default; an *alias*
-(``rdpd-light``, the default) names the tag it stands for today. Names that shipped once are in
-the deprecation map, which says which recipe phase remakes them. ``dualpixel release``
+(``rdpd-light``, the default) names the tag it stands for today. A *preset*
+(``rdpd-light-video``) is shipped weights run with other output settings (frame fusion for
+video): no file of its own. Names that shipped once are in the deprecation map, which says
+which recipe phase remakes them. ``dualpixel release``
 (:mod:`dualpixel.training.release`) writes the files and the rows.
 
-``resolve_checkpoint`` takes an alias, a tag or a path to a ``.safetensors`` file written by
-``dualpixel train`` / ``reproduce``.
+``resolve_checkpoint`` takes an alias, a tag, a preset or a path to a ``.safetensors`` file
+written by ``dualpixel train`` / ``reproduce``.
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from typing import Any
 from dualpixel.errors import InputFileError, ParameterError
 
 __all__ = [
-    "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "OUTPUT_KEY", "WEIGHTS", "Weights",
+    "ALIASES", "DEFAULT_CHECKPOINT", "DEPRECATED", "OUTPUT_KEY", "PRESETS", "WEIGHTS",
+    "Preset", "Weights",
     "carried_settings", "deprecation", "file_output_settings", "file_sha256", "list_models",
     "model_card", "model_info", "output_settings", "phase_weights", "resolve_checkpoint",
     "resolve_tag", "run_settings", "weights_folder",
@@ -55,6 +58,18 @@ class Weights:
         return weights_folder() / self.file
 
 
+@dataclass(frozen=True)
+class Preset:
+    """Shipped weights run with other output settings (a row of ``registry.json``'s
+    ``presets``): ``output`` over the weights' own, e.g. ``{"fuse_frames": 6}``."""
+
+    name: str
+    weights: str  # a tag of WEIGHTS
+    output: dict[str, Any]
+    doc: str
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+
 def weights_folder() -> Path:
     """The package folder that holds the shipped files and ``registry.json``."""
     return Path(str(resources.files(__name__)))
@@ -70,6 +85,9 @@ WEIGHTS: dict[str, Weights] = {tag: Weights(tag=tag, **row)
                                for tag, row in _REGISTRY["weights"].items()}
 #: Alias -> the tag it stands for.
 ALIASES: dict[str, str] = dict(_REGISTRY["aliases"])
+#: Presets by name: shipped weights with output settings of their own.
+PRESETS: dict[str, Preset] = {name: Preset(name=name, **row)
+                              for name, row in _REGISTRY.get("presets", {}).items()}
 #: Names that no longer ship -> {"recipe", "phase", "note"}: how to make them again.
 DEPRECATED: dict[str, dict[str, str]] = dict(_REGISTRY["deprecated"])
 DEFAULT_CHECKPOINT: str = _REGISTRY["default"]
@@ -88,9 +106,10 @@ def deprecation(name: str) -> str:
 
 
 def resolve_checkpoint(name_or_path: str | Path) -> Path:
-    """The file of an alias or tag, or the given path; a clear error when neither exists."""
+    """The file of an alias, tag or preset, or the given path; a clear error when neither
+    exists."""
     text = str(name_or_path)
-    tag = ALIASES.get(text, text)
+    tag = PRESETS[text].weights if text in PRESETS else ALIASES.get(text, text)
     if tag in WEIGHTS:
         path = WEIGHTS[tag].path
         if not path.is_file():
@@ -100,7 +119,7 @@ def resolve_checkpoint(name_or_path: str | Path) -> Path:
         raise InputFileError(text, f"retired checkpoint: {deprecation(text)}")
     path = Path(name_or_path)
     if not path.is_file():
-        known = ", ".join([*ALIASES, *WEIGHTS])
+        known = ", ".join([*ALIASES, *WEIGHTS, *PRESETS])
         raise InputFileError(
             path, f"checkpoint not found (not a file, nor a shipped name: {known})")
     return path
@@ -135,8 +154,9 @@ OUTPUT_KEY = "output"
 
 
 def output_settings(source: Any) -> dict[str, Any]:
-    """The output settings (``brightness``, ``overshoot``, ``flips``) a model runs with by
-    default, from wherever it came: a shipped name; a checkpoint file (those it carries in its
+    """The output settings (``brightness``, ``overshoot``, ``flips``, ``fuse_frames``) a model
+    runs with by default, from wherever it came: a shipped name (a preset's over its weights');
+    a checkpoint file (those it carries in its
     metadata, else a shipped file's by its sha256, so a copy of one runs as it does); a loaded
     network (what it was loaded with, ``DeblurNet.output_settings``: also an exported graph's).
     Empty: the network's output as it gives it."""
@@ -144,6 +164,9 @@ def output_settings(source: Any) -> dict[str, Any]:
         return dict(source.output_settings)
     if source is None:
         return {}
+    if str(source) in PRESETS:
+        preset = PRESETS[str(source)]
+        return {**WEIGHTS[preset.weights].output, **preset.output}
     tag = ALIASES.get(str(source), str(source))
     if tag in WEIGHTS:
         return dict(WEIGHTS[tag].output)
@@ -174,23 +197,28 @@ def file_output_settings(path: str | Path) -> dict[str, Any]:
 
 def carried_settings(values: dict[str, Any]) -> dict[str, Any]:
     """The output settings among ``values`` (other keys, from a newer version, left out)."""
-    return {key: values[key] for key in ("brightness", "overshoot", "flips") if key in values}
+    return {key: values[key] for key in ("brightness", "overshoot", "flips", "fuse_frames")
+            if key in values}
 
 
 def run_settings(source: Any, *, brightness: str | None = None,
-                 overshoot: str | None = None, flips: bool | None = None) -> dict[str, Any]:
+                 overshoot: str | None = None, flips: bool | None = None,
+                 fuse_frames: int | None = None) -> dict[str, Any]:
     """The output settings a model runs with: each one given, else the model's own
-    (:func:`output_settings`: a name, a file or a loaded network), else as the network gives it.
+    (:func:`output_settings`: a name, a file or a loaded network), else as the network gives it
+    (``fuse_frames`` 1: each frame alone).
 
     >>> run_settings("some/file.safetensors", overshoot="limited")
-    {'brightness': 'model', 'overshoot': 'limited', 'flips': False}
+    {'brightness': 'model', 'overshoot': 'limited', 'flips': False, 'fuse_frames': 1}
     """
     from dualpixel.names import DEFAULT_BRIGHTNESS, DEFAULT_OVERSHOOT
 
     own = output_settings(source)
     return {"brightness": brightness or own.get("brightness", DEFAULT_BRIGHTNESS),
             "overshoot": overshoot or own.get("overshoot", DEFAULT_OVERSHOOT),
-            "flips": bool(own.get("flips", False)) if flips is None else bool(flips)}
+            "flips": bool(own.get("flips", False)) if flips is None else bool(flips),
+            "fuse_frames": int(own.get("fuse_frames", 1)) if fuse_frames is None
+            else fuse_frames}
 
 
 def phase_weights(recipe: str, phase: str) -> str | None:
@@ -202,7 +230,8 @@ def phase_weights(recipe: str, phase: str) -> str | None:
 
 
 def model_info() -> dict[str, dict]:
-    """Per shipped tag, what :func:`list_models` gives (a copy of its own for each caller)."""
+    """Per shipped tag and preset, what :func:`list_models` gives (a copy of its own for each
+    caller)."""
     return copy.deepcopy(_model_info())
 
 
@@ -210,7 +239,9 @@ def model_info() -> dict[str, dict]:
 def _model_info() -> dict[str, dict]:
     """Per shipped tag: doc, aliases, recipe and phase, architecture (the file's header only: no
     network is built and torch is not imported), parameter count, size, sha256, metrics and the
-    output settings it runs with by default."""
+    output settings it runs with by default; per preset, its weights' with its own doc, metrics
+    and settings (``preset_of``: the tag). ``temporal``: a frame's output depends on earlier
+    frames (a recurrent state carried, or frames fused)."""
     from safetensors import safe_open
 
     info = {}
@@ -228,12 +259,18 @@ def _model_info() -> dict[str, dict]:
             "sha256": weights.sha256, "metrics": weights.metrics,
             "output": run_settings(tag),
         }
+        info[tag]["temporal"] = info[tag]["temporal"] or info[tag]["output"]["fuse_frames"] > 1
+    for name, preset in PRESETS.items():
+        output = run_settings(name)
+        info[name] = {**info[preset.weights], "description": preset.doc, "aliases": [],
+                      "preset_of": preset.weights, "metrics": preset.metrics, "output": output,
+                      "temporal": info[preset.weights]["temporal"] or output["fuse_frames"] > 1}
     return info
 
 
 def list_models() -> dict[str, dict]:
-    """The shipped weights with their metadata (``dualpixel models`` prints the same); reads
-    file headers only, without importing torch."""
+    """The shipped weights and presets with their metadata (``dualpixel models`` prints the
+    same); reads file headers only, without importing torch."""
     return model_info()
 
 
