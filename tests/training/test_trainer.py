@@ -373,12 +373,16 @@ def test_models_command_lists_counts():
 
     for name, info in model_info().items():
         aliases = f" (alias {', '.join(info['aliases'])})" if info["aliases"] else ""
+        if "preset_of" in info:  # a preset: shipped weights with settings of its own
+            aliases = f" (preset: {info['preset_of']} with its own settings)"
         assert f"{name}{aliases}: {info['description']}" in result.output
         assert info["sha256"][:16] in result.output
         assert f"recipes/{info['recipe']} phase {info['phase']}" in result.output
         block = re.search(rf"^  {re.escape(name)}\b.*?(?=^  \S|\Z)", result.output,
                           flags=re.S | re.M).group()  # this model's lines
-        frames = "carries its state" if info["temporal"] else "single frames"
+        fused = info["output"]["fuse_frames"]
+        frames = (f"each frame fused with up to {fused - 1} earlier" if fused > 1
+                  else "carries its state" if info["temporal"] else "single frames")
         assert frames in block, block
         for dataset, scores in info["metrics"].items():
             assert f"{dataset}: {scores['psnr']:.2f} dB" in result.output
