@@ -13,7 +13,6 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from dualpixel.data.layout import discover_dp_dataset, read_frame
@@ -22,14 +21,15 @@ from dualpixel.synthesis.dataset import synthesize_dataset
 from dualpixel.synthesis.scenes import write_scene_folder
 from dualpixel.training.recipe import load_recipe, scene_config, synth_config
 
-#: name -> (interpolation, match level, smoothing px)
+#: name -> FrameFusion's settings (its defaults: the last)
+BEFORE = {"match_spreads": 0, "max_match_level": 0.01, "smoothing_px": 2.0,
+          "flow_smoothing_px": 0.0}  # one fixed level, until 2026-12-04
 VARIANTS = {
-    "current": (cv2.INTER_LINEAR, 0.01, 2.0),
-    "cubic": (cv2.INTER_CUBIC, 0.01, 2.0),
-    "match 0.005": (cv2.INTER_LINEAR, 0.005, 2.0),
-    "match 0.02": (cv2.INTER_LINEAR, 0.02, 2.0),
-    "smooth 1": (cv2.INTER_LINEAR, 0.01, 1.0),
-    "smooth 4": (cv2.INTER_LINEAR, 0.01, 4.0),
+    "one fixed level (before)": BEFORE,
+    "flow on guides blurred 1 px": {**BEFORE, "flow_smoothing_px": 1.0},
+    "flow blurred 1 px, level 3 spreads": {**BEFORE, "flow_smoothing_px": 1.0,
+                                           "match_spreads": 3.0, "max_match_level": 1.0},
+    "the same, smoothing 1 px, level at most 0.03 (now)": {},
 }
 
 
@@ -37,16 +37,12 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
     return float(10 * np.log10(1.0 / np.mean((a.clip(0, 1) - b) ** 2)))
 
 
-def fused_psnrs(noisy: Path, clean: Path, variant: tuple, frames: int) -> list[float]:
+def fused_psnrs(noisy: Path, clean: Path, variant: dict, frames: int) -> list[float]:
     """Per frame 2..N of every sequence, the fused views' PSNR (left and right together)."""
-    interpolation, match, smoothing = variant
-    frame_fusion.MATCH_LEVEL, frame_fusion.SMOOTHING_PX = match, smoothing
-    frame_fusion._warp = lambda image, mx, my: cv2.remap(
-        image, mx, my, interpolation, borderMode=cv2.BORDER_REPLICATE).reshape(image.shape)
     scores = []
     for made, truth in zip(discover_dp_dataset(noisy, "train"),
                            discover_dp_dataset(clean, "train"), strict=True):
-        fusion = frame_fusion.FrameFusion(frames)
+        fusion = frame_fusion.FrameFusion(frames, **variant)
         for k, (paths, true_paths) in enumerate(zip(made.frames, truth.frames, strict=True)):
             image, reference = read_frame(paths), read_frame(true_paths)
             left, right = fusion(image["left"], image["right"])

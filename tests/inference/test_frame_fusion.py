@@ -53,6 +53,19 @@ def test_registered_frames_average_the_noise_away():
     assert interior_mse(fused[1][0], clean[1]) < 0.7 * interior_mse(views[1][0], clean[1])
 
 
+@pytest.mark.parametrize("sigma", [0.008, 0.06])
+def test_the_match_follows_each_sequences_own_noise(sigma):
+    """A clean and a very noisy pan are both averaged (the fourth frame's noise power well
+    under half): the match level is a number of spreads of each frame's own difference, so
+    the noisy frames are not taken for mismatches, nor the clean ones matched loosely."""
+    clean, views = noisy_pan(4, sigma=sigma, seed=5)
+    fusion = FrameFusion(4)
+    fused = [fusion(*pair) for pair in views][3]
+    for side in (0, 1):
+        before = interior_mse(views[3][side], clean[3])
+        assert interior_mse(fused[side], clean[3]) < 0.45 * before, side
+
+
 def test_a_moving_object_leaves_no_ghost():
     """A bright square jumps 20 px a frame over a still background (no noise): where it was
     and where it is, the fused frame stays the current frame, while a plain average of the
