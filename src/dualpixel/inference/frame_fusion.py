@@ -145,7 +145,6 @@ class FrameFusion:
             fused_right /= _per_channel(total, right)
         return fused_left, fused_right
 
-
     def _level(self, difference: np.ndarray) -> float:
         """The match level of a smoothed difference (a fraction of the guide's scale)."""
         if self.match_spreads <= 0:

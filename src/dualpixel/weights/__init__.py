@@ -217,7 +217,7 @@ def run_settings(source: Any, *, brightness: str | None = None,
     return {"brightness": brightness or own.get("brightness", DEFAULT_BRIGHTNESS),
             "overshoot": overshoot or own.get("overshoot", DEFAULT_OVERSHOOT),
             "flips": bool(own.get("flips", False)) if flips is None else bool(flips),
-            "fuse_frames": int(own.get("fuse_frames", 1)) if fuse_frames is None
+            "fuse_frames": own.get("fuse_frames", 1) if fuse_frames is None
             else fuse_frames}
 
 
