@@ -188,15 +188,11 @@ def _render_runs_in_tiles(runs: list[_Run], opaque: torch.Tensor, labels: torch.
         # every tile's indices to the device in one copy
         which, run, frame, tile_row, tile_col, layer = chosen.to(device, non_blocking=True)
         inner = slice((halo - half) * d, (halo + half + TILE) * d)  # this layer's halo
-        mask = layer_map[frame, tile_row, tile_col][:, inner, inner] == layer[:, None, None]
-        planes = torch.where(mask[:, None], source[frame, tile_row, tile_col][..., inner, inner],
-                             0.0)
-        if d > 1:
-            planes = F.avg_pool2d(planes, d)  # [I m, m] at 1/d
+        planes = _layer_planes(source[frame, tile_row, tile_col][..., inner, inner],
+                               layer_map[frame, tile_row, tile_col][:, inner, inner], layer, d)
         blurred = _convolve(planes, _padded(kernels, size).to(device)[which],
                              valid=True)
-        previous = acc[run, tile_row, tile_col]  # (N, 2, C + 1, TILE, TILE)
-        acc[run, tile_row, tile_col] = blurred + (1.0 - blurred[:, :, -1:]) * previous
+        acc[run, tile_row, tile_col] = _over(blurred, acc[run, tile_row, tile_col])
     image = acc.permute(0, 3, 4, 1, 5, 2, 6).reshape(len(runs), 2, planes_count,
                                                      tiles[0] * TILE, tiles[1] * TILE)
     return list(image[..., : low[0], : low[1]])
@@ -227,14 +223,26 @@ def _render_runs_in_boxes(runs: list[_Run], opaque: torch.Tensor, labels: torch.
         c1 = min(max(b[3] for b in boxes) // d + 1 + half, low[1])
         rows, cols = slice(r0 * d, r1 * d), slice(c0 * d, c1 * d)
         chosen = frames[index]
-        mask = (layer_map[chosen, rows, cols] == layer[:, None, None])[:, None]
-        planes = torch.where(mask, source[chosen, :, rows, cols], 0.0)  # [I m, m]
-        if d > 1:
-            planes = F.avg_pool2d(planes, d)
+        planes = _layer_planes(source[chosen, :, rows, cols], layer_map[chosen, rows, cols],
+                               layer, d)
         blurred = _convolve(planes, _padded(kernels, size).to(opaque.device))  # (R, 2, C + 1, h, w)
-        previous = acc[index, :, :, r0:r1, c0:c1]
-        acc[index, :, :, r0:r1, c0:c1] = blurred + (1.0 - blurred[:, :, -1:]) * previous
+        acc[index, :, :, r0:r1, c0:c1] = _over(blurred, acc[index, :, :, r0:r1, c0:c1])
     return list(acc)
+
+
+def _layer_planes(source: torch.Tensor, labels: torch.Tensor, layer: torch.Tensor,
+                  d: int) -> torch.Tensor:
+    """Each window's ``[I m, m]`` of its own layer (paper Eq. 7's layer term before blur):
+    ``source`` ``(N, C + 1, h, w)`` with the coverage last, ``labels`` ``(N, h, w)``, ``layer``
+    ``(N,)``; averaged over d x d blocks at 1/d."""
+    planes = torch.where((labels == layer[:, None, None])[:, None], source, 0.0)
+    return F.avg_pool2d(planes, d) if d > 1 else planes
+
+
+def _over(front: torch.Tensor, back: torch.Tensor) -> torch.Tensor:
+    """Premultiplied ``front`` composited over ``back`` (``(..., C + 1, h, w)``, the coverage
+    last: a nearer layer hides what lies behind it)."""
+    return front + (1.0 - front[..., -1:, :, :]) * back
 
 
 def _reached_tiles(runs: list[_Run], active: list[int], position: int,
@@ -352,7 +360,7 @@ def render_batch(
         total = opaque.new_zeros(2, channels + 1, height, width)
         for k, run in enumerate(frame):  # far to near
             layer = _upsampled(results.pop((b, k)), run.d, height, width)
-            total = layer + (1.0 - layer[:, -1:]) * total
+            total = _over(layer, total)
         cover = total[:, channels:].clamp_min(torch.finfo(images.dtype).eps)
         views = total[:, :channels] / cover
         left.append(views[0])
