@@ -1,10 +1,11 @@
-"""torch.hub entry points: every shipped model by its alias and tag, as a network in eval mode.
+"""torch.hub entry points: every shipped model by its alias, tag and preset, as a network in
+eval mode.
 
     model = torch.hub.load("path/to/dualpixel", "rdpd_light", source="local")
     model = torch.hub.load("path/to/dualpixel", "rdpd_light_v18", source="local",
                            device="cpu")
 
-Names are the registry's aliases and tags with ``-`` and ``.`` as ``_``. The weights ship
+Names are the registry's aliases, tags and presets with ``-`` and ``.`` as ``_``. The weights ship
 inside the package: nothing is downloaded. Deblur with :func:`dualpixel.deblur` (``model=``
 the network): it runs as the shipped model runs (its output settings travel with it).
 
@@ -39,11 +40,14 @@ def _entry_point(name: str):
         return load_model(name, device=device)
 
     load.__name__ = name.replace("-", "_").replace(".", "_")
-    tag = _REGISTRY["aliases"].get(name, name)
+    preset = _REGISTRY.get("presets", {}).get(name)
+    tag = preset["weights"] if preset else _REGISTRY["aliases"].get(name, name)
     load.__doc__ = f"The shipped model {name!r} ({tag}), in eval mode."
+    if preset:
+        load.__doc__ += f" A preset: its weights run with {preset['output']}."
     return load
 
 
-for _name in [*_REGISTRY["aliases"], *_REGISTRY["weights"]]:
+for _name in [*_REGISTRY["aliases"], *_REGISTRY["weights"], *_REGISTRY.get("presets", {})]:
     _load = _entry_point(_name)
     globals()[_load.__name__] = _load

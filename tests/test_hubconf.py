@@ -1,11 +1,11 @@
-"""torch.hub loads the shipped models from a clone by alias and tag (``hubconf.py``)."""
+"""torch.hub loads the shipped models from a clone by alias, tag and preset (``hubconf.py``)."""
 
 from pathlib import Path
 
 import torch
 
 from dualpixel.models import count_parameters
-from dualpixel.weights import ALIASES, DEFAULT_CHECKPOINT, WEIGHTS
+from dualpixel.weights import ALIASES, DEFAULT_CHECKPOINT, PRESETS, WEIGHTS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -17,7 +17,8 @@ def test_every_alias_and_tag_is_an_entry_point():
     hubconf = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(hubconf)
     names = {n for n in dir(hubconf) if callable(getattr(hubconf, n)) and not n.startswith("_")}
-    assert names == {n.replace("-", "_").replace(".", "_") for n in [*ALIASES, *WEIGHTS]}
+    assert names == {n.replace("-", "_").replace(".", "_")
+                     for n in [*ALIASES, *WEIGHTS, *PRESETS]}
 
 
 def test_the_default_loads_through_torch_hub():
@@ -25,6 +26,12 @@ def test_the_default_loads_through_torch_hub():
     model = torch.hub.load(str(ROOT), entry, source="local", device="cpu")
     assert not model.training
     assert count_parameters(model) == WEIGHTS[ALIASES[DEFAULT_CHECKPOINT]].num_params
+
+
+def test_a_preset_loads_through_torch_hub_with_its_settings():
+    model = torch.hub.load(str(ROOT), "rdpd_light_video", source="local", device="cpu")
+    assert model.output_settings["fuse_frames"] == PRESETS["rdpd-light-video"].output[
+        "fuse_frames"]
 
 
 def test_hubconf_imports_nothing_before_torch_checks_its_dependencies():
