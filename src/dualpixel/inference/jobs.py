@@ -160,7 +160,8 @@ def check_sequence_frames(frames: list[Path], *, gaps: bool = True) -> None:
         for before, (after, path) in zip(values, zip(values[1:], frames[1:])):
             if after != before + 1:
                 warnings.warn(f"{path}: the frames skip from number {before} to {after}; a "
-                              "recurrent model carries its state across the gap", stacklevel=3)
+                              "temporal model carries its state, or fuses earlier frames, "
+                              "across the gap", stacklevel=3)
                 break
 
 
