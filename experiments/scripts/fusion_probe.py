@@ -38,7 +38,8 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def fused_psnrs(noisy: Path, clean: Path, variant: dict, frames: int) -> list[float]:
-    """Per frame 2..N of every sequence, the fused views' PSNR (left and right together)."""
+    """Per frame 2..N of every sequence, the fused views' PSNR (left and right together);
+    ``frames`` 1: the views as made."""
     scores = []
     for made, truth in zip(discover_dp_dataset(noisy, "train"),
                            discover_dp_dataset(clean, "train"), strict=True):
@@ -50,18 +51,6 @@ def fused_psnrs(noisy: Path, clean: Path, variant: dict, frames: int) -> list[fl
                 both = np.concatenate([left, right])
                 scores.append(psnr(both, np.concatenate([reference["left"],
                                                          reference["right"]])))
-    return scores
-
-
-def as_made_psnrs(noisy: Path, clean: Path) -> list[float]:
-    scores = []
-    for made, truth in zip(discover_dp_dataset(noisy, "train"),
-                           discover_dp_dataset(clean, "train"), strict=True):
-        for k, (paths, true_paths) in enumerate(zip(made.frames, truth.frames, strict=True)):
-            if k:
-                image, reference = read_frame(paths), read_frame(true_paths)
-                scores.append(psnr(np.concatenate([image["left"], image["right"]]),
-                                   np.concatenate([reference["left"], reference["right"]])))
     return scores
 
 
@@ -90,7 +79,8 @@ def main() -> None:
             folders[arm] = args.output / "data" / camera / arm
             synthesize_dataset(scenes, fmt, folders[arm], arm_settings, workers=args.workers,
                                progress=False)
-        rows.setdefault("as made", {})[camera] = np.mean(as_made_psnrs(*folders.values()))
+        rows.setdefault("as made", {})[camera] = np.mean(
+            fused_psnrs(folders["as made"], folders["no noise"], {}, 1))
         for name, variant in VARIANTS.items():
             rows.setdefault(name, {})[camera] = np.mean(
                 fused_psnrs(folders["as made"], folders["no noise"], variant, frames))
