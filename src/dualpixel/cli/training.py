@@ -53,8 +53,9 @@ def models(width: float) -> None:
                    f"{info['bytes'] / 1e6:.1f} MB, "
                    f"sha256 {info['sha256'][:16]}...; made by recipes/{info['recipe']} phase "
                    f"{info['phase']}")
-        settings = ", ".join(f"--{k.replace('_', '-')} {v}" if not isinstance(v, bool) else
-                             f"--{'' if v else 'no-'}{k}" for k, v in info["output"].items())
+        options = {k.replace("_", "-"): v for k, v in info["output"].items()}
+        settings = ", ".join(f"--{k} {v}" if not isinstance(v, bool) else
+                             f"--{'' if v else 'no-'}{k}" for k, v in options.items())
         click.echo(f"    runs with {settings} unless told")
         for dataset, scores in info["metrics"].items():
             click.echo(f"    {dataset}: {scores['psnr']:.2f} dB PSNR, SSIM {scores['ssim']:.3f} "
