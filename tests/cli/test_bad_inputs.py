@@ -296,6 +296,29 @@ def test_quiet_silences_progress_bars(tmp_path):
     assert "rendering scenes" not in quiet.stderr and "wrote 1 sequences" in quiet.stdout
 
 
+def test_console_script_freezes_the_collector_only_when_the_process_ends():
+    """``run`` (the console script, ``python -m dualpixel``) keeps the process's objects out of
+    the exit's last collections and passes the command's exit status on; ``cli.main`` called
+    from Python leaves the collector as it is."""
+    import subprocess
+    import sys
+
+    probe = ("import gc, sys\n"
+             "from dualpixel.cli.main import cli, run\n"
+             "cli.main(['--version'], standalone_mode=False)\n"
+             "print('after cli.main', gc.get_freeze_count())\n"
+             "sys.argv = ['dualpixel', 'deblur', '--left', 'no-such-view.png']\n"
+             "try:\n"
+             "    run()\n"
+             "except SystemExit as end:\n"
+             "    print('after run', gc.get_freeze_count() > 0, end.code)\n")
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                            check=True)
+    assert "after cli.main 0" in result.stdout
+    assert "after run True 2" in result.stdout
+    assert "no-such-view.png" in result.stderr and "Traceback" not in result.stderr
+
+
 def test_quiet_run_from_python_leaves_later_commands_their_bars(tmp_path, monkeypatch):
     """``--quiet`` silences worker processes through the environment; a command run in this
     process (a notebook, a test) must not leave it silenced for the commands after it."""

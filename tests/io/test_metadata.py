@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 import pytest
 import tifffile
@@ -83,3 +85,27 @@ def test_deblur_command_keeps_the_left_views_metadata(tiny_checkpoint, tmp_path)
         assert out.orientation == 6 and out.icc_profile == ICC and out.tags()[271] == "Canon"
         image, bits = read_rgb_with_depth(tmp_path / output)
         assert bits == 16 and image.shape == (32, 48, 3)  # as the sensor saw it
+
+
+def test_png_exif_after_the_pixels_is_read_without_decoding_them(tmp_path, monkeypatch):
+    """libpng may write ``eXIf`` after ``IDAT``: it is found by walking the chunk headers, and
+    no PNG's pixels are decoded to read its metadata (PIL's ``getexif`` would)."""
+    from PIL import ImageFile
+
+    Image.fromarray(np.zeros((40, 60, 3), np.uint8)).save(tmp_path / "plain.png")
+    data = (tmp_path / "plain.png").read_bytes()
+    exif = ImageMetadata.from_orientation(8).exif.removeprefix(b"Exif\x00\x00")
+    chunk = (len(exif).to_bytes(4, "big") + b"eXIf" + exif
+             + zlib.crc32(b"eXIf" + exif).to_bytes(4, "big"))
+    end = data.rindex(b"IEND") - 4
+    (tmp_path / "after.png").write_bytes(data[:end] + chunk + data[end:])
+    assert data.index(b"IDAT") < (tmp_path / "after.png").read_bytes().index(b"eXIf")
+
+    def no_decoding(self):
+        raise AssertionError("pixels decoded to read metadata")
+
+    monkeypatch.setattr(ImageFile.ImageFile, "load", no_decoding)
+    assert read_metadata(tmp_path / "after.png").orientation == 8
+    assert not read_metadata(tmp_path / "plain.png")
+    _photo(tmp_path / "before.png", np.zeros((40, 60, 3), np.uint8), orientation=3)
+    assert read_metadata(tmp_path / "before.png").orientation == 3

@@ -29,6 +29,7 @@ import numpy as np
 
 from dualpixel.data.layout import discover_any, read_frame
 from dualpixel.errors import InputFileError, ParameterError
+from dualpixel.filters import channel_mean
 from dualpixel.optics.tone import combined_image
 
 __all__ = [
@@ -92,7 +93,7 @@ class DatasetStatistics:
 
 
 def _grey(image: np.ndarray) -> np.ndarray:
-    return image.mean(axis=-1, dtype=np.float32)
+    return channel_mean(image)
 
 
 def block_sums(values: np.ndarray, patch: int, dtype=None) -> np.ndarray:
@@ -117,7 +118,8 @@ def block_disparity_map(
     """Signed horizontal shift of ``right`` against ``left`` per block, px ``(rows, cols)``,
     whether each block is textured enough to trust it, and the image column where the block
     grid starts (``max_shift``: the search needs that margin); rows start at 0."""
-    gl, gr = (np.diff(_grey(v), axis=1) for v in (left, right))
+    grey_left = _grey(left)
+    gl, gr = np.diff(grey_left, axis=1), np.diff(_grey(right), axis=1)
     width = gl.shape[1]
     if width <= 2 * max_shift + 1:
         raise ParameterError(f"images must be wider than {2 * max_shift + 1} px, got {width + 1}")
@@ -137,7 +139,7 @@ def block_disparity_map(
     curvature = c0 - 2 * c1 + c2
     offset = np.where(curvature > 0, 0.5 * (c0 - c2) / np.maximum(curvature, 1e-12), 0.0)
     shift = inner - max_shift + np.clip(offset, -0.5, 0.5)
-    textured = _textured(_grey(left)[:, core], patch, min_texture)
+    textured = _textured(grey_left[:, core], patch, min_texture)
     return shift.astype(np.float32), textured, max_shift
 
 

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import ParameterError
+from dualpixel.filters import channel_mean
 from dualpixel.names import BRIGHTNESS_MODES, DEFAULT_BRIGHTNESS
 from dualpixel.optics.tone import CombinedImage, linear_to_srgb_array, srgb_to_linear_array
 
@@ -117,7 +118,7 @@ def tie_brightness(output: np.ndarray, left: np.ndarray, right: np.ndarray | Non
     linear_in = combined.light
     linear_out = srgb_to_linear_array(output)
     linear_measured = linear_out if measured is output else srgb_to_linear_array(measured)
-    gain = ((_low_pass(linear_in.mean(axis=2), sigma) + _FLOOR)
-            / (_low_pass(linear_measured.mean(axis=2), sigma) + _FLOOR))
+    gain = ((_low_pass(channel_mean(linear_in), sigma) + _FLOOR)
+            / (_low_pass(channel_mean(linear_measured), sigma) + _FLOOR))
     tied = np.clip(linear_out * gain[..., None], 0.0, 1.0)
     return linear_to_srgb_array(tied)

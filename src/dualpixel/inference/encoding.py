@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import InputFileError, ParameterError
-from dualpixel.inference.view_checks import ViewFinding, views_from_sum
+from dualpixel.inference.view_checks import ViewFinding, thinned, views_from_sum
 from dualpixel.names import ENCODINGS
 from dualpixel.optics.tone import (
     CombinedImage,
@@ -259,7 +259,7 @@ def flat_field_gain(left: np.ndarray, right: np.ndarray, *, black_level: float =
 def encoding_findings(left: np.ndarray, right: np.ndarray, encoding: str) -> list[ViewFinding]:
     """A warning when views ``(H, W, C)`` in [0, 1] look linear (raw) but are declared
     display-encoded, or the reverse; empty when they look as declared."""
-    values = combined_image(left, right, light="encoded")  # the stored values, as declared
+    values = combined_image(thinned(left), thinned(right), light="encoded")  # as declared
     median, p99 = (float(v) for v in np.percentile(values, (50, 99)))
     if encoding == "srgb" and median < LINEAR_MEDIAN and p99 < LINEAR_P99:
         return [ViewFinding("looks-linear", (

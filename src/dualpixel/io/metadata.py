@@ -101,10 +101,32 @@ def read_metadata(path: str | Path) -> ImageMetadata:
     try:
         with Image.open(path) as image:
             icc = image.info.get("icc_profile") or None
-            exif = _descriptive_exif(image.getexif())
+            if image.format == "PNG" and "exif" not in image.info:  # PIL would decode the
+                found = _png_exif_after_pixels(path)  # pixels to look for one after them
+                exif = _descriptive_exif(_exif(found)) if found else None
+            else:
+                exif = _descriptive_exif(image.getexif())
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
         return ImageMetadata()
     return ImageMetadata(icc_profile=icc, exif=exif)
+
+
+def _png_exif_after_pixels(path: str | Path) -> bytes | None:
+    """The EXIF of a PNG's ``eXIf`` chunk (``Exif\\0\\0`` + its bytes), walking the chunks'
+    headers without reading their data; None without one."""
+    with open(path, "rb") as file:
+        file.seek(8)  # the signature
+        while header := file.read(8):
+            if len(header) < 8:
+                return None
+            length, kind = struct.unpack(">I4s", header)
+            if kind == b"eXIf":
+                data = file.read(length)
+                return _EXIF_PREFIX + data if len(data) == length else None
+            if kind == b"IEND":
+                return None
+            file.seek(length + 4, 1)  # the data and its CRC
+    return None
 
 
 def _png_chunk(kind: bytes, data: bytes) -> bytes:
