@@ -39,6 +39,7 @@ import cv2
 import numpy as np
 
 from dualpixel.errors import ParameterError
+from dualpixel.filters import channel_mean
 
 __all__ = ["FLOW_SMOOTHING_PX", "MATCH_SPREADS", "MAX_MATCH_LEVEL", "SMOOTHING_PX",
            "FrameFusion", "check_fuse_frames"]
@@ -164,7 +165,7 @@ class FrameFusion:
 def _guide(left: np.ndarray, right: np.ndarray | None) -> np.ndarray:
     """The grey mean of the views, ``(H, W)`` float32."""
     views = left if right is None else (left + right) / 2.0
-    return views.mean(axis=2) if views.ndim == 3 else views.astype(np.float32)
+    return channel_mean(views) if views.ndim == 3 else views.astype(np.float32)
 
 
 def _as_u8(guide: np.ndarray, scale: float) -> np.ndarray:
