@@ -12,11 +12,11 @@ phone frames. Resumable (a finished arm is kept).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 from pathlib import Path
 
-from view_blockiness import coded_psnr, held_out_frames  # beside this script
+from in_focus_probe import arm_arguments  # beside this script
+from view_blockiness import coded_psnr, held_out_frames
 
 import dualpixel
 from dualpixel.synthesis.on_the_fly import write_on_the_fly
@@ -61,11 +61,7 @@ def gains(model: str, frames: list) -> list[float]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("output", type=Path)
-    parser.add_argument("--data", type=Path, default=Path("runs/rdpd-light-photographs"))
-    parser.add_argument("--iterations", type=int, default=600)
-    parser.add_argument("--threads", type=int, default=2)
+    parser = arm_arguments(__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=8)
     args = parser.parse_args()
     models = {"rdpd-light (default)": "rdpd-light"}

@@ -39,8 +39,9 @@ HELD_OUT = ("canon-840", "canon-hd", "phone")
 
 
 def make_arm(name: str, base_blur: tuple[float, float], out: Path, data: Path, iterations: int,
-             threads: int) -> Path:
-    """Fine-tune the default on the coded recipe's sources with ``base_blur``; its weights."""
+             threads: int, **training: object) -> Path:
+    """Fine-tune the default on the coded recipe's sources with ``base_blur`` (and any other
+    ``training`` settings); its weights."""
     recipe = load_recipe(RECIPE)
     index = next(i for i, phase in enumerate(recipe.phases) if phase.name == "coded")
     settings = phase_config(recipe, index, data, str(resolve_tag(START)))
@@ -57,7 +58,7 @@ def make_arm(name: str, base_blur: tuple[float, float], out: Path, data: Path, i
         settings, synthetic_data=[sources[Path(f).name] for f in settings.synthetic_data],
         val_data=[str(data / "data" / "canon-hd-test")], val_limit=4, epochs=1,
         iterations_per_epoch=iterations, learning_rate=5e-5, threads=threads, workers=0,
-        cache=True, tensorboard=False, checkpoint_minutes=10)
+        cache=True, tensorboard=False, checkpoint_minutes=10, **training)
     run = out / name / "run"
     if not (run / "last.safetensors").is_file():
         train(settings, run, resume=(run / "last_state.pt").is_file(), progress=False)
@@ -99,12 +100,19 @@ def scores_of(label: str, model: str, out: Path, data: Path, real_pairs: bool) -
     return found
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def arm_arguments(description: str) -> argparse.ArgumentParser:
+    """The options of a probe whose arms :func:`make_arm` trains: its folder, the data folder
+    of the photographic recipe, the iterations of each arm and the threads."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("output", type=Path)
     parser.add_argument("--data", type=Path, default=Path("runs/rdpd-light-photographs"))
     parser.add_argument("--iterations", type=int, default=600)
     parser.add_argument("--threads", type=int, default=2)
+    return parser
+
+
+def main() -> None:
+    parser = arm_arguments(__doc__.splitlines()[0])
     parser.add_argument("--base-blur", type=float, nargs=2, default=(0.0, 0.7))
     args = parser.parse_args()
     arms = {"control": (0.0, 0.0), "soft": tuple(args.base_blur)}
@@ -112,12 +120,23 @@ def main() -> None:
     for name, base_blur in arms.items():
         models[name] = str(make_arm(name, base_blur, args.output, args.data, args.iterations,
                                     args.threads))
-    path = args.output / "scores.json"
+    print_table(score_all(models, args.output, args.data))
+
+
+def score_all(models: dict[str, str], out: Path, data: Path) -> dict:
+    """:func:`scores_of` for each model (``default``: no target-free checks), kept in
+    ``OUT/scores.json`` as each finishes."""
+    path = out / "scores.json"
     table = json.loads(path.read_text()) if path.is_file() else {}
     for label, model in models.items():
         if label not in table:
-            table[label] = scores_of(label, model, args.output, args.data, label != "default")
+            table[label] = scores_of(label, model, out, data, label != "default")
             path.write_text(json.dumps(table, indent=1))
+    return table
+
+
+def print_table(table: dict) -> None:
+    """The scores as a Markdown table, a row per model."""
     print("| model | dev 840 | dev 1620 | worst dev scene | " + " | ".join(
         f"photo-{c}" for c in HELD_OUT) + " | target-free failures |")
     print("|---|---|---|---|" + "---|" * len(HELD_OUT) + "---|")

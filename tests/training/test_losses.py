@@ -115,3 +115,29 @@ def test_sobel_factors_multiply_to_the_kernels():
         smoothing, derivative = sobel_factors(size)
         np.testing.assert_allclose(np.outer(smoothing, derivative), sobel_kernels(size)[0])
         assert smoothing.shape == derivative.shape == (size,)
+
+
+@pytest.mark.parametrize("reduction", ["mean", "log"])
+def test_charbonnier_pixel_term_finds_the_median_where_mse_finds_the_mean(reduction):
+    """Edge terms off, one output level fitted to a target whose pixels are a quarter 1 and the
+    rest 0: MSE settles at their mean (0.25), the Charbonnier term near their median (0); the
+    reported ``mse`` part is the MSE either way."""
+    target = torch.zeros(2, 3, 16, 16)
+    target[..., :4, :] = 1.0  # a quarter of the pixels
+    found = {}
+    for pixel in ("mse", "charbonnier"):
+        loss = DeblurLoss(lambda_x=0.0, lambda_y=0.0, reduction=reduction, pixel=pixel)
+        level = torch.full((1,), 0.5, requires_grad=True)
+        optimiser = torch.optim.Adam([level], lr=0.01)
+        for _ in range(400):
+            optimiser.zero_grad()
+            total, parts = loss(level.expand_as(target), target)
+            total.backward()
+            optimiser.step()
+        found[pixel] = float(level)
+        assert float(parts["mse"]) == pytest.approx(
+            float(((level.detach() - target) ** 2).mean()), rel=1e-5)
+    assert found["mse"] == pytest.approx(0.25, abs=0.02)
+    assert found["charbonnier"] < 0.05
+    with pytest.raises(ValueError, match="pixel"):
+        DeblurLoss(pixel="l3")

@@ -1,4 +1,5 @@
 import json
+import math
 import re
 
 import pytest
@@ -116,6 +117,20 @@ def test_cosine_schedule_decays_over_the_run_and_resumes(tiny_synthetic_dataset,
     assert [r["learning_rate"] for r in resumed.history[2:]] == pytest.approx(expected[2:])
     with pytest.raises(ParameterError, match="lr_schedule"):
         tiny_config(tiny_synthetic_dataset, lr_schedule="linear")
+
+
+def test_charbonnier_pixel_term_trains_otherwise_and_is_checked(tiny_synthetic_dataset,
+                                                                tmp_path):
+    runs = {pixel: train(tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=2,
+                                     pixel_loss=pixel), tmp_path / pixel, progress=False)
+            for pixel in ("mse", "charbonnier")}
+    weights = {pixel: load_model(tmp_path / pixel / "last.safetensors").state_dict()
+               for pixel in runs}
+    assert any(not torch.equal(weights["mse"][k], weights["charbonnier"][k])
+               for k in weights["mse"])
+    assert all(math.isfinite(r["loss"]) for run in runs.values() for r in run.history)
+    with pytest.raises(ParameterError, match="pixel_loss"):
+        tiny_config(tiny_synthetic_dataset, pixel_loss="l1")
 
 
 def _largest_steps(start, run) -> dict[str, float]:

@@ -20,7 +20,7 @@ from dualpixel.io.atomic import atomic_path
 from dualpixel.io.paths import check_plain_name
 from dualpixel.models.registry import model_spec
 from dualpixel.names import RAW_VIEWS, RENDER_ON
-from dualpixel.training.losses import LOSS_REDUCTIONS
+from dualpixel.training.losses import LOSS_REDUCTIONS, PIXEL_LOSSES
 
 __all__ = ["LR_SCHEDULES", "TrainConfig", "load_config", "save_config"]
 
@@ -115,6 +115,8 @@ class TrainConfig:
     lambda_y: float = 0.02
     # "mean" (the paper) or "log" (ours: each patch's loss in dB, averaged; see DeblurLoss).
     loss_reduction: str = "mean"
+    # The pixel term of Eq. 16: "mse" (the paper) or "charbonnier" (a smooth L1; PIXEL_LOSSES).
+    pixel_loss: str = "mse"
     # Ours (BasicSR's ``ema_decay``): also keep an exponential moving average of the weights,
     # which validation, best.safetensors and last.safetensors then hold (0: off, the paper).
     ema_decay: float = 0.0
@@ -170,6 +172,9 @@ class TrainConfig:
         if self.loss_reduction not in LOSS_REDUCTIONS:
             raise ParameterError(f"loss_reduction must be one of {', '.join(LOSS_REDUCTIONS)}, "
                                  f"got {self.loss_reduction!r}")
+        if self.pixel_loss not in PIXEL_LOSSES:
+            raise ParameterError(f"pixel_loss must be one of {', '.join(PIXEL_LOSSES)}, "
+                                 f"got {self.pixel_loss!r}")
         if self.widen_init and self.init_weights is None:
             raise ParameterError("widen_init needs init_weights (the network to widen)")
         if self.reinit_bottleneck and self.init_weights is None:

@@ -23,9 +23,15 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-__all__ = ["LOSS_REDUCTIONS", "DeblurLoss", "EdgeLoss", "sobel_factors", "sobel_kernels"]
+__all__ = ["LOSS_REDUCTIONS", "PIXEL_LOSSES", "DeblurLoss", "EdgeLoss", "sobel_factors",
+           "sobel_kernels"]
 
 LOSS_REDUCTIONS = ("mean", "log")
+#: The pixel term of Eq. 16: "mse" (the paper) or "charbonnier" (ours, an option:
+#: ``sqrt(d^2 + eps^2)``, a smooth L1 whose minimiser is a median where MSE's is a mean).
+PIXEL_LOSSES = ("mse", "charbonnier")
+#: Charbonnier's ``eps`` on the [0, 1] scale (a quarter of an 8-bit level).
+CHARBONNIER_EPS = 1e-3
 #: Keeps the log finite for a perfect patch (1e-8: a PSNR of 80 dB).
 LOG_EPS = 1e-8
 
@@ -108,14 +114,16 @@ class DeblurLoss(nn.Module):
 
     def __init__(
         self, sizes: tuple[int, ...] = (3, 7, 11), lambda_x: float = 0.03, lambda_y: float = 0.02,
-        reduction: str = "mean",
+        reduction: str = "mean", pixel: str = "mse",
     ) -> None:
         super().__init__()
         if reduction not in LOSS_REDUCTIONS:
             raise ValueError(f"reduction must be one of {LOSS_REDUCTIONS}, got {reduction!r}")
+        if pixel not in PIXEL_LOSSES:
+            raise ValueError(f"pixel must be one of {PIXEL_LOSSES}, got {pixel!r}")
         self.edge = EdgeLoss(sizes)
         self.lambda_x, self.lambda_y = lambda_x, lambda_y
-        self.reduction = reduction
+        self.reduction, self.pixel = reduction, pixel
 
     def combine(
         self, mse: torch.Tensor, edge_x: torch.Tensor, edge_y: torch.Tensor
@@ -129,11 +137,19 @@ class DeblurLoss(nn.Module):
         if self.reduction == "mean":
             mse = F.mse_loss(output, target)
             edge_x, edge_y = self.edge(output, target)
-            total = self.combine(mse, edge_x, edge_y)
+            pixel = mse if self.pixel == "mse" else self._charbonnier(output - target).mean()
+            total = self.combine(pixel, edge_x, edge_y)
         else:
-            mse = (output - target).square().flatten(-3).mean(-1).flatten()  # (N,)
+            difference = output - target
+            mse = difference.square().flatten(-3).mean(-1).flatten()  # (N,)
+            pixel = (mse if self.pixel == "mse"
+                     else self._charbonnier(difference).flatten(-3).mean(-1).flatten())
             edge_x, edge_y = self.edge(output, target, per_image=True)
-            per_image = self.combine(mse, edge_x, edge_y)
+            per_image = self.combine(pixel, edge_x, edge_y)
             total = 10.0 * torch.log10(per_image + LOG_EPS).mean()
             mse, edge_x, edge_y = mse.mean(), edge_x.mean(), edge_y.mean()
         return total, {"mse": mse.detach(), "edge_x": edge_x.detach(), "edge_y": edge_y.detach()}
+
+    @staticmethod
+    def _charbonnier(difference: torch.Tensor) -> torch.Tensor:
+        return (difference.square() + CHARBONNIER_EPS**2).sqrt()

@@ -460,7 +460,7 @@ class Trainer:
         self.optimizer = make_optimizer(model, config, device)
         self.scheduler = _lr_scheduler(self.optimizer, config)
         self.criterion = DeblurLoss(tuple(config.edge_sizes), config.lambda_x, config.lambda_y,
-                                    config.loss_reduction).to(device)
+                                    config.loss_reduction, config.pixel_loss).to(device)
         self.iterations = _iterations_per_epoch(config, self.kinds)
         self.views, self.formation = None, None
         if config.views_data is not None:  # a camera's photographs: the formation loss
