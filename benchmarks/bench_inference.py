@@ -28,8 +28,9 @@ the whole ``dualpixel deblur`` command (start-up, loading, reading, deblurring, 
 1680x1120 pair of 8-bit PNGs, each run a fresh process, best of ``--repeats``, with its peak
 memory (targets: 3.0 s and 2 GiB on 2 CPU cores), then where its time goes (imports, loading,
 reading, the first pair's checks, the network, the output settings, writing; each run a fresh
-process) and what the interpreter's start and exit add. ``--int8-convs``: one 3x3 convolution at the default network's sizes in fp32,
-bf16 and int8 (oneDNN's quantised convolution), the lever for CPUs without AMX.
+process) and what the interpreter's start and exit add. ``--int8-convs``: one 3x3
+convolution at the default network's sizes in fp32, bf16 and int8 (oneDNN's quantised
+convolution), the lever for CPUs without AMX.
 ``--sequence N``: a temporal model (``--checkpoint``, e.g. ``rdpd-light-video``) on N
 1680x1120 frames in a sequence, seconds per frame with its state carried (frames 2 to N run
 the ConvLSTM's recurrent convolution) against its first frame (zero state), best of
