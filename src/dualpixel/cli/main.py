@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gc
 import os
+import sys
 
 import click
 
@@ -51,13 +52,17 @@ for _module in (synthesis, training, reproduce, adaptation, inference, calibrati
 
 def run() -> None:
     """The ``dualpixel`` console script and ``python -m dualpixel``: :func:`cli`, after which
-    the process ends. Its objects are frozen out of the interpreter's last garbage collections
-    first (torch alone makes 165,000: a third of a second of every command's exit on two
-    cores); ``cli.main(...)`` called from Python (a notebook, click's test runner) leaves the
-    collector as it is."""
+    the process ends. A process group that ``torchrun`` training opened is closed, then the
+    objects are frozen out of the interpreter's last garbage collections (torch alone makes
+    165,000: a third of a second of every command's exit on two cores); ``cli.main(...)``
+    called from Python (a notebook, click's test runner) leaves both as they are."""
     try:
         cli()
     finally:
+        distributed = sys.modules.get("torch.distributed")
+        if distributed is not None and distributed.is_available() and \
+                distributed.is_initialized():
+            distributed.destroy_process_group()
         gc.freeze()
 
 
