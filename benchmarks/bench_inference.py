@@ -254,8 +254,7 @@ def command_time(checkpoint: str, device: str, repeats: int) -> tuple[float, flo
 
 
 #: The command's stages (:func:`command_stages`): the function each is timed around.
-STAGES = {"loading": ("dualpixel.inference", "build_deblurrer"),
-          "reading": ("dualpixel.inference.jobs", "_read_pair"),
+STAGES = {"reading": ("dualpixel.inference.jobs", "_read_pair"),
           "first pair's checks": ("dualpixel.inference.jobs", "_check_first_frame"),
           "network": ("dualpixel.inference.deblur", "Deblurrer.network_output"),
           "output settings (brightness tied)": ("dualpixel.inference.deblur", "Deblurrer.finish"),
@@ -264,31 +263,46 @@ STAGES = {"loading": ("dualpixel.inference", "build_deblurrer"),
 
 def stage_times(arguments: list[str]) -> dict[str, float]:
     """Seconds of each stage of one ``dualpixel`` command run in this (fresh) process:
-    ``imports`` (the command line and the inference modules, torch among them), then
+    ``imports`` (the command line, then the inference modules, torch among them, which the
+    command imports while its first pass's memory is faulted in beside them), ``loading``
+    (from there to the first frame's reading: the inputs planned, the model built), then
     :data:`STAGES`, each the time inside its function."""
     import functools
     import importlib
 
+    from dualpixel.memory import Prefault
+
     started = time.perf_counter()
     import dualpixel.cli.main
-    import dualpixel.inference.jobs  # what deblur imports when it runs
 
-    seconds = {"imports": time.perf_counter() - started}
-    for stage, (module_name, attribute) in STAGES.items():
-        owner = importlib.import_module(module_name)
-        *classes, name = attribute.split(".")
-        for class_name in classes:
-            owner = getattr(owner, class_name)
-        function = getattr(owner, name)
+    def timed_stages() -> None:
+        for stage, (module_name, attribute) in STAGES.items():
+            owner = importlib.import_module(module_name)
+            *classes, name = attribute.split(".")
+            for class_name in classes:
+                owner = getattr(owner, class_name)
+            function = getattr(owner, name)
 
-        @functools.wraps(function)
-        def timed(*args, _function=function, _stage=stage, **kwargs):
-            begun = time.perf_counter()
-            try:
-                return _function(*args, **kwargs)
-            finally:
-                seconds[_stage] = seconds.get(_stage, 0.0) + time.perf_counter() - begun
-        setattr(owner, name, timed)
+            @functools.wraps(function)
+            def timed(*args, _function=function, _stage=stage, **kwargs):
+                begun = time.perf_counter()
+                seconds.setdefault("loading", begun - started - seconds["imports"])
+                try:
+                    return _function(*args, **kwargs)
+                finally:
+                    seconds[_stage] = seconds.get(_stage, 0.0) + time.perf_counter() - begun
+            setattr(owner, name, timed)
+
+    release = Prefault.release
+
+    def imported(self) -> None:  # the command's imports end where it releases the memory
+        release(self)
+        if "imports" not in seconds:
+            seconds["imports"] = time.perf_counter() - started
+            timed_stages()
+
+    seconds: dict[str, float] = {}
+    Prefault.release = imported
     dualpixel.cli.main.cli.main(arguments, standalone_mode=False)
     seconds["total in the process"] = time.perf_counter() - started
     return seconds

@@ -319,6 +319,49 @@ def test_console_script_freezes_the_collector_only_when_the_process_ends():
     assert "no-such-view.png" in result.stderr and "Traceback" not in result.stderr
 
 
+def test_console_script_ends_a_deblur_at_once_but_keeps_what_exit_does(files, tmp_path):
+    """After a deblur that succeeded, ``run`` ends the process without the interpreter's
+    teardown: the exit handlers still run and the output is flushed into a pipe; a thread
+    still working is waited for; a failure, or another command, ends the usual way."""
+    import subprocess
+    import sys
+
+    probe = ("import atexit, os, sys, threading, time\n"
+             "from dualpixel.cli.main import run\n"
+             "atexit.register(lambda: print('exit handlers ran', flush=True))\n"
+             "def late():  # still working when the command has written its output\n"
+             "    while not os.path.exists(sys.argv[-1]):\n"
+             "        time.sleep(0.01)\n"
+             "    time.sleep(0.5)\n"
+             "    print('thread done')\n"
+             "if sys.argv[1] == 'thread':\n"
+             "    threading.Thread(target=late).start()\n"
+             "sys.argv = ['dualpixel', *sys.argv[2:]]\n"
+             "try:\n"
+             "    run()\n"
+             "except SystemExit as end:\n"
+             "    print('ended the usual way', end.code)\n")
+    deblur = ["deblur", "--left", str(files / "l.png"), "--right", str(files / "r.png"),
+              "--checkpoint", str(files / "tiny.safetensors"), "-o"]
+
+    def ended(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", probe, *args], capture_output=True,
+                              text=True)
+
+    quick = ended("", *deblur, str(tmp_path / "a.png"))
+    assert quick.returncode == 0, quick.stderr
+    assert "wrote 1 frame(s)" in quick.stdout and "exit handlers ran" in quick.stdout
+    assert "ended the usual way" not in quick.stdout
+    assert cv2.imread(str(tmp_path / "a.png")).shape == (40, 48, 3)
+    waited = ended("thread", *deblur, str(tmp_path / "b.png"))
+    assert "thread done" in waited.stdout and "ended the usual way 0" in waited.stdout
+    failed = ended("", *deblur[:-3], "--checkpoint", str(files / "psfs.npz"), "-o",
+                   str(tmp_path / "c.png"))
+    assert "ended the usual way 1" in failed.stdout and "psfs.npz" in failed.stderr
+    other = ended("", "--version")
+    assert "ended the usual way 0" in other.stdout and "exit handlers ran" in other.stdout
+
+
 def test_quiet_run_from_python_leaves_later_commands_their_bars(tmp_path, monkeypatch):
     """``--quiet`` silences worker processes through the environment; a command run in this
     process (a notebook, a test) must not leave it silenced for the commands after it."""
