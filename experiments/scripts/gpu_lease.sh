@@ -43,10 +43,16 @@
 #   unpack N K                  there: part N of K (carry .photos/N) into ../shared/data/
 #                               photographs; part K checks that every photograph arrived
 # Calls 1..K-1 `unpack N K`, each at once after the last; call K `unpack K K && start ...`.
-# With 55 MiB of tree that is 9 parts: retire shipped weights first (release --replaces).
+# With 55 MiB of tree that is 9 parts; slim the tree first (about 2 parts), unslim after:
+#   slim [TAG...]               here: the shipped weights other than TAG... (the tags the lease's
+#                               recipe starts from; none for a recipe from nothing) stop
+#                               travelling: untracked in the index and ignored in
+#                               .git/info/exclude, the files left in place; a pre-commit hook
+#                               refuses commits until `unslim`, which would delete them
+#   unslim                      here: the weights tracked again, the index and exclude as before
 # e.g. device run: bash experiments/scripts/gpu_lease.sh start experiments/recipes/rdpd-canon-full.yaml runs/reproduce/rdpd-canon-full
 set -euo pipefail
-command=${1:?start, wait, stop, collect, kit, figures, synthesis, training, tests, profile, checks, pack or unpack}; shift
+command=${1:?start, wait, stop, collect, kit, figures, synthesis, training, tests, profile, checks, pack, unpack, slim or unslim}; shift
 
 running() { [ -f "$1.pid" ] && kill -0 "$(cat "$1.pid")" 2>/dev/null; }
 
@@ -225,9 +231,58 @@ unpack)  # on the device: part N of K into ../shared/data/photographs
     exit 1
   fi
   ;;
+slim)  # here: only the weights the lease needs travel (see the header)
+  marker=$(git rev-parse --git-path dualpixel-slim)
+  exclude=$(git rev-parse --git-path info/exclude)
+  hook=$(git rev-parse --git-path hooks)/pre-commit
+  [ -f "$marker" ] && { echo "already slim (unslim first): $(cat "$marker" | tr '\n' ' ')" >&2; exit 1; }
+  if [ -n "$(git status --porcelain -- src/dualpixel/weights)" ]; then
+    echo "src/dualpixel/weights has changes: commit or undo them first" >&2; exit 1
+  fi
+  if [ -e "$hook" ] && ! grep -q dualpixel-slim "$hook"; then
+    echo "$hook exists and is not ours: slim would replace it" >&2; exit 1
+  fi
+  for tag in "$@"; do
+    [ -f "src/dualpixel/weights/$tag.safetensors" ] || { echo "no shipped weights $tag" >&2; exit 1; }
+  done
+  : > "$marker"
+  for path in $(git ls-files 'src/dualpixel/weights/*.safetensors'); do
+    tag=$(basename "$path" .safetensors)
+    [[ " $* " == *" $tag "* ]] && continue
+    git rm -q --cached -- "$path"
+    echo "/$path" >> "$exclude"
+    echo "$path" >> "$marker"
+  done
+  mkdir -p "$(dirname "$hook")"
+  cat > "$hook" <<'HOOK'
+#!/bin/sh
+# dualpixel-slim: gpu_lease.sh slim untracked shipped weights for a lease; a commit now would
+# delete them from the repository. Run `bash experiments/scripts/gpu_lease.sh unslim` first.
+if [ -f "$(git rev-parse --git-path dualpixel-slim)" ]; then
+  echo "refused: the tree is slimmed for a GPU lease (gpu_lease.sh unslim first)" >&2
+  exit 1
+fi
+HOOK
+  chmod +x "$hook"
+  tree=$(git ls-files -co --exclude-standard -z | xargs -0 stat -c %s | awk '{s += $1} END {print s}')
+  echo "slim: $(wc -l < "$marker") weight file(s) stay here; the tree that travels:" \
+       "$(awk -v b="$tree" 'BEGIN {printf "%.1f", b / 1048576}') MiB"
+  ;;
+unslim)  # here: the tree as it was before `slim`
+  marker=$(git rev-parse --git-path dualpixel-slim)
+  exclude=$(git rev-parse --git-path info/exclude)
+  [ -f "$marker" ] || { echo "not slim: nothing to undo"; exit 0; }
+  while read -r path; do
+    git reset -q -- "$path"
+    grep -vxF "/$path" "$exclude" > "$exclude.new" || true
+    mv "$exclude.new" "$exclude"
+  done < "$marker"
+  rm -f "$marker"
+  echo "unslim: $(git ls-files 'src/dualpixel/weights/*.safetensors' | wc -l) weight file(s) tracked"
+  ;;
 *)
   echo "unknown command: $command (start, wait, stop, collect, kit, figures, synthesis," \
-       "training, tests, profile, checks, pack or unpack)" >&2
+       "training, tests, profile, checks, pack, unpack, slim or unslim)" >&2
   exit 2
   ;;
 esac

@@ -2,9 +2,13 @@
 `sequences` arm (its shipped weights: state carried, the recipe's own evaluation, and afresh)
 on every camera's held-out sequences of a finished `recipes/rdpd-light-video.yaml` run, as the
 recipe's evaluation runs them (CPU, float32, brightness tied); PSNR gain per camera, PSNR by
-frame position and flicker, as Markdown.
+frame position and flicker, as Markdown. ``--arms from-scratch``: the three arms of a finished
+`experiments/recipes/table2-from-scratch.yaml` run instead (sRDPD, RDPD with and without its
+state, DPDNet; no default, none of them started from it).
 
     .venv/bin/python experiments/scripts/video_table.py runs/rdpd-light-video runs/video-table
+    .venv/bin/python experiments/scripts/video_table.py runs/table2-from-scratch \
+        runs/table2-table --arms from-scratch
 """
 
 from __future__ import annotations
@@ -16,17 +20,22 @@ from pathlib import Path
 CAMERAS = ("canon-840", "canon-hd", "canon-stored", "dslr", "phone", "phone-raw", "phone-close")
 
 
-SHIPPED = "rdpd-light-video.v1"
+SHIPPED = {"fine-tune": "rdpd-light-video.v1", "from-scratch": "table2-rdpd.v1"}
 
 
-def arms(run: Path) -> dict[str, tuple[str | None, bool]]:
+def arms(run: Path, kind: str = "fine-tune") -> dict[str, tuple[str | None, bool]]:
     """Row name -> (weights, afresh); None: the recipe's own evaluation of the shipped weights
     (state carried), read from the run."""
-    return {"rdpd-light.v16 (frames)": ("rdpd-light.v16", False),
-            "frames arm (sRDPD)": (str(run / "phases" / "frames" / "last.safetensors"), False),
-            "sequences arm (RDPD), state carried": (None, False),
-            "sequences arm, each frame afresh": (
-                str(run / "ship" / f"{SHIPPED}.safetensors"), True)}
+    phases = run / "phases"
+    rows = {"rdpd-light.v16 (frames)": ("rdpd-light.v16", False)} if kind == "fine-tune" else {}
+    rows |= {"frames arm (sRDPD)": (str(phases / "frames" / "last.safetensors"), False),
+             "sequences arm (RDPD), state carried": (None, False),
+             "sequences arm, each frame afresh": (
+                 str(run / "ship" / f"{SHIPPED[kind]}.safetensors"), True)}
+    if kind == "from-scratch":
+        rows["dpdnet arm (DPDNet, width 0.25)"] = (
+            str(phases / "dpdnet" / "last.safetensors"), False)
+    return rows
 
 
 def _recipe_evaluation(run: Path, camera: str) -> dict:
@@ -54,12 +63,12 @@ def _recipe_evaluation(run: Path, camera: str) -> dict:
     return summary
 
 
-def evaluate_all(run: Path, output: Path) -> dict:
+def evaluate_all(run: Path, output: Path, kind: str = "fine-tune") -> dict:
     from dualpixel.evaluation.run import EvaluationRequest, run_evaluation
     from dualpixel.inference.pipeline import build_deblurrer
 
     found = {}
-    for number, (row, (weights, afresh)) in enumerate(arms(run).items()):
+    for number, (row, (weights, afresh)) in enumerate(arms(run, kind).items()):
         for camera in CAMERAS:
             folder = output / f"arm{number}" / camera
             if weights is None:
@@ -112,8 +121,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", type=Path, help="a finished rdpd-light-video run folder")
     parser.add_argument("output", type=Path, help="where the evaluations go (resumes)")
+    parser.add_argument("--arms", choices=sorted(SHIPPED), default="fine-tune",
+                        help="which recipe made the run (default: recipes/rdpd-light-video.yaml)")
     args = parser.parse_args()
-    text = tables(evaluate_all(args.run, args.output))
+    text = tables(evaluate_all(args.run, args.output, args.arms))
     (args.output / "tables.md").write_text(text)
     print(text)
 
