@@ -330,7 +330,9 @@ def test_console_script_ends_a_deblur_at_once_but_keeps_what_exit_does(files, tm
              "from dualpixel.cli.main import run\n"
              "atexit.register(lambda: print('exit handlers ran', flush=True))\n"
              "def late():  # still working when the command has written its output\n"
-             "    while not os.path.exists(sys.argv[-1]):\n"
+             "    for _ in range(6000):\n"
+             "        if os.path.exists(sys.argv[-1]):\n"
+             "            break\n"
              "        time.sleep(0.01)\n"
              "    time.sleep(0.5)\n"
              "    print('thread done')\n"
@@ -346,7 +348,7 @@ def test_console_script_ends_a_deblur_at_once_but_keeps_what_exit_does(files, tm
 
     def ended(*args: str) -> subprocess.CompletedProcess:
         return subprocess.run([sys.executable, "-c", probe, *args], capture_output=True,
-                              text=True)
+                              text=True, timeout=300)
 
     quick = ended("", *deblur, str(tmp_path / "a.png"))
     assert quick.returncode == 0, quick.stderr
