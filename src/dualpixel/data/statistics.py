@@ -92,10 +92,6 @@ class DatasetStatistics:
         }
 
 
-def _grey(image: np.ndarray) -> np.ndarray:
-    return channel_mean(image)
-
-
 def block_sums(values: np.ndarray, patch: int, dtype=None) -> np.ndarray:
     """Sums over non-overlapping ``patch`` blocks of ``(H, W, ...)`` values, ``(H // patch,
     W // patch, ...)`` (the remainder at the borders is dropped); ``dtype``: the accumulator."""
@@ -118,8 +114,8 @@ def block_disparity_map(
     """Signed horizontal shift of ``right`` against ``left`` per block, px ``(rows, cols)``,
     whether each block is textured enough to trust it, and the image column where the block
     grid starts (``max_shift``: the search needs that margin); rows start at 0."""
-    grey_left = _grey(left)
-    gl, gr = np.diff(grey_left, axis=1), np.diff(_grey(right), axis=1)
+    grey_left = channel_mean(left)
+    gl, gr = np.diff(grey_left, axis=1), np.diff(channel_mean(right), axis=1)
     width = gl.shape[1]
     if width <= 2 * max_shift + 1:
         raise ParameterError(f"images must be wider than {2 * max_shift + 1} px, got {width + 1}")
@@ -180,7 +176,7 @@ def block_blur(
     min_texture: float = 0.01,
 ) -> np.ndarray:
     """Std (px) of the Gaussian that best maps ``target`` to ``combined``, per textured block."""
-    grey_in, grey_target = _grey(combined), _grey(target)
+    grey_in, grey_target = channel_mean(combined), channel_mean(target)
     sigmas = np.arange(0.0, max_sigma + BLUR_STEP / 2, BLUR_STEP)
     costs = []
     for sigma in sigmas:
@@ -204,7 +200,7 @@ def noise_level(image: np.ndarray) -> float:
 def gradient_fraction(image: np.ndarray, threshold: float = GRADIENT_THRESHOLD) -> float:
     """Fraction of pixels whose grey gradient magnitude (central differences) exceeds
     ``threshold``."""
-    gy, gx = np.gradient(_grey(image))
+    gy, gx = np.gradient(channel_mean(image))
     return float(np.mean(np.hypot(gx, gy) > threshold))
 
 
