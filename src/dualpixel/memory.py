@@ -5,6 +5,7 @@ faulting those pages in ahead of time on an idle core."""
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import threading
 
@@ -66,6 +67,13 @@ def require_memory(nbytes: float, what: str) -> None:
         )
 
 
+@functools.cache
+def _libc() -> ctypes.CDLL:
+    """The C library, through the process's own symbols (``find_library`` would spawn
+    ldconfig); raises OSError where there are none to open."""
+    return ctypes.CDLL(None)
+
+
 def reuse_freed_memory() -> bool:
     """Let the process keep memory it frees and reuse it for the next large arrays (glibc).
 
@@ -84,8 +92,8 @@ def reuse_freed_memory() -> bool:
             return False
     except (ValueError, OSError, AttributeError):  # not glibc, or no confstr (Windows)
         return False
-    try:  # the process's own symbols hold glibc's (find_library would spawn ldconfig)
-        mallopt = ctypes.CDLL(None).mallopt
+    try:
+        mallopt = _libc().mallopt
     except (OSError, AttributeError):
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
@@ -105,7 +113,7 @@ class Prefault:
         self.nbytes, self._pointer, self._thread = 0, None, None
         if nbytes < MIN_PREFAULT or not _REUSING:
             return
-        libc = ctypes.CDLL(None)
+        libc = _libc()
         malloc, memset, self._free = libc.malloc, libc.memset, libc.free
         malloc.restype, malloc.argtypes = ctypes.c_void_p, [ctypes.c_size_t]
         memset.restype = ctypes.c_void_p

@@ -137,6 +137,47 @@ def test_residual_option_starts_at_the_blurred_input(tmp_path):
         build_model("dpdnet", residual=True)
 
 
+def _demo_views(size: int = 192) -> torch.Tensor:
+    """The shipped demo scene's two views, a centre crop, ``(1, 6, size, size)`` in [0, 1]."""
+    from dualpixel.demo import real_scene_dir
+    from dualpixel.io.images import read_rgb
+
+    views = [read_rgb(real_scene_dir() / f"view{i}.png") for i in (0, 1)]
+    h, w = views[0].shape[:2]
+    y, x = (h - size) // 2, (w - size) // 2
+    crops = [torch.from_numpy(v[y:y + size, x:x + size].copy()).permute(2, 0, 1) for v in views]
+    return torch.cat(crops)[None].float()
+
+
+def _head_share(model, x: torch.Tensor) -> list[float]:
+    """Per channel of the head's 3-channel convolution, the share of pixels where it is > 0."""
+    seen = []
+    hook = model.head[0].register_forward_hook(lambda m, a, out: seen.append(out.clone()))
+    with torch.no_grad():
+        model.eval().step(x)
+    hook.remove()
+    return [float((seen[0][:, c] > 0).float().mean()) for c in range(3)]
+
+
+@pytest.mark.parametrize("name", ["dpdnet", "rdpd"])
+def test_centring_the_head_keeps_its_relu_alive_on_other_crops(name):
+    """At zero bias some seed starts with a head channel dead on a real DP crop (DPDNet seed 0:
+    all three); centred on one crop of the demo scene, every channel lives on another."""
+    views = _demo_views(384)
+    one, other = views[..., :192, :192], views[..., 192:, 192:]
+    radial = [torch.rand(1, 1, 192, 192)] if build_model(name).shape.in_channels == 7 else []
+    shares, centred = [], []
+    for seed in range(8):
+        torch.manual_seed(seed)
+        model = build_model(name, width=0.25)
+        shares.append(min(_head_share(model, torch.cat([other, *radial], 1))))
+        model.centre_head(torch.cat([one, *radial], 1))
+        centred.append(min(_head_share(model, torch.cat([other, *radial], 1))))
+    assert min(shares) < 0.05 and min(centred) > 0.1, (shares, centred)
+    with pytest.raises(ValueError, match="non-residual"):
+        build_model("rdpd", width=TINY, residual=True).centre_head(torch.rand(1, 7, 32, 32))
+
+
 @pytest.mark.parametrize("name", ["rdpd", "dpdnet"])
 def test_reinit_bottleneck_keeps_the_output_and_revives_the_level(name):
     """Fresh coarsest level, output as if that level's path were cut, and the cut gets gradients."""

@@ -257,6 +257,36 @@ def test_reinit_bottleneck_applies_to_the_initial_weights(tiny_synthetic_dataset
     torch.testing.assert_close(after["encoders.3.0.weight"], before["encoders.3.0.weight"])
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_a_run_from_nothing_starts_with_its_heads_relu_alive(tiny_synthetic_dataset, tmp_path,
+                                                             seed):
+    """DPDNet from nothing: the head's three channels are positive on part of the training
+    crops after the first step (centred on the first batch), whatever the seed; a run from
+    given weights keeps their bias."""
+    from dualpixel.data import DPPatchDataset, PatchConfig, discover_dp_dataset
+    from dualpixel.models import save_model
+
+    config = tiny_config(tiny_synthetic_dataset, model="dpdnet", epochs=1,
+                         iterations_per_epoch=1, learning_rate=1e-12, seed=seed)
+    train(config, tmp_path / "run", progress=False)
+    data = DPPatchDataset(discover_dp_dataset(tiny_synthetic_dataset, "train"),
+                          PatchConfig(patch_size=64, frames=1, flips=False))
+    items = [data[(i, 0)] for i in range(4)]
+    frames = torch.cat([torch.cat([it["left"], it["right"]], 1) for it in items])
+    model = load_model(tmp_path / "run" / "last.safetensors")
+    seen = []
+    model.head[0].register_forward_hook(lambda m, a, out: seen.append(out.clone()))
+    with torch.no_grad():
+        model.eval().step(frames)
+    assert min(float((seen[0][:, c] > 0).float().mean()) for c in range(3)) > 0.05
+    save_model(tmp_path / "start.safetensors", model)
+    train(tiny_config(tiny_synthetic_dataset, model="dpdnet", epochs=1, iterations_per_epoch=1,
+                      learning_rate=1e-12, init_weights=str(tmp_path / "start.safetensors")),
+          tmp_path / "again", progress=False)
+    torch.testing.assert_close(load_model(tmp_path / "again" / "last.safetensors").head[0].bias,
+                               model.head[0].bias)
+
+
 def test_widen_init_starts_from_the_narrow_networks_function(tiny_synthetic_dataset, tmp_path):
     from dualpixel.models import save_model
 

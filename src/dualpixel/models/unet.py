@@ -181,6 +181,40 @@ class DeblurNet(nn.Module):
         head_act = nn.Identity() if shape.residual else nn.ReLU(inplace=True)
         self.head = nn.Sequential(nn.Conv2d(cin, 3, 3, padding=1), head_act, nn.Conv2d(3, 3, 1))
 
+    @property
+    def head_has_relu(self) -> bool:
+        """Whether the head ends in the paper's 3-channel convolution, ReLU and 1x1 convolution
+        (the non-residual networks of the paper's levels), which :meth:`centre_head` serves."""
+        return self.shape.block == "conv" and not self.shape.residual
+
+    def centre_head(self, x: torch.Tensor) -> None:
+        """Bias the head's 3-channel convolution so that each of its channels is positive on
+        half of the pixels of ``x`` (a training batch's frames ``(B, C_in, H, W)``) before a
+        run from nothing (ours; a data-dependent initialisation, Kraehenbuehl et al. 2016).
+
+        He-normal weights reading the last decoder level's non-negative features give each of
+        the three channels an offset of random sign larger than its variation, so at zero bias
+        a channel is negative almost everywhere about half the time: its ReLU gets no gradient,
+        and the output loses that colour direction for good (all three at once for about one
+        seed in eight: a network that never learns).
+        """
+        if not self.head_has_relu:
+            raise ValueError("centre_head is for the non-residual head of the paper's levels")
+        seen: list[torch.Tensor] = []
+        hook = self.head[0].register_forward_hook(
+            lambda module, args, out: seen.append(out.detach().float().clone()))  # before ReLU
+        training = self.training
+        self.eval()
+        try:
+            with torch.no_grad():
+                self.step(x)
+        finally:
+            hook.remove()
+            self.train(training)
+        median = seen[0].transpose(0, 1).flatten(1).median(dim=1).values
+        with torch.no_grad():
+            self.head[0].bias -= median.to(self.head[0].bias)
+
     def _build_naf_levels(self) -> None:
         """NAF levels (:mod:`dualpixel.models.naf`): a 3x3 convolution into the first, NAF blocks
         at every level, a 2x2 stride-2 convolution down (the next level's width), the skip and

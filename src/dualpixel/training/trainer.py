@@ -367,6 +367,7 @@ class Trainer:
         # where the epoch in progress stands when resumed from ``step_state.pt``
         self.within: dict[str, Any] | None = None
         self.last_saved = time.monotonic()
+        self.head_to_centre = False  # from nothing with the paper's ReLU head: on its 1st batch
 
     def run(self) -> TrainResult:
         import contextlib
@@ -560,6 +561,8 @@ class Trainer:
                 load_weights(self.net, path, base_only=base_only)
             if self.config.reinit_bottleneck:
                 self.net.reinit_bottleneck()
+        else:
+            self.head_to_centre = self.net.head_has_relu
         if self.main:
             self.output.mkdir(parents=True, exist_ok=True)
             save_config(self.config, self.output / "config.yaml")
@@ -567,6 +570,16 @@ class Trainer:
             if self.init_record is not None:
                 with atomic_path(self.output / "init.json") as tmp:
                     tmp.write_text(json.dumps(self.init_record) + "\n")
+
+    def _centre_head(self, frames: torch.Tensor) -> None:
+        """Before the first step from nothing: the head's ReLU alive on half of this batch
+        (:meth:`DeblurNet.centre_head`), the same bias in every process."""
+        self.net.centre_head(frames)
+        if dist.is_initialized():
+            bias = self.net.head[0].bias.data
+            dist.all_reduce(bias)
+            bias /= self.world
+        self.head_to_centre = False
 
     def train_epoch(self, epoch: int) -> dict[str, Any]:
         """One epoch of optimisation; returns its record (mean losses, seconds)."""
@@ -612,6 +625,8 @@ class Trainer:
             item = {k: v.to(device, non_blocking=True)
                     for k, v in next(loaders[iteration % len(kinds)]).items()}
             frames = self.net.spec.make_input(item["left"], item["right"], item["radial"])
+            if self.head_to_centre:
+                self._centre_head(frames[:, 0])
             crops = None
             batches = [frames]
             if views is not None:  # single frames of the crop size: one forward for both
