@@ -30,8 +30,9 @@ def test_tiny_model_overfits_a_tiny_batch(tiny_synthetic_dataset):
                           PatchConfig(patch_size=32, frames=2, flips=False))
     items = [data[(i, i)] for i in range(2)]
     batch = {k: torch.stack([it[k] for it in items]) for k in items[0]}
-    # The residual variant: the paper's 3-channel ReLU head gets stuck for some seeds (measured:
-    # 2 of 4 seeds fell < 5x in 250 steps), which would make this test depend on the seed.
+    # The residual variant: the paper's 3-channel ReLU head, built without the trainer's
+    # centring on a first batch, gets stuck for some seeds (measured: 2 of 4 seeds fell < 5x in
+    # 250 steps), which would make this test depend on the seed.
     model = build_model("rdpd", width=0.25, lstm_dropout=0.0, residual=True)
     frames = model.spec.make_input(batch["left"], batch["right"], batch["radial"])
     optimizer = torch.optim.Adam(model.parameters(), lr=2e-3)
