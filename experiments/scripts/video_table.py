@@ -35,6 +35,8 @@ def arms(run: Path, kind: str = "fine-tune") -> dict[str, tuple[str | None, bool
     if kind == "from-scratch":
         rows["dpdnet arm (DPDNet, width 0.25)"] = (
             str(phases / "dpdnet" / "last.safetensors"), False)
+        rows["dpdnet arm without the head's ReLU"] = (
+            str(phases / "dpdnet-linear-head" / "last.safetensors"), False)
     return rows
 
 

@@ -137,6 +137,46 @@ def test_residual_option_starts_at_the_blurred_input(tmp_path):
         build_model("dpdnet", residual=True)
 
 
+def test_a_head_without_its_relu_travels_with_its_checkpoint(tmp_path):
+    """``head_relu=False`` builds DPDNet's head as 3x3 conv straight into the 1x1 conv; the file
+    says so, so it reloads as built and no other head takes its weights. Files written before
+    the key existed load with the ReLU they were trained with."""
+    from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
+
+    from dualpixel.models import load_weights
+
+    torch.manual_seed(0)
+    linear = build_model("dpdnet", width=TINY, head_relu=False).eval()
+    assert not linear.head_has_relu and isinstance(linear.head[1], torch.nn.Identity)
+    path = tmp_path / "linear.safetensors"
+    save_model(path, linear)
+    loaded = load_model(path)
+    assert isinstance(loaded.head[1], torch.nn.Identity)
+    x = torch.rand(1, 1, 6, 32, 32)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(x)[0], linear(x)[0])
+    # The same weights with the ReLU give another output: a mixed-up head would not pass unseen.
+    with torch.no_grad():
+        relu = build_model("dpdnet", width=TINY).eval()
+        relu.load_state_dict(linear.state_dict())
+        assert (relu(x)[0] - linear(x)[0]).abs().max() > 1e-3
+    with pytest.raises(InputFileError, match="checkpoint is for"):
+        load_weights(relu, path)
+
+    old = tmp_path / "old.safetensors"
+    save_model(old, relu)
+    with safe_open(str(old), framework="pt") as handle:
+        metadata = {k: v for k, v in handle.metadata().items() if k != "head_relu"}
+    save_file(load_file(str(old)), str(old), metadata=metadata)
+    assert load_model(old).head_has_relu
+
+    for options in ({"name": "rdpd", "residual": True}, {"name": "dpnaf", "residual": True},
+                    {"name": "dpnaf"}):
+        with pytest.raises(ParameterError, match="no ReLU to drop"):
+            build_model(**options, width=TINY, head_relu=False)
+
+
 def _demo_views(size: int = 192) -> torch.Tensor:
     """The shipped demo scene's two views, a centre crop, ``(1, 6, size, size)`` in [0, 1]."""
     from dualpixel.demo import real_scene_dir
@@ -264,6 +304,7 @@ def test_equal_weights_make_equal_files(tmp_path):
     ("refiner", '{"a": 1}', "refiner must be JSON list"),
     ("extra", "[1, 2]", "extra must be JSON dict"),
     ("temporal", "null", "temporal must be JSON bool"),
+    ("head_relu", "0", "head_relu must be JSON bool"),
     ("width", "nan", "width must be finite"),
     ("width", "1e999", "width must be finite"),
     ("peepholes", "{", "Expecting property name"),

@@ -288,6 +288,21 @@ def test_a_run_from_nothing_starts_with_its_heads_relu_alive(tiny_synthetic_data
                                model.head[0].bias)
 
 
+def test_a_run_without_the_head_relu_trains_that_head(tiny_synthetic_dataset, tmp_path):
+    """``head_relu: false`` trains DPDNet's head without its ReLU (nothing to centre), and the
+    run's file rebuilds it so; the option is refused where no head has a ReLU."""
+    torch.manual_seed(0)
+    config = tiny_config(tiny_synthetic_dataset, model="dpdnet", epochs=1,
+                         iterations_per_epoch=2, head_relu=False)
+    train(config, tmp_path / "run", progress=False)
+    model = load_model(tmp_path / "run" / "last.safetensors")
+    assert not model.head_has_relu and isinstance(model.head[1], torch.nn.Identity)
+    assert load_config(tmp_path / "run" / "config.yaml").head_relu is False
+    for options in ({"residual": True}, {"model": "dpnaf"}):
+        with pytest.raises(ParameterError, match="head_relu false is for the non-residual"):
+            load_config(None, {"synthetic_data": "x", "head_relu": False, **options})
+
+
 def test_widen_init_starts_from_the_narrow_networks_function(tiny_synthetic_dataset, tmp_path):
     from dualpixel.models import save_model
 

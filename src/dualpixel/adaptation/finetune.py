@@ -280,7 +280,8 @@ def _train_config(settings: AdaptSettings, sources: list[str], val: str, views: 
     meta = read_metadata(start)
     return load_config(None, {
         "model": meta["model"], "width": meta["width"], "peepholes": meta["peepholes"],
-        "residual": meta["residual"], "refiner": list(meta["refiner"]) or None,
+        "residual": meta["residual"], "head_relu": meta["head_relu"],
+        "refiner": list(meta["refiner"]) or None,
         "lstm_dropout": 0.0, "init_weights": str(start), "synthetic_data": sources,
         "synthetic_as_frames": True, "val_data": [val], "val_split": "test",
         # the pairs' crops only where a loss reads them

@@ -134,7 +134,8 @@ def _describe(path: Path, model: DeblurNet, *, step: bool, dynamic: bool) -> Non
     entry.key, entry.value = METADATA_KEY, json.dumps({
         "model": model.spec.name, "width": float(model.width),
         "residual": bool(model.shape.residual), "refiner": list(model.shape.refiner),
-        "peepholes": bool(model.shape.peepholes), "temporal": bool(model.temporal),
+        "peepholes": bool(model.shape.peepholes), "head_relu": bool(model.shape.head_relu),
+        "temporal": bool(model.temporal),
         "step": bool(step), "dynamic": bool(dynamic),
         "output": dict(model.output_settings)})  # how the weights run (brightness tied, ...)
     onnx.save(graph, str(path))

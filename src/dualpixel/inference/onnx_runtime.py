@@ -159,7 +159,8 @@ def load_onnx_checkpoint(path: str | Path) -> DeblurNet:
     try:
         model = build_model(str(meta["model"]), width=float(meta["width"]),
                             residual=bool(meta["residual"]), peepholes=bool(meta["peepholes"]),
-                            refiner=tuple(int(c) for c in meta["refiner"]))
+                            refiner=tuple(int(c) for c in meta["refiner"]),
+                            head_relu=bool(meta.get("head_relu", True)))
     except (KeyError, TypeError, ValueError, ParameterError) as error:
         raise InputFileError(path, f"describes no network this version builds ({error})") from None
     model.temporal = bool(meta.get("temporal", False)) and bool(meta.get("step", False))

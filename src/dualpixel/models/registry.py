@@ -39,11 +39,17 @@ def build_model(
     lstm_dropout: float = 0.4,
     residual: bool = False,
     refiner: tuple[int, ...] = (),
+    head_relu: bool = True,
 ) -> DeblurNet:
     """Build a named network; ``width`` scales every layer (0 < width <= 4); ``residual`` adds
     the blurred input to the output and ``refiner`` (channel widths, not scaled by ``width``)
-    appends a correcting second stage (clamped-output models only; neither is in the paper)."""
+    appends a correcting second stage (clamped-output models only; neither is in the paper);
+    ``head_relu=False`` drops the ReLU of a non-residual head (ours)."""
     spec = model_spec(name)
+    if not head_relu and (residual or spec.block != "conv"):
+        raise ParameterError(f"head_relu false is for the non-residual networks of the paper's "
+                             f"levels; {'a residual' if residual else repr(name)} head has no "
+                             "ReLU to drop")
     if not 0.0 < width <= 4.0:
         raise ParameterError(f"width must be in (0, 4], got {width}")
     shape = NetworkShape(
@@ -59,6 +65,7 @@ def build_model(
         refiner=tuple(refiner),
         block=spec.block,
         block_counts=spec.block_counts,
+        head_relu=head_relu,
     )
     for option, value in (("residual", residual), ("a refiner", refiner)):
         if value and spec.output != "clamp":

@@ -11,6 +11,10 @@ the head's output before clamping, with the last layer initialised to zero so tr
 the identity, and drops the ReLU of the 3-channel layer (a correction needs both signs). It adds
 no parameters and makes short CPU training converge much faster.
 
+Option (ours, off by default): ``head_relu=False`` drops that ReLU from a non-residual head too
+(the 3-channel convolution straight into the 1x1 one): under Adam the ReLU's channels can fall
+negative everywhere and stop learning (see :meth:`DeblurNet.centre_head`).
+
 Option (ours, off by default): ``refiner=(w1, w2, ...)`` appends a refiner,
 :class:`~dualpixel.models.refiner.Refiner`, that corrects the clamped output from the input and
 that output; it starts as the identity, so it can be trained on top of a trained (frozen) network.
@@ -58,6 +62,9 @@ class NetworkShape:
     # the NAF blocks per encoder level, bottleneck and decoder level.
     block: str = "conv"
     block_counts: tuple[int, ...] = ()
+    # The ReLU after the head's 3-channel convolution, where the head has one (the paper's levels
+    # without the residual output); False drops it there too (ours).
+    head_relu: bool = True
 
 
 def _conv_relu(cin: int, cout: int, kernel: int = 3) -> list[nn.Module]:
@@ -178,14 +185,16 @@ class DeblurNet(nn.Module):
             self.decoders.append(_double_conv(2 * width, width))
             cin = width
         # The residual variant drops the ReLU of the 3-channel layer: a correction needs both signs.
-        head_act = nn.Identity() if shape.residual else nn.ReLU(inplace=True)
+        head_act = nn.ReLU(inplace=True) if self.head_has_relu else nn.Identity()
         self.head = nn.Sequential(nn.Conv2d(cin, 3, 3, padding=1), head_act, nn.Conv2d(3, 3, 1))
 
     @property
     def head_has_relu(self) -> bool:
         """Whether the head ends in the paper's 3-channel convolution, ReLU and 1x1 convolution
-        (the non-residual networks of the paper's levels), which :meth:`centre_head` serves."""
-        return self.shape.block == "conv" and not self.shape.residual
+        (the non-residual networks of the paper's levels unless built with ``head_relu=False``),
+        which :meth:`centre_head` serves."""
+        shape = self.shape
+        return shape.block == "conv" and not shape.residual and shape.head_relu
 
     def centre_head(self, x: torch.Tensor) -> None:
         """Bias the head's 3-channel convolution so that each of its channels is positive on

@@ -25,7 +25,7 @@ __all__ = ["widen_network", "widening_factor"]
 def widening_factor(small: DeblurNet, big: DeblurNet) -> int:
     """The integer ``k`` by which ``big`` is ``small`` widened; refuses any other pair."""
     a, b = small.shape, big.shape
-    same = ("in_channels", "recurrent", "output", "peepholes", "residual")
+    same = ("in_channels", "recurrent", "output", "peepholes", "residual", "head_relu")
     differing = [name for name in same if getattr(a, name) != getattr(b, name)]
     if small.spec.name != big.spec.name or differing or len(a.encoder) != len(b.encoder):
         raise ParameterError(f"cannot widen {small.spec.name} into {big.spec.name}: the networks "

@@ -43,6 +43,8 @@ class TrainConfig:
     peepholes: bool = True
     lstm_dropout: float = 0.4
     residual: bool = False  # ours, not the paper's: output = blurred input + network output
+    # Ours: false drops the ReLU after a non-residual head's 3-channel convolution.
+    head_relu: bool = True
     # Ours: channel widths of a second stage that corrects the output (dualpixel.models.refiner),
     # e.g. [32, 64, 128]; null: none. With init_weights of a network without one, those weights
     # go into the base network and the refiner starts as the identity.
@@ -185,6 +187,10 @@ class TrainConfig:
             if getattr(self, option) and levels != "conv":
                 raise ParameterError(f"{option} is for the paper's convolution levels; model "
                                      f"{self.model!r} has {levels} levels")
+        if not self.head_relu and (self.residual or levels != "conv"):
+            raise ParameterError("head_relu false is for the non-residual networks of the "
+                                 "paper's levels (residual false, model rdpd, rspd, dpdnet or "
+                                 "dpdnet-single): other heads have no ReLU to drop")
         if self.refiner is not None and (not self.refiner or min(self.refiner) < 1):
             raise ParameterError(f"refiner must list channel widths >= 1, got {self.refiner}")
         if self.freeze_base and not self.refiner:

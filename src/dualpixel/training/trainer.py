@@ -448,7 +448,8 @@ class Trainer:
         self.real_val_sequences = _real_validation(config.real_val_data)
         model = build_model(config.model, width=config.width, peepholes=config.peepholes,
                             lstm_dropout=config.lstm_dropout, residual=config.residual,
-                            refiner=tuple(config.refiner or ())).to(device)
+                            refiner=tuple(config.refiner or ()),
+                            head_relu=config.head_relu).to(device)
         if config.freeze_base:
             for parameter in model.base_parameters():
                 parameter.requires_grad_(False)
