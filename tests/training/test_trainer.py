@@ -11,6 +11,7 @@ from dualpixel.cli.main import cli
 from dualpixel.errors import InputFileError, ParameterError
 from dualpixel.models import build_model, load_model
 from dualpixel.training import DeblurLoss, load_config, train
+from dualpixel.training.trainer import Trainer
 from tests.conftest import write_dpdd_pairs
 
 
@@ -301,6 +302,35 @@ def test_a_run_without_the_head_relu_trains_that_head(tiny_synthetic_dataset, tm
     for options in ({"residual": True}, {"model": "dpnaf"}):
         with pytest.raises(ParameterError, match="head_relu false is for the non-residual"):
             load_config(None, {"synthetic_data": "x", "head_relu": False, **options})
+
+
+def test_a_dead_head_is_reported_in_the_history_and_a_warning(tiny_synthetic_dataset,
+                                                                tmp_path):
+    """Each epoch of a ReLU-head network records the share of training pixels each head channel
+    passes; a channel under 1 % is named in a warning (it no longer learns). Heads without that
+    ReLU record nothing."""
+    from dualpixel.models import save_model
+
+    torch.manual_seed(0)
+    start = build_model("dpdnet", width=0.125)
+    with torch.no_grad():
+        start.head[0].bias.copy_(torch.tensor([-1e3, 0.0, 0.0]))  # channel 0 dead
+    save_model(tmp_path / "start.safetensors", start)
+    trainer = Trainer(tiny_config(tiny_synthetic_dataset, model="dpdnet", epochs=1,
+                                  iterations_per_epoch=2, learning_rate=1e-12,
+                                  init_weights=str(tmp_path / "start.safetensors")),
+                      tmp_path / "run", progress=False)
+    with pytest.warns(UserWarning, match=r"epoch 1: the head's ReLU passed channel\(s\) 0 on"):
+        result = trainer.run()
+    live = result.history[0]["head_live"]
+    assert live[0] == 0.0 and min(live[1:]) > 0.01, live
+    history = (tmp_path / "run" / "history.jsonl").read_text()
+    assert '"head_live"' in history
+    assert not trainer.net.head[0]._forward_hooks  # the hook went with the epoch
+    linear = train(tiny_config(tiny_synthetic_dataset, model="dpdnet", epochs=1,
+                               iterations_per_epoch=1, head_relu=False),
+                   tmp_path / "linear", progress=False)
+    assert "head_live" not in linear.history[0]
 
 
 def test_widen_init_starts_from_the_narrow_networks_function(tiny_synthetic_dataset, tmp_path):

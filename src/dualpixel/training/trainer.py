@@ -30,6 +30,7 @@ import os
 import pickle
 import random
 import time
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -224,6 +225,32 @@ def validate(
     return float(np.mean(scores)), sample
 
 
+#: A ReLU head's channel positive on fewer training pixels than this is reported as dead.
+DEAD_HEAD_SHARE = 0.01
+
+
+class _HeadWatch:
+    """Per channel of a ReLU head's 3-channel convolution (``DeblurNet.head_has_relu``), the
+    share of the pixels it passes in training forwards, counted on the device until
+    :meth:`close`: a channel that stays negative gets no gradient and never comes back."""
+
+    def __init__(self, net: DeblurNet) -> None:
+        self.positive = torch.zeros(3, dtype=torch.float64)
+        self.total = 0
+        self.handle = net.head[0].register_forward_hook(self._count)
+
+    def _count(self, module: torch.nn.Module, args: tuple, out: torch.Tensor) -> None:
+        if module.training:
+            counts = (out.detach() > 0).sum(dim=(0, 2, 3), dtype=torch.float64)
+            self.positive = self.positive.to(counts.device) + counts
+            self.total += out[:, 0].numel()
+
+    def close(self) -> list[float]:
+        """Remove the hook; the shares counted (zeros if no training forward ran)."""
+        self.handle.remove()
+        return [round(float(p) / max(self.total, 1), 4) for p in self.positive.cpu()]
+
+
 def _memory_format(model: torch.nn.Module) -> torch.memory_format:
     """Channels-last if the model's convolution weights are, else contiguous (judged by the
     first weight whose two layouts differ: a 1x1 kernel can be both)."""
@@ -368,6 +395,7 @@ class Trainer:
         self.within: dict[str, Any] | None = None
         self.last_saved = time.monotonic()
         self.head_to_centre = False  # from nothing with the paper's ReLU head: on its 1st batch
+        self.head_watch: _HeadWatch | None = None  # the epoch's, with the paper's ReLU head
 
     def run(self) -> TrainResult:
         import contextlib
@@ -618,6 +646,9 @@ class Trainer:
             _set_rng_state(within["rng"])
         totals: dict[str, float] = dict(within["totals"])
         started = time.perf_counter() - within["seconds"]
+        if self.head_watch is not None:  # an epoch that raised left its hook
+            self.head_watch.close()
+        self.head_watch = _HeadWatch(self.net) if self.net.head_has_relu else None
         bar = progress_bar(range(first, self.iterations), desc=f"epoch {epoch + 1}/{config.epochs}",
                            enabled=self.progress and self.main, leave=False, initial=first,
                            total=self.iterations)
@@ -669,6 +700,17 @@ class Trainer:
             **{k: v / self.iterations for k, v in totals.items()},
             "seconds": round(time.perf_counter() - started, 3),
         }
+        if self.head_watch is not None:
+            record["head_live"] = self.head_watch.close()
+            self.head_watch = None
+            dead = [c for c, share in enumerate(record["head_live"]) if share < DEAD_HEAD_SHARE]
+            if dead and self.main:
+                warnings.warn(
+                    f"{self.output}: epoch {epoch + 1}: the head's ReLU passed channel(s) "
+                    f"{', '.join(map(str, dead))} on under {DEAD_HEAD_SHARE:.0%} of the training "
+                    "pixels: they no longer learn, and the output has lost that colour direction "
+                    "(head_relu: false trains the head without that ReLU; docs/guide.md)",
+                    stacklevel=2)
         self.scheduler.step()
         return record
 
