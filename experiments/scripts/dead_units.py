@@ -1,0 +1,87 @@
+"""Issue #77 item 4: how much of a network's width is in use on real DP views?
+
+Per rectified layer of the base network (each ``nn.ReLU``, each up-convolution, the ConvLSTM's
+hidden state), the share of its channels that are positive on at least ``--alive`` of the
+pixels of the given real pairs, and the share of all activations that are positive. A ReLU
+channel negative everywhere gives no gradient and carries nothing: a network whose coarse levels
+are mostly such channels has lost the receptive field that strong blur needs, whatever its width.
+
+    python experiments/scripts/dead_units.py rdpd-light.v18 ../shared/data/canon-dp-real
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from dualpixel import load_model
+from dualpixel.data.radial import radial_distance
+from dualpixel.io.images import read_rgb
+from dualpixel.models.unet import _UpConv
+
+
+def layers(net: nn.Module) -> dict[str, nn.Module]:
+    """Name -> module whose output is rectified: ReLUs and up-convolutions, refiner left out."""
+    found = {}
+    for name, module in net.named_modules():
+        if name.startswith("refiner"):
+            continue
+        if isinstance(module, (nn.ReLU, _UpConv)):
+            found[name] = module
+    return found
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("checkpoint", help="a shipped tag or a .safetensors file")
+    parser.add_argument("scenes", type=Path, help="folder of scene_*/view0.png, view1.png")
+    parser.add_argument("--alive", type=float, default=0.001,
+                        help="a channel is in use when positive on at least this share")
+    args = parser.parse_args()
+    net = load_model(args.checkpoint, device="cpu").eval()
+    watched = layers(net)
+    positive = {name: None for name in watched}
+    totals = dict.fromkeys(watched, 0)
+
+    def hook(name):
+        def count(module, inputs, out):
+            counts = (out > 0).sum(dim=(0, 2, 3), dtype=torch.float64)
+            positive[name] = counts if positive[name] is None else positive[name] + counts
+            totals[name] += out[:, 0].numel()
+        return count
+
+    handles = [m.register_forward_hook(hook(n)) for n, m in watched.items()]
+    lstm = {"positive": None, "total": 0}
+    for scene in sorted(args.scenes.glob("scene_*")):
+        left, right = (torch.from_numpy(read_rgb(scene / f"view{i}.png")).permute(2, 0, 1)[None]
+                       for i in (0, 1))
+        h, w = left.shape[-2:]
+        radial = torch.from_numpy(radial_distance(h, w))[None, None]
+        x = net.spec.make_input(left.float(), right.float(), radial)
+        with torch.no_grad():
+            _, state = net.step(x)
+        if state is not None:
+            hidden = state[0].abs() > 1e-3  # tanh-gated: in use where not ~0
+            counts = hidden.sum(dim=(0, 2, 3), dtype=torch.float64)
+            lstm["positive"] = counts if lstm["positive"] is None else lstm["positive"] + counts
+            lstm["total"] += hidden[:, 0].numel()
+    for handle in handles:
+        handle.remove()
+    print(f"{args.checkpoint} on {args.scenes}: channels in use (positive on >= {args.alive:.1%} "
+          "of pixels) and positive activations, per rectified layer")
+    print(f"{'layer':40s} {'channels':>9s} {'in use':>7s} {'positive':>9s}")
+    rows = [(n, positive[n], totals[n]) for n in watched if positive[n] is not None]
+    if lstm["positive"] is not None:
+        rows.append(("lstm hidden (|h| > 1e-3)", lstm["positive"], lstm["total"]))
+    for name, counts, total in rows:
+        share = (counts / max(total, 1)).numpy()
+        print(f"{name:40s} {share.size:9d} {np.mean(share >= args.alive):7.0%} "
+              f"{share.mean():9.1%}")
+
+
+if __name__ == "__main__":
+    main()
