@@ -5,6 +5,8 @@ hidden state), the share of its channels that are positive on at least ``--alive
 pixels of the given real pairs, and the share of all activations that are positive. A ReLU
 channel negative everywhere gives no gradient and carries nothing: a network whose coarse levels
 are mostly such channels has lost the receptive field that strong blur needs, whatever its width.
+With ``--ablate``, also the mean PSNR against each scene's ``target.png`` with the output of
+each up-convolution zeroed in turn (coarsest first): how much each level's path carries.
 
     python experiments/scripts/dead_units.py rdpd-light.v18 ../shared/data/canon-dp-real
 """
@@ -35,12 +37,46 @@ def layers(net: nn.Module) -> dict[str, nn.Module]:
     return found
 
 
+def _inputs(net: nn.Module, scene: Path) -> torch.Tensor:
+    """The model's input for a scene's two views, ``(1, C_in, H, W)``."""
+    left, right = (torch.from_numpy(read_rgb(scene / f"view{i}.png")).permute(2, 0, 1)[None]
+                   for i in (0, 1))
+    h, w = left.shape[-2:]
+    radial = torch.from_numpy(radial_distance(h, w))[None, None]
+    return net.spec.make_input(left.float(), right.float(), radial)
+
+
+def ablate(net: nn.Module, scenes: Path) -> None:
+    """Mean PSNR against the targets, whole and with each up-convolution's output zeroed."""
+    from dualpixel.evaluation.metrics import psnr
+
+    folders = sorted(scenes.glob("scene_*"))
+    targets = [read_rgb(f / "target.png") for f in folders]
+    inputs = [read_rgb(f / "input.png") for f in folders]
+    print(f"input: {np.mean([psnr(i, t) for i, t in zip(inputs, targets)]):.2f} dB")
+    for name in ["none", *(f"upconvs.{i}" for i in range(len(net.upconvs)))]:
+        handle = None
+        if name != "none":
+            module = net.get_submodule(name)
+            handle = module.register_forward_hook(lambda m, a, out: torch.zeros_like(out))
+        scores = []
+        for folder, target in zip(folders, targets):
+            with torch.no_grad():
+                out, _ = net.step(_inputs(net, folder))
+            scores.append(psnr(out[0].permute(1, 2, 0).numpy(), target))
+        if handle is not None:
+            handle.remove()
+        print(f"zeroed {name:10s} {np.mean(scores):.2f} dB")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoint", help="a shipped tag or a .safetensors file")
     parser.add_argument("scenes", type=Path, help="folder of scene_*/view0.png, view1.png")
     parser.add_argument("--alive", type=float, default=0.001,
                         help="a channel is in use when positive on at least this share")
+    parser.add_argument("--ablate", action="store_true",
+                        help="also PSNR with each up-convolution's output zeroed in turn")
     args = parser.parse_args()
     net = load_model(args.checkpoint, device="cpu").eval()
     watched = layers(net)
@@ -57,13 +93,8 @@ def main() -> None:
     handles = [m.register_forward_hook(hook(n)) for n, m in watched.items()]
     lstm = {"positive": None, "total": 0}
     for scene in sorted(args.scenes.glob("scene_*")):
-        left, right = (torch.from_numpy(read_rgb(scene / f"view{i}.png")).permute(2, 0, 1)[None]
-                       for i in (0, 1))
-        h, w = left.shape[-2:]
-        radial = torch.from_numpy(radial_distance(h, w))[None, None]
-        x = net.spec.make_input(left.float(), right.float(), radial)
         with torch.no_grad():
-            _, state = net.step(x)
+            _, state = net.step(_inputs(net, scene))
         if state is not None:
             hidden = state[0].abs() > 1e-3  # tanh-gated: in use where not ~0
             counts = hidden.sum(dim=(0, 2, 3), dtype=torch.float64)
@@ -71,6 +102,8 @@ def main() -> None:
             lstm["total"] += hidden[:, 0].numel()
     for handle in handles:
         handle.remove()
+    if args.ablate:
+        ablate(net, args.scenes)
     print(f"{args.checkpoint} on {args.scenes}: channels in use (positive on >= {args.alive:.1%} "
           "of pixels) and positive activations, per rectified layer")
     print(f"{'layer':40s} {'channels':>9s} {'in use':>7s} {'positive':>9s}")
