@@ -6,7 +6,8 @@ pixels of the given real pairs, and the share of all activations that are positi
 channel negative everywhere gives no gradient and carries nothing: a network whose coarse levels
 are mostly such channels has lost the receptive field that strong blur needs, whatever its width.
 With ``--ablate``, also the mean PSNR against each scene's ``target.png`` with the output of
-each up-convolution zeroed in turn (coarsest first): how much each level's path carries.
+each up-convolution zeroed in turn (coarsest first): how much each level's path carries; on a
+DPDD dataset's test sequences (the state carried) the ablation alone.
 
     python experiments/scripts/dead_units.py rdpd-light.v18 ../shared/data/canon-dp-real
 """
@@ -46,39 +47,56 @@ def _inputs(net: nn.Module, scene: Path) -> torch.Tensor:
     return net.spec.make_input(left.float(), right.float(), radial)
 
 
-def ablate(net: nn.Module, scenes: Path) -> None:
-    """Mean PSNR against the targets, whole and with each up-convolution's output zeroed."""
+def _scene_scores(net: nn.Module, scenes: Path) -> float:
+    """Mean PSNR of ``net`` over a folder of ``scene_*`` pairs with targets."""
     from dualpixel.evaluation.metrics import psnr
 
-    folders = sorted(scenes.glob("scene_*"))
-    targets = [read_rgb(f / "target.png") for f in folders]
-    inputs = [read_rgb(f / "input.png") for f in folders]
-    print(f"input: {np.mean([psnr(i, t) for i, t in zip(inputs, targets)]):.2f} dB")
+    scores = []
+    for folder in sorted(scenes.glob("scene_*")):
+        with torch.no_grad():
+            out, _ = net.step(_inputs(net, folder))
+        scores.append(psnr(out[0].permute(1, 2, 0).numpy(), read_rgb(folder / "target.png")))
+    return float(np.mean(scores))
+
+
+def _sequence_scores(net: nn.Module, dataset: Path) -> float:
+    """Mean PSNR of ``net`` over a DPDD dataset's test sequences, the state carried."""
+    from dualpixel.data.layout import discover_dp_dataset
+    from dualpixel.training.trainer import validate
+
+    return validate(net, discover_dp_dataset(dataset, "test"), torch.device("cpu"))[0]
+
+
+def ablate(net: nn.Module, data: Path) -> None:
+    """Mean PSNR against the targets, whole and with each up-convolution's output zeroed:
+    ``data`` a folder of ``scene_*`` pairs or a DPDD dataset (its test sequences)."""
+    score = _scene_scores if any(data.glob("scene_*")) else _sequence_scores
     for name in ["none", *(f"upconvs.{i}" for i in range(len(net.upconvs)))]:
         handle = None
         if name != "none":
             module = net.get_submodule(name)
             handle = module.register_forward_hook(lambda m, a, out: torch.zeros_like(out))
-        scores = []
-        for folder, target in zip(folders, targets):
-            with torch.no_grad():
-                out, _ = net.step(_inputs(net, folder))
-            scores.append(psnr(out[0].permute(1, 2, 0).numpy(), target))
-        if handle is not None:
-            handle.remove()
-        print(f"zeroed {name:10s} {np.mean(scores):.2f} dB")
+        try:
+            print(f"zeroed {name:10s} {score(net, data):.2f} dB", flush=True)
+        finally:
+            if handle is not None:
+                handle.remove()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoint", help="a shipped tag or a .safetensors file")
-    parser.add_argument("scenes", type=Path, help="folder of scene_*/view0.png, view1.png")
+    parser.add_argument("scenes", type=Path, help="folder of scene_*/view0.png, view1.png "
+                        "(with --ablate also a DPDD dataset: its test sequences, ablation only)")
     parser.add_argument("--alive", type=float, default=0.001,
                         help="a channel is in use when positive on at least this share")
     parser.add_argument("--ablate", action="store_true",
                         help="also PSNR with each up-convolution's output zeroed in turn")
     args = parser.parse_args()
     net = load_model(args.checkpoint, device="cpu").eval()
+    if not any(args.scenes.glob("scene_*")):
+        ablate(net, args.scenes)
+        return
     watched = layers(net)
     positive = {name: None for name in watched}
     totals = dict.fromkeys(watched, 0)
