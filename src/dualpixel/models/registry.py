@@ -46,10 +46,7 @@ def build_model(
     appends a correcting second stage (clamped-output models only; neither is in the paper);
     ``head_relu=False`` drops the ReLU of a non-residual head (ours)."""
     spec = model_spec(name)
-    if not head_relu and (residual or spec.block != "conv"):
-        raise ParameterError(f"head_relu false is for the non-residual networks of the paper's "
-                             f"levels; {'a residual' if residual else repr(name)} head has no "
-                             "ReLU to drop")
+    check_head_relu(name, residual=residual, head_relu=head_relu)
     if not 0.0 < width <= 4.0:
         raise ParameterError(f"width must be in (0, 4], got {width}")
     shape = NetworkShape(
@@ -74,6 +71,16 @@ def build_model(
     if any(w < 1 for w in refiner):
         raise ParameterError(f"refiner widths must be >= 1, got {list(refiner)}")
     return DeblurNet(shape, spec=spec, width=width)
+
+
+def check_head_relu(name: str, *, residual: bool, head_relu: bool) -> None:
+    """Refuse ``head_relu=False`` where the head has no ReLU to drop: a residual head, or a
+    model without the paper's levels (``dpnaf``)."""
+    if not head_relu and (residual or model_spec(name).block != "conv"):
+        raise ParameterError("head_relu false is for the non-residual networks of the paper's "
+                             "levels (residual false, model rdpd, rspd, dpdnet or "
+                             f"dpdnet-single): {'a residual' if residual else repr(name)} head "
+                             "has no ReLU to drop")
 
 
 def build_architecture(name: str, **options) -> DeblurNet:

@@ -18,7 +18,7 @@ import yaml
 from dualpixel.errors import ParameterError, check_range, check_seed
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.paths import check_plain_name
-from dualpixel.models.registry import model_spec
+from dualpixel.models.registry import check_head_relu, model_spec
 from dualpixel.names import RAW_VIEWS, RENDER_ON
 from dualpixel.training.losses import LOSS_REDUCTIONS, PIXEL_LOSSES
 
@@ -187,10 +187,7 @@ class TrainConfig:
             if getattr(self, option) and levels != "conv":
                 raise ParameterError(f"{option} is for the paper's convolution levels; model "
                                      f"{self.model!r} has {levels} levels")
-        if not self.head_relu and (self.residual or levels != "conv"):
-            raise ParameterError("head_relu false is for the non-residual networks of the "
-                                 "paper's levels (residual false, model rdpd, rspd, dpdnet or "
-                                 "dpdnet-single): other heads have no ReLU to drop")
+        check_head_relu(self.model, residual=self.residual, head_relu=self.head_relu)
         if self.refiner is not None and (not self.refiner or min(self.refiner) < 1):
             raise ParameterError(f"refiner must list channel widths >= 1, got {self.refiner}")
         if self.freeze_base and not self.refiner:
