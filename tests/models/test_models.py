@@ -252,6 +252,32 @@ def test_reinit_bottleneck_keeps_the_output_and_revives_the_level(name):
     assert gradient.abs().sum() > 0
 
 
+@pytest.mark.parametrize("name", ["rdpd", "dpdnet"])
+def test_balance_levels_gives_each_up_convolution_its_skips_scale(name):
+    """After ``balance_levels`` on a batch, every up-convolution's output has the root mean
+    square of the skip it joins on that batch; the ConvLSTM's gated output starts well below a
+    convolution's, so RDPD's coarsest factor is the largest. NAF levels are refused."""
+    torch.manual_seed(0)
+    model = build_model(name, width=0.25)
+    x = torch.rand(2, MODELS[name].in_channels, 64, 64)
+    factors = model.balance_levels(x)
+    joined = []
+    hooks = [decoder.register_forward_pre_hook(lambda m, args: joined.append(args[0]))
+             for decoder in model.decoders]
+    with torch.no_grad():
+        model.eval().step(x)
+    for hook in hooks:
+        hook.remove()
+    for level, tensor in enumerate(joined):
+        half = tensor.shape[1] // 2
+        skip, up = tensor[:, :half].square().mean().sqrt(), tensor[:, half:].square().mean().sqrt()
+        assert float(up / skip) == pytest.approx(1.0, rel=1e-3), (level, factors)
+    if name == "rdpd":
+        assert factors[0] == max(factors) and factors[0] > 2, factors
+    with pytest.raises(ValueError, match="convolution levels"):
+        build_model("dpnaf", width=TINY).balance_levels(torch.rand(1, 7, 32, 32))
+
+
 def test_up_convolution_equals_upsampling_then_keras_same_conv():
     """The decoder's up-convolution is computed at the input's resolution (phase kernels and a
     pixel shuffle); it must equal its definition, nearest 2x upsampling, one zero row and column

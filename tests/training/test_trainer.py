@@ -304,6 +304,32 @@ def test_a_run_without_the_head_relu_trains_that_head(tiny_synthetic_dataset, tm
             load_config(None, {"synthetic_data": "x", "head_relu": False, **options})
 
 
+def test_balance_levels_scales_the_up_convolutions_of_a_run_from_nothing(
+        tiny_synthetic_dataset, tmp_path):
+    """``balance_levels: true`` rescales each up-convolution on the first batch of a run from
+    nothing (the same seed without it differs by those factors only); it is refused with
+    init_weights and for NAF levels."""
+    runs = {}
+    for balance in (False, True):
+        torch.manual_seed(0)
+        config = tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=1,
+                             learning_rate=1e-12, ema_decay=0.0, head_relu=False,
+                             balance_levels=balance)
+        train(config, tmp_path / f"run-{balance}", progress=False)
+        runs[balance] = load_model(tmp_path / f"run-{balance}" / "last.safetensors")
+    assert load_config(tmp_path / "run-True" / "config.yaml").balance_levels is True
+    ratios = [float(b.conv.weight.detach().norm() / a.conv.weight.detach().norm())
+              for a, b in zip(runs[False].upconvs, runs[True].upconvs)]
+    assert all(abs(r - 1) > 1e-3 for r in ratios) and ratios[0] > 1.5, ratios
+    for (key, a), b in zip(runs[False].state_dict().items(), runs[True].state_dict().values()):
+        if not key.startswith("upconvs."):
+            torch.testing.assert_close(a, b, msg=key)
+    with pytest.raises(ParameterError, match="balance_levels is for a run from nothing"):
+        load_config(None, {"synthetic_data": "x", "balance_levels": True, "init_weights": "w"})
+    with pytest.raises(ParameterError, match="balance_levels is for the paper's convolution"):
+        load_config(None, {"synthetic_data": "x", "balance_levels": True, "model": "dpnaf"})
+
+
 def test_a_dead_head_is_reported_in_the_history_and_a_warning(tiny_synthetic_dataset,
                                                                 tmp_path):
     """Each epoch of a ReLU-head network records the share of training pixels each head channel

@@ -224,6 +224,47 @@ class DeblurNet(nn.Module):
         with torch.no_grad():
             self.head[0].bias -= median.to(self.head[0].bias)
 
+    def balance_levels(self, x: torch.Tensor) -> list[float]:
+        """Scale each up-convolution, coarsest first, so that on ``x`` (a training batch's
+        frames ``(B, C_in, H, W)``) its output has the root mean square of the skip it is
+        concatenated with; returns the factors (ours; a data-dependent initialisation after
+        LSUV, Mishkin & Matas 2016). A ReLU commutes with a positive scale, so each factor is
+        exact. He-normal weights keep the scale of ReLU features from level to level, but the
+        ConvLSTM's output is gated and squashed (``o * tanh(c)``, ``|h| < 1``): at He
+        initialisation it is about a third of what a convolution there gives, and the finest
+        skip decides the first output almost alone. Trained from there the light RDPD leaves
+        its three coarse levels idle (cutting any changes the output by < 0.01 dB), where
+        DPDNet, whose bottleneck is a convolution, uses every level.
+        """
+        if self.shape.block != "conv":
+            raise ValueError("balance_levels is for the paper's convolution levels")
+        factors = []
+        seen: list[torch.Tensor] = []  # the decoder's input, [skip, upconv(x)]
+        training = self.training
+        self.eval()
+        try:
+            for index, upconv in enumerate(self.upconvs):
+                seen.clear()
+                hook = self.decoders[index].register_forward_pre_hook(
+                    lambda module, args: seen.append(args[0].detach().float()))
+                try:
+                    with torch.no_grad():
+                        self.step(x)
+                finally:
+                    hook.remove()
+                width = self.decoders[index][0].in_channels // 2
+                skip, up = seen[0][:, :width], seen[0][:, width:]
+                factor = float(skip.square().mean().sqrt() / up.square().mean().sqrt()
+                               .clamp_min(1e-12))
+                with torch.no_grad():
+                    upconv.conv.weight *= factor
+                    if upconv.conv.bias is not None:
+                        upconv.conv.bias *= factor
+                factors.append(factor)
+        finally:
+            self.train(training)
+        return factors
+
     def _build_naf_levels(self) -> None:
         """NAF levels (:mod:`dualpixel.models.naf`): a 3x3 convolution into the first, NAF blocks
         at every level, a 2x2 stride-2 convolution down (the next level's width), the skip and

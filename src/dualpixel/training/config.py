@@ -80,6 +80,9 @@ class TrainConfig:
     # Ours: the coarsest level's learning rate (DeblurNet.coarsest_level: bottleneck, ConvLSTM,
     # first up-convolution) is this many times learning_rate, on the same schedule (1: the paper).
     coarsest_lr_scale: float = 1.0
+    # Ours: a run from nothing scales each up-convolution on its first batch to the skip it joins
+    # (DeblurNet.balance_levels; the ConvLSTM's output starts a third of a convolution's).
+    balance_levels: bool = False
     patch_size: int = 512
     real_batch: int = 8
     sequence_batch: int = 2
@@ -182,8 +185,12 @@ class TrainConfig:
         if self.reinit_bottleneck and self.init_weights is None:
             raise ParameterError("reinit_bottleneck needs init_weights (a new network is fresh "
                                  "everywhere already)")
+        if self.balance_levels and self.init_weights is not None:
+            raise ParameterError("balance_levels is for a run from nothing (init_weights null): "
+                                 "it rescales the up-convolutions, which would change the "
+                                 "loaded network's output")
         levels = model_spec(self.model).block
-        for option in ("widen_init", "reinit_bottleneck"):
+        for option in ("widen_init", "reinit_bottleneck", "balance_levels"):
             if getattr(self, option) and levels != "conv":
                 raise ParameterError(f"{option} is for the paper's convolution levels; model "
                                      f"{self.model!r} has {levels} levels")

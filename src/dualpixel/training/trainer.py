@@ -395,6 +395,7 @@ class Trainer:
         self.within: dict[str, Any] | None = None
         self.last_saved = time.monotonic()
         self.head_to_centre = False  # from nothing with the paper's ReLU head: on its 1st batch
+        self.levels_to_balance = False  # from nothing with balance_levels: on its 1st batch
         self.head_watch: _HeadWatch | None = None  # the epoch's, with the paper's ReLU head
 
     def run(self) -> TrainResult:
@@ -592,6 +593,7 @@ class Trainer:
                 self.net.reinit_bottleneck()
         else:
             self.head_to_centre = self.net.head_has_relu
+            self.levels_to_balance = self.config.balance_levels
         if self.main:
             self.output.mkdir(parents=True, exist_ok=True)
             save_config(self.config, self.output / "config.yaml")
@@ -609,6 +611,17 @@ class Trainer:
             dist.all_reduce(bias)
             bias /= self.world
         self.head_to_centre = False
+
+    def _balance_levels(self, frames: torch.Tensor) -> None:
+        """Before the first step from nothing: each up-convolution scaled to its skip on this
+        batch (:meth:`DeblurNet.balance_levels`), the mean scale in every process."""
+        self.net.balance_levels(frames)
+        if dist.is_initialized():
+            for upconv in self.net.upconvs:
+                for tensor in (upconv.conv.weight.data, upconv.conv.bias.data):
+                    dist.all_reduce(tensor)
+                    tensor /= self.world
+        self.levels_to_balance = False
 
     def train_epoch(self, epoch: int) -> dict[str, Any]:
         """One epoch of optimisation; returns its record (mean losses, seconds)."""
@@ -657,6 +670,8 @@ class Trainer:
             item = {k: v.to(device, non_blocking=True)
                     for k, v in next(loaders[iteration % len(kinds)]).items()}
             frames = self.net.spec.make_input(item["left"], item["right"], item["radial"])
+            if self.levels_to_balance:  # before the head is centred on what they give
+                self._balance_levels(frames[:, 0])
             if self.head_to_centre:
                 self._centre_head(frames[:, 0])
             crops = None
