@@ -4,7 +4,8 @@ on every camera's held-out sequences of a finished `recipes/rdpd-light-video.yam
 recipe's evaluation runs them (CPU, float32, brightness tied); PSNR gain per camera, PSNR by
 frame position and flicker, as Markdown. ``--arms from-scratch``: the three arms of a finished
 `experiments/recipes/table2-from-scratch.yaml` run instead (sRDPD, RDPD with and without its
-state, DPDNet; no default, none of them started from it).
+state, DPDNet, the paper's RDPD on frames and on sequences, and both RDPDs with balanced levels;
+no default, none of them started from it).
 
     .venv/bin/python experiments/scripts/video_table.py runs/rdpd-light-video runs/video-table
     .venv/bin/python experiments/scripts/video_table.py runs/table2-from-scratch \
@@ -37,6 +38,16 @@ def arms(run: Path, kind: str = "fine-tune") -> dict[str, tuple[str | None, bool
             str(phases / "dpdnet" / "last.safetensors"), False)
         rows["dpdnet arm without the head's ReLU"] = (
             str(phases / "dpdnet-linear-head" / "last.safetensors"), False)
+        paper = str(phases / "rdpd-linear-head" / "last.safetensors")
+        rows["paper's sRDPD (no residual, refiner or head ReLU)"] = (
+            str(phases / "srdpd-linear-head" / "last.safetensors"), False)
+        rows["paper's RDPD, state carried"] = (paper, False)
+        rows["paper's RDPD, each frame afresh"] = (paper, True)
+        for phase, row in (("sequences-balanced", "sequences arm, balanced levels"),
+                           ("rdpd-linear-head-balanced", "paper's RDPD, balanced levels")):
+            weights = str(phases / phase / "last.safetensors")
+            rows[f"{row}, state carried"] = (weights, False)
+            rows[f"{row}, each frame afresh"] = (weights, True)
     return rows
 
 
