@@ -232,9 +232,9 @@ class DeblurNet(nn.Module):
         exact. He-normal weights keep the scale of ReLU features from level to level, but the
         ConvLSTM's output is gated and squashed (``o * tanh(c)``, ``|h| < 1``): at He
         initialisation it is about a third of what a convolution there gives, and the finest
-        skip decides the first output almost alone. Trained from there the light RDPD leaves
-        its three coarse levels idle (cutting any changes the output by < 0.01 dB), where
-        DPDNet, whose bottleneck is a convolution, uses every level.
+        skip decides the first output almost alone. (Measured on Table 2's crops, balancing
+        does not bring the light RDPD's idle coarse levels in: ``docs/video.md``.) A level whose
+        output is zero on ``x`` keeps its weights.
         """
         if self.shape.block != "conv":
             raise ValueError("balance_levels is for the paper's convolution levels")
@@ -254,8 +254,8 @@ class DeblurNet(nn.Module):
                     hook.remove()
                 width = self.decoders[index][0].in_channels // 2
                 skip, up = seen[0][:, :width], seen[0][:, width:]
-                factor = float(skip.square().mean().sqrt() / up.square().mean().sqrt()
-                               .clamp_min(1e-12))
+                up_rms = float(up.square().mean().sqrt())
+                factor = float(skip.square().mean().sqrt()) / up_rms if up_rms > 0 else 1.0
                 with torch.no_grad():
                     upconv.conv.weight *= factor
                     if upconv.conv.bias is not None:
