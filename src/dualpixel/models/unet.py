@@ -209,9 +209,19 @@ class DeblurNet(nn.Module):
         """
         if not self.head_has_relu:
             raise ValueError("centre_head is for the non-residual head of the paper's levels")
+        before_relu = self._seen(x, self.head[0])
+        median = before_relu.transpose(0, 1).flatten(1).median(dim=1).values
+        with torch.no_grad():
+            self.head[0].bias -= median.to(self.head[0].bias)
+
+    def _seen(self, x: torch.Tensor, module: nn.Module, *, its_input: bool = False) -> torch.Tensor:
+        """What ``module`` gives (or, ``its_input``, is given) while the network, in evaluation
+        mode and without gradients, runs one frame ``x``; float32, detached."""
         seen: list[torch.Tensor] = []
-        hook = self.head[0].register_forward_hook(
-            lambda module, args, out: seen.append(out.detach().float().clone()))  # before ReLU
+        if its_input:
+            hook = module.register_forward_pre_hook(lambda m, args: seen.append(args[0]))
+        else:
+            hook = module.register_forward_hook(lambda m, args, out: seen.append(out.clone()))
         training = self.training
         self.eval()
         try:
@@ -220,9 +230,7 @@ class DeblurNet(nn.Module):
         finally:
             hook.remove()
             self.train(training)
-        median = seen[0].transpose(0, 1).flatten(1).median(dim=1).values
-        with torch.no_grad():
-            self.head[0].bias -= median.to(self.head[0].bias)
+        return seen[0].detach().float()
 
     def balance_levels(self, x: torch.Tensor) -> list[float]:
         """Scale each up-convolution, coarsest first, so that on ``x`` (a training batch's
@@ -239,30 +247,16 @@ class DeblurNet(nn.Module):
         if self.shape.block != "conv":
             raise ValueError("balance_levels is for the paper's convolution levels")
         factors = []
-        seen: list[torch.Tensor] = []  # the decoder's input, [skip, upconv(x)]
-        training = self.training
-        self.eval()
-        try:
-            for index, upconv in enumerate(self.upconvs):
-                seen.clear()
-                hook = self.decoders[index].register_forward_pre_hook(
-                    lambda module, args: seen.append(args[0].detach().float()))
-                try:
-                    with torch.no_grad():
-                        self.step(x)
-                finally:
-                    hook.remove()
-                width = self.decoders[index][0].in_channels // 2
-                skip, up = seen[0][:, :width], seen[0][:, width:]
-                up_rms = float(up.square().mean().sqrt())
-                factor = float(skip.square().mean().sqrt()) / up_rms if up_rms > 0 else 1.0
-                with torch.no_grad():
-                    upconv.conv.weight *= factor
-                    if upconv.conv.bias is not None:
-                        upconv.conv.bias *= factor
-                factors.append(factor)
-        finally:
-            self.train(training)
+        for upconv, decoder in zip(self.upconvs, self.decoders):
+            joined = self._seen(x, decoder, its_input=True)  # [skip, upconv(x)]
+            skip, up = joined.chunk(2, dim=1)
+            up_rms = float(up.square().mean().sqrt())
+            factor = float(skip.square().mean().sqrt()) / up_rms if up_rms > 0 else 1.0
+            with torch.no_grad():
+                upconv.conv.weight *= factor
+                if upconv.conv.bias is not None:
+                    upconv.conv.bias *= factor
+            factors.append(factor)
         return factors
 
     def _build_naf_levels(self) -> None:

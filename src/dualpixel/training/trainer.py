@@ -394,8 +394,7 @@ class Trainer:
         # where the epoch in progress stands when resumed from ``step_state.pt``
         self.within: dict[str, Any] | None = None
         self.last_saved = time.monotonic()
-        self.head_to_centre = False  # from nothing with the paper's ReLU head: on its 1st batch
-        self.levels_to_balance = False  # from nothing with balance_levels: on its 1st batch
+        self.from_nothing = False  # a new run without init_weights: set up on its first batch
         self.head_watch: _HeadWatch | None = None  # the epoch's, with the paper's ReLU head
 
     def run(self) -> TrainResult:
@@ -592,8 +591,7 @@ class Trainer:
             if self.config.reinit_bottleneck:
                 self.net.reinit_bottleneck()
         else:
-            self.head_to_centre = self.net.head_has_relu
-            self.levels_to_balance = self.config.balance_levels
+            self.from_nothing = True
         if self.main:
             self.output.mkdir(parents=True, exist_ok=True)
             save_config(self.config, self.output / "config.yaml")
@@ -602,26 +600,23 @@ class Trainer:
                 with atomic_path(self.output / "init.json") as tmp:
                     tmp.write_text(json.dumps(self.init_record) + "\n")
 
-    def _centre_head(self, frames: torch.Tensor) -> None:
-        """Before the first step from nothing: the head's ReLU alive on half of this batch
-        (:meth:`DeblurNet.centre_head`), the same bias in every process."""
-        self.net.centre_head(frames)
+    def _set_up_from_nothing(self, frames: torch.Tensor) -> None:
+        """Before the first step from nothing, on this batch: with ``balance_levels`` each
+        up-convolution scaled to its skip (:meth:`DeblurNet.balance_levels`), then a ReLU head
+        alive on half of it (:meth:`DeblurNet.centre_head`, on what the levels now give); what
+        either changed is averaged over the processes, so all start alike."""
+        changed = []
+        if self.config.balance_levels:
+            self.net.balance_levels(frames)
+            changed += [t for up in self.net.upconvs for t in (up.conv.weight, up.conv.bias)]
+        if self.net.head_has_relu:
+            self.net.centre_head(frames)
+            changed.append(self.net.head[0].bias)
         if dist.is_initialized():
-            bias = self.net.head[0].bias.data
-            dist.all_reduce(bias)
-            bias /= self.world
-        self.head_to_centre = False
-
-    def _balance_levels(self, frames: torch.Tensor) -> None:
-        """Before the first step from nothing: each up-convolution scaled to its skip on this
-        batch (:meth:`DeblurNet.balance_levels`), the mean scale in every process."""
-        self.net.balance_levels(frames)
-        if dist.is_initialized():
-            for upconv in self.net.upconvs:
-                for tensor in (upconv.conv.weight.data, upconv.conv.bias.data):
-                    dist.all_reduce(tensor)
-                    tensor /= self.world
-        self.levels_to_balance = False
+            for tensor in changed:
+                dist.all_reduce(tensor.data)
+                tensor.data /= self.world
+        self.from_nothing = False
 
     def train_epoch(self, epoch: int) -> dict[str, Any]:
         """One epoch of optimisation; returns its record (mean losses, seconds)."""
@@ -670,10 +665,8 @@ class Trainer:
             item = {k: v.to(device, non_blocking=True)
                     for k, v in next(loaders[iteration % len(kinds)]).items()}
             frames = self.net.spec.make_input(item["left"], item["right"], item["radial"])
-            if self.levels_to_balance:  # before the head is centred on what they give
-                self._balance_levels(frames[:, 0])
-            if self.head_to_centre:
-                self._centre_head(frames[:, 0])
+            if self.from_nothing:
+                self._set_up_from_nothing(frames[:, 0])
             crops = None
             batches = [frames]
             if views is not None:  # single frames of the crop size: one forward for both
