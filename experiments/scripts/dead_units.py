@@ -7,7 +7,9 @@ channel negative everywhere gives no gradient and carries nothing: a network who
 are mostly such channels has lost the receptive field that strong blur needs, whatever its width.
 With ``--ablate``, also the mean PSNR against each scene's ``target.png`` with the output of
 each up-convolution zeroed in turn (coarsest first): how much each level's path carries; on a
-DPDD dataset's test sequences (the state carried) the ablation alone.
+DPDD dataset's test sequences (the state carried) the ablation alone. ``--cut mean`` replaces
+that output by its mean over each image instead (per channel): a level that carries only a
+constant offset, not what it sees, then costs nothing.
 
     python experiments/scripts/dead_units.py rdpd-light.v18 ../shared/data/canon-dp-real
 """
@@ -67,17 +69,24 @@ def _sequence_scores(net: nn.Module, dataset: Path) -> float:
     return validate(net, discover_dp_dataset(dataset, "test"), torch.device("cpu"))[0]
 
 
-def ablate(net: nn.Module, data: Path) -> None:
-    """Mean PSNR against the targets, whole and with each up-convolution's output zeroed:
-    ``data`` a folder of ``scene_*`` pairs or a DPDD dataset (its test sequences)."""
+def ablate(net: nn.Module, data: Path, cut: str = "zero") -> None:
+    """Mean PSNR against the targets, whole and with each up-convolution's output zeroed (or,
+    ``cut="mean"``, replaced by its per-image, per-channel mean): ``data`` a folder of
+    ``scene_*`` pairs or a DPDD dataset (its test sequences)."""
     score = _scene_scores if any(data.glob("scene_*")) else _sequence_scores
+
+    def replace(module, args, out):
+        if cut == "zero":
+            return torch.zeros_like(out)
+        return out.mean((-2, -1), keepdim=True).expand_as(out)
+
+    label = "zeroed" if cut == "zero" else "mean of"
     for name in ["none", *(f"upconvs.{i}" for i in range(len(net.upconvs)))]:
         handle = None
         if name != "none":
-            module = net.get_submodule(name)
-            handle = module.register_forward_hook(lambda m, a, out: torch.zeros_like(out))
+            handle = net.get_submodule(name).register_forward_hook(replace)
         try:
-            print(f"zeroed {name:10s} {score(net, data):.2f} dB", flush=True)
+            print(f"{label} {name:10s} {score(net, data):.2f} dB", flush=True)
         finally:
             if handle is not None:
                 handle.remove()
@@ -92,10 +101,13 @@ def main() -> None:
                         help="a channel is in use when positive on at least this share")
     parser.add_argument("--ablate", action="store_true",
                         help="also PSNR with each up-convolution's output zeroed in turn")
+    parser.add_argument("--cut", choices=("zero", "mean"), default="zero",
+                        help="with --ablate: zero the output, or replace it by its mean over "
+                        "each image (per channel)")
     args = parser.parse_args()
     net = load_model(args.checkpoint, device="cpu").eval()
     if not any(args.scenes.glob("scene_*")):
-        ablate(net, args.scenes)
+        ablate(net, args.scenes, args.cut)
         return
     watched = layers(net)
     positive = {name: None for name in watched}
@@ -121,7 +133,7 @@ def main() -> None:
     for handle in handles:
         handle.remove()
     if args.ablate:
-        ablate(net, args.scenes)
+        ablate(net, args.scenes, args.cut)
     print(f"{args.checkpoint} on {args.scenes}: channels in use (positive on >= {args.alive:.1%} "
           "of pixels) and positive activations, per rectified layer")
     print(f"{'layer':40s} {'channels':>9s} {'in use':>7s} {'positive':>9s}")

@@ -57,14 +57,24 @@ def test_graphs_are_cached_per_weights(refined_model, cache):
     assert all(p.suffix == ".onnx" for p in cache.iterdir())  # no leftovers of the writes
 
 
-def test_single_frame_model_uses_the_frame_graph(cache):
+@pytest.mark.parametrize("conv_bottleneck", [False, True])
+def test_single_frame_model_uses_the_frame_graph(cache, tmp_path, conv_bottleneck):
+    """A ConvLSTM network trained on frames, and one with DPDNet's bottleneck in its place
+    (no state at all), run through the frame graph; the graph file rebuilds the latter."""
+    from dualpixel.inference.onnx_export import export_onnx
+    from dualpixel.inference.onnx_runtime import load_onnx_checkpoint
+
     torch.manual_seed(0)
-    model = build_model("rdpd", width=0.125, residual=True).eval()
+    model = build_model("rdpd", width=0.125, residual=True,
+                        conv_bottleneck=conv_bottleneck).eval()
     model.temporal = False  # as a model trained on single frames is marked
     (left, right), = _frames(1, 40, 44, seed=1)
     expected = Deblurrer(model, precision="fp32")(left, right)
     got = Deblurrer(model, backend="onnxruntime")(left, right)
     assert np.abs(got - expected).max() < 1e-4
+    graph = tmp_path / "frame.onnx"
+    export_onnx(model, graph, height=32, width=32)
+    assert load_onnx_checkpoint(graph).conv_bottleneck is conv_bottleneck
 
 
 def test_refusals(refined_model, cache, monkeypatch):

@@ -177,6 +177,49 @@ def test_a_head_without_its_relu_travels_with_its_checkpoint(tmp_path):
             build_model(**options, width=TINY, head_relu=False)
 
 
+def test_a_conv_bottleneck_replaces_the_convlstm_and_travels_with_its_checkpoint(tmp_path):
+    """``conv_bottleneck=True`` gives RDPD DPDNet's two 3x3 convolutions where its convolution
+    and ConvLSTM were: no state, no frame-to-frame dependence, the same parameters as the
+    paper's DPDNet bottleneck at that width. The file says so and reloads as built; the
+    ConvLSTM network refuses its weights, and networks without a ConvLSTM refuse the option."""
+    from dualpixel.models import load_weights
+
+    torch.manual_seed(0)
+    net = build_model("rdpd", width=TINY, residual=True, refiner=(4,),
+                      conv_bottleneck=True).eval()
+    assert net.conv_bottleneck and not net.recurrent and not net.temporal
+    dpdnet = build_model("dpdnet", width=TINY / 2)  # its widths are twice RDPD's
+    assert count_parameters(net.bottleneck) == count_parameters(dpdnet.bottleneck)
+    frames = torch.rand(1, 3, 7, 32, 32)
+    with torch.no_grad():
+        out, state = net(frames)
+        alone, _ = net(frames[:, 2:])  # no state: a frame's output is its own
+    assert state is None
+    torch.testing.assert_close(out[:, 2:], alone)
+
+    path = tmp_path / "conv.safetensors"
+    save_model(path, net)
+    loaded = load_model(path)
+    assert loaded.conv_bottleneck and not loaded.temporal
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(frames)[0], out)
+    lstm = build_model("rdpd", width=TINY, residual=True, refiner=(4,))
+    assert not lstm.conv_bottleneck
+    with pytest.raises(InputFileError, match="checkpoint is for"):
+        load_weights(lstm, path)
+    for name in ("dpdnet", "dpnaf"):
+        with pytest.raises(ParameterError, match="no ConvLSTM to replace"):
+            build_model(name, width=TINY, conv_bottleneck=True)
+    # DPDNet's dropout after the last encoder level and in the bottleneck, given or taken away
+    def rates(model):
+        return [m.p for m in model.modules() if isinstance(m, torch.nn.Dropout)]
+
+    assert rates(build_model("rdpd", width=TINY, conv_bottleneck=True,
+                             encoder_dropout=0.4)) == [0.4, 0.4]
+    assert rates(build_model("dpdnet", width=TINY)) == [0.4, 0.4]
+    assert rates(build_model("dpdnet", width=TINY, encoder_dropout=0.0)) == [0.0, 0.0]
+
+
 def _demo_views(size: int = 192) -> torch.Tensor:
     """The shipped demo scene's two views, a centre crop, ``(1, 6, size, size)`` in [0, 1]."""
     from dualpixel.demo import real_scene_dir

@@ -304,6 +304,23 @@ def test_a_run_without_the_head_relu_trains_that_head(tiny_synthetic_dataset, tm
             load_config(None, {"synthetic_data": "x", "head_relu": False, **options})
 
 
+def test_a_run_with_a_conv_bottleneck_trains_rdpd_without_state(tiny_synthetic_dataset,
+                                                                 tmp_path):
+    """``conv_bottleneck: true`` trains RDPD with DPDNet's bottleneck on sequences (no state to
+    carry, so not temporal); the run's file rebuilds it so; DPDNet refuses the option."""
+    torch.manual_seed(0)
+    config = tiny_config(tiny_synthetic_dataset, epochs=1, iterations_per_epoch=2,
+                         synthetic_as_frames=False, conv_bottleneck=True)
+    train(config, tmp_path / "run", progress=False)
+    model = load_model(tmp_path / "run" / "last.safetensors")
+    assert model.conv_bottleneck and model.lstm is None and not model.temporal
+    assert load_config(tmp_path / "run" / "config.yaml").conv_bottleneck is True
+    with pytest.raises(ParameterError, match="no ConvLSTM to replace"):
+        load_config(None, {"synthetic_data": "x", "model": "dpdnet", "conv_bottleneck": True})
+    with pytest.raises(ParameterError, match="encoder_dropout"):
+        load_config(None, {"synthetic_data": "x", "encoder_dropout": 1.0})
+
+
 def test_balance_levels_scales_the_up_convolutions_of_a_run_from_nothing(
         tiny_synthetic_dataset, tmp_path):
     """``balance_levels: true`` rescales each up-convolution on the first batch of a run from

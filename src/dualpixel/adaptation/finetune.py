@@ -281,6 +281,7 @@ def _train_config(settings: AdaptSettings, sources: list[str], val: str, views: 
     return load_config(None, {
         "model": meta["model"], "width": meta["width"], "peepholes": meta["peepholes"],
         "residual": meta["residual"], "head_relu": meta["head_relu"],
+        "conv_bottleneck": meta["conv_bottleneck"],
         "refiner": list(meta["refiner"]) or None,
         "lstm_dropout": 0.0, "init_weights": str(start), "synthetic_data": sources,
         "synthetic_as_frames": True, "val_data": [val], "val_split": "test",

@@ -135,7 +135,7 @@ def _describe(path: Path, model: DeblurNet, *, step: bool, dynamic: bool) -> Non
         "model": model.spec.name, "width": float(model.width),
         "residual": bool(model.shape.residual), "refiner": list(model.shape.refiner),
         "peepholes": bool(model.shape.peepholes), "head_relu": bool(model.shape.head_relu),
-        "temporal": bool(model.temporal),
+        "conv_bottleneck": bool(model.conv_bottleneck), "temporal": bool(model.temporal),
         "step": bool(step), "dynamic": bool(dynamic),
         "output": dict(model.output_settings)})  # how the weights run (brightness tied, ...)
     onnx.save(graph, str(path))

@@ -160,7 +160,8 @@ def load_onnx_checkpoint(path: str | Path) -> DeblurNet:
         model = build_model(str(meta["model"]), width=float(meta["width"]),
                             residual=bool(meta["residual"]), peepholes=bool(meta["peepholes"]),
                             refiner=tuple(int(c) for c in meta["refiner"]),
-                            head_relu=bool(meta.get("head_relu", True)))
+                            head_relu=bool(meta.get("head_relu", True)),
+                            conv_bottleneck=bool(meta.get("conv_bottleneck", False)))
     except (KeyError, TypeError, ValueError, ParameterError) as error:
         raise InputFileError(path, f"describes no network this version builds ({error})") from None
     model.temporal = bool(meta.get("temporal", False)) and bool(meta.get("step", False))

@@ -1,7 +1,7 @@
 """Model weights in safetensors, with the architecture in the file's metadata.
 
 A checkpoint holds the state dict and ``{"model", "width", "peepholes", "residual", "refiner",
-"head_relu", "format"}``
+"head_relu", "conv_bottleneck", "format"}``
 (plus free-form ``extra`` JSON), so :func:`load_model` rebuilds the right network without other
 files. Weights may be
 stored in half precision (``dtype=torch.float16``, for shipped models) and are loaded as float32.
@@ -54,6 +54,7 @@ def save_model(
         "residual": json.dumps(net.shape.residual),
         "refiner": json.dumps(list(net.shape.refiner)),
         "head_relu": json.dumps(net.shape.head_relu),
+        "conv_bottleneck": json.dumps(net.conv_bottleneck),
         "temporal": json.dumps(bool(net.temporal)),
         "extra": json.dumps(extra or {}, sort_keys=True),
     }
@@ -126,6 +127,7 @@ def _parse_metadata(metadata: dict[str, str]) -> dict[str, Any]:
         "residual": _json_value(metadata, "residual", "false", bool),
         "refiner": tuple(refiner),
         "head_relu": _json_value(metadata, "head_relu", "true", bool),
+        "conv_bottleneck": _json_value(metadata, "conv_bottleneck", "false", bool),
         "temporal": _temporal(metadata),
         "extra": _json_value(metadata, "extra", "{}", dict),
     }
@@ -158,6 +160,7 @@ def build_from_metadata(meta: dict[str, Any], *,
     model_spec(meta["model"])
     return build_model(meta["model"], width=meta["width"], peepholes=meta["peepholes"],
                        residual=meta["residual"], head_relu=meta["head_relu"],
+                       conv_bottleneck=meta["conv_bottleneck"],
                        refiner=meta["refiner"] if refiner is None else refiner)
 
 
@@ -173,7 +176,7 @@ def load_weights(model: torch.nn.Module, path: str | Path, *,
     net = _unwrap(model)
     mine = {"model": net.spec.name, "width": float(net.width),
             "peepholes": net.shape.peepholes, "residual": net.shape.residual,
-            "head_relu": net.shape.head_relu,
+            "head_relu": net.shape.head_relu, "conv_bottleneck": net.conv_bottleneck,
             "refiner": () if base_only else net.shape.refiner}
     theirs = {key: meta[key] for key in mine}
     if mine != theirs:

@@ -24,7 +24,7 @@ from dualpixel.models.spec import ARCHITECTURES, MODELS, ModelSpec, model_spec
 from dualpixel.models.unet import DeblurNet, NetworkShape
 
 __all__ = ["ARCHITECTURES", "MODELS", "ModelSpec", "build_architecture", "build_model",
-           "count_parameters", "model_spec"]
+           "check_conv_bottleneck", "count_parameters", "model_spec"]
 
 
 def _scaled(width: int, multiplier: float) -> int:
@@ -40,22 +40,28 @@ def build_model(
     residual: bool = False,
     refiner: tuple[int, ...] = (),
     head_relu: bool = True,
+    conv_bottleneck: bool = False,
+    encoder_dropout: float | None = None,
 ) -> DeblurNet:
     """Build a named network; ``width`` scales every layer (0 < width <= 4); ``residual`` adds
     the blurred input to the output and ``refiner`` (channel widths, not scaled by ``width``)
     appends a correcting second stage (clamped-output models only; neither is in the paper);
-    ``head_relu=False`` drops the ReLU of a non-residual head (ours)."""
+    ``head_relu=False`` drops the ReLU of a non-residual head; ``conv_bottleneck=True`` gives a
+    recurrent network DPDNet's two 3x3 convolutions in place of its convolution and ConvLSTM
+    (a network without state; both ours); ``encoder_dropout`` replaces the network's dropout
+    after its last encoder level and its convolution bottleneck (DPDNet 0.4, the others 0)."""
     spec = model_spec(name)
     check_head_relu(name, residual=residual, head_relu=head_relu)
+    check_conv_bottleneck(name, conv_bottleneck)
     if not 0.0 < width <= 4.0:
         raise ParameterError(f"width must be in (0, 4], got {width}")
     shape = NetworkShape(
         in_channels=spec.in_channels,
         encoder=tuple(_scaled(c, width) for c in spec.encoder),
         bottleneck=_scaled(spec.bottleneck, width),
-        recurrent=spec.recurrent,
+        recurrent=spec.recurrent and not conv_bottleneck,
         output=spec.output,
-        encoder_dropout=spec.encoder_dropout,
+        encoder_dropout=spec.encoder_dropout if encoder_dropout is None else encoder_dropout,
         lstm_dropout=lstm_dropout,
         peepholes=peepholes,
         residual=residual,
@@ -81,6 +87,14 @@ def check_head_relu(name: str, *, residual: bool, head_relu: bool) -> None:
                              "levels (residual false, model rdpd, rspd, dpdnet or "
                              f"dpdnet-single): {'a residual' if residual else repr(name)} head "
                              "has no ReLU to drop")
+
+
+def check_conv_bottleneck(name: str, conv_bottleneck: bool) -> None:
+    """Refuse ``conv_bottleneck=True`` for a network whose bottleneck has no ConvLSTM to
+    replace (DPDNet has the two convolutions already; ``dpnaf`` has NAF blocks)."""
+    if conv_bottleneck and not model_spec(name).recurrent:
+        raise ParameterError(f"conv_bottleneck true is for the recurrent networks (rdpd, rspd): "
+                             f"{name!r} has no ConvLSTM to replace")
 
 
 def build_architecture(name: str, **options) -> DeblurNet:

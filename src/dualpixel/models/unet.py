@@ -19,6 +19,11 @@ Option (ours, off by default): ``refiner=(w1, w2, ...)`` appends a refiner,
 :class:`~dualpixel.models.refiner.Refiner`, that corrects the clamped output from the input and
 that output; it starts as the identity, so it can be trained on top of a trained (frozen) network.
 
+Option (ours, off by default): a recurrent spec built with ``recurrent=False`` in its shape
+(``build_model(..., conv_bottleneck=True)``) gets DPDNet's bottleneck, two 3x3 convolutions,
+in place of its convolution and ConvLSTM: a network without state
+(:attr:`DeblurNet.conv_bottleneck`).
+
 Option (ours, per model): ``block="naf"`` builds every level of NAF blocks instead
 (:mod:`dualpixel.models.naf`; model ``dpnaf``), with strided convolutions down and pixel-shuffle
 up-convolutions; the skips, the residual output and the refiner are as above.
@@ -339,6 +344,12 @@ class DeblurNet(nn.Module):
     @property
     def recurrent(self) -> bool:
         return self.lstm is not None
+
+    @property
+    def conv_bottleneck(self) -> bool:
+        """Whether a network the paper builds with a ConvLSTM has DPDNet's two convolutions in
+        its place (``build_model(..., conv_bottleneck=True)``)."""
+        return self.spec.recurrent and not self.shape.recurrent
 
     def step(
         self, x: torch.Tensor, state: LSTMState | None = None

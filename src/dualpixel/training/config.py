@@ -18,7 +18,7 @@ import yaml
 from dualpixel.errors import ParameterError, check_range, check_seed
 from dualpixel.io.atomic import atomic_path
 from dualpixel.io.paths import check_plain_name
-from dualpixel.models.registry import check_head_relu, model_spec
+from dualpixel.models.registry import check_conv_bottleneck, check_head_relu, model_spec
 from dualpixel.names import RAW_VIEWS, RENDER_ON
 from dualpixel.training.losses import LOSS_REDUCTIONS, PIXEL_LOSSES
 
@@ -45,6 +45,11 @@ class TrainConfig:
     residual: bool = False  # ours, not the paper's: output = blurred input + network output
     # Ours: false drops the ReLU after a non-residual head's 3-channel convolution.
     head_relu: bool = True
+    # Ours: true gives rdpd / rspd DPDNet's two-convolution bottleneck in place of the ConvLSTM.
+    conv_bottleneck: bool = False
+    # Dropout after the last encoder level and a convolution bottleneck; null: the network's
+    # own (DPDNet's 0.4, the paper's; 0 for the others).
+    encoder_dropout: float | None = None
     # Ours: channel widths of a second stage that corrects the output (dualpixel.models.refiner),
     # e.g. [32, 64, 128]; null: none. With init_weights of a network without one, those weights
     # go into the base network and the refiner starts as the identity.
@@ -161,6 +166,8 @@ class TrainConfig:
                                 ("lambda_y", 0.0, 1e3), ("min_sharpness", 0.0, 1.0),
                                 ("formation_weight", 0.0, 1e3), ("in_focus_weight", 0.0, 1e3)):
             check_range(name, getattr(self, name), low, high)
+        if self.encoder_dropout is not None:
+            check_range("encoder_dropout", self.encoder_dropout, 0.0, 0.95)
         if self.width <= 0 or self.lstm_dropout >= 1:
             raise ParameterError(f"width must be > 0 and lstm_dropout < 1, got {self.width} and "
                                  f"{self.lstm_dropout}")
@@ -195,6 +202,7 @@ class TrainConfig:
                 raise ParameterError(f"{option} is for the paper's convolution levels; model "
                                      f"{self.model!r} has {levels} levels")
         check_head_relu(self.model, residual=self.residual, head_relu=self.head_relu)
+        check_conv_bottleneck(self.model, self.conv_bottleneck)
         if self.refiner is not None and (not self.refiner or min(self.refiner) < 1):
             raise ParameterError(f"refiner must list channel widths >= 1, got {self.refiner}")
         if self.freeze_base and not self.refiner:

@@ -108,7 +108,7 @@ def _architecture(meta: dict[str, Any]) -> str:
     for name, spec in ARCHITECTURES.items():
         if (spec["model"] == meta["model"] and float(spec["width"]) == float(meta["width"])
                 and bool(spec.get("residual", False)) == bool(meta["residual"])
-                and meta.get("head_relu", True)
+                and meta.get("head_relu", True) and not meta.get("conv_bottleneck", False)
                 and list(spec.get("refiner", ())) == list(meta.get("refiner") or [])):
             return name
     raise ParameterError(f"the network ({meta['model']}, width {meta['width']}) has no "

@@ -419,7 +419,7 @@ class Trainer:
             # state), so single-frame batches (real pairs, sRDPD+) leave those weights unused.
             self.model = DistributedDataParallel(
                 self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None,
-                find_unused_parameters=self.net.spec.recurrent)
+                find_unused_parameters=self.net.recurrent)
         self.writer = _summary_writer(self.output, self.config) if self.main else None
         for epoch in range(self.start_epoch, self.config.epochs):
             record = self.train_epoch(epoch)
@@ -477,7 +477,9 @@ class Trainer:
         model = build_model(config.model, width=config.width, peepholes=config.peepholes,
                             lstm_dropout=config.lstm_dropout, residual=config.residual,
                             refiner=tuple(config.refiner or ()),
-                            head_relu=config.head_relu).to(device)
+                            head_relu=config.head_relu,
+                            conv_bottleneck=config.conv_bottleneck,
+                            encoder_dropout=config.encoder_dropout).to(device)
         if config.freeze_base:
             for parameter in model.base_parameters():
                 parameter.requires_grad_(False)
