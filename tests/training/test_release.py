@@ -238,3 +238,22 @@ def test_list_models_hands_out_copies():
     again = dualpixel.list_models()
     assert tag in again and "edited" not in again[tag].get("metrics", {})
     assert "mine" not in again[tag]["aliases"]
+
+
+def test_a_network_no_architecture_names_is_refused_by_what_sets_it_apart(tmp_path):
+    """A file's network is named only by an architecture that builds it exactly: the light
+    RDPD with DPDNet's bottleneck in place of its ConvLSTM is not ``rdpd-light-base``, and the
+    refusal says which setting sets it apart."""
+    from dualpixel.errors import ParameterError
+    from dualpixel.models import build_model, save_model
+    from dualpixel.training.release import _architecture
+
+    for conv_bottleneck in (False, True):
+        path = tmp_path / f"{conv_bottleneck}.safetensors"
+        save_model(path, build_model("rdpd", width=0.5, residual=True,
+                                     conv_bottleneck=conv_bottleneck))
+        if not conv_bottleneck:
+            assert _architecture(read_metadata(path)) == "rdpd-light-base"
+            continue
+        with pytest.raises(ParameterError, match="conv_bottleneck True"):
+            _architecture(read_metadata(path))

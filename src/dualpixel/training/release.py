@@ -111,8 +111,12 @@ def _architecture(meta: dict[str, Any]) -> str:
                 and meta.get("head_relu", True) and not meta.get("conv_bottleneck", False)
                 and list(spec.get("refiner", ())) == list(meta.get("refiner") or [])):
             return name
-    raise ParameterError(f"the network ({meta['model']}, width {meta['width']}) has no "
-                         "architecture name; add it to dualpixel.models.spec.ARCHITECTURES")
+    described = (f"{meta['model']}, width {meta['width']}, residual {meta['residual']}, "
+                 f"refiner {list(meta.get('refiner') or [])}, head_relu "
+                 f"{meta.get('head_relu', True)}, conv_bottleneck "
+                 f"{meta.get('conv_bottleneck', False)}")
+    raise ParameterError(f"the network ({described}) has no architecture name; add it to "
+                         "dualpixel.models.spec.ARCHITECTURES")
 
 
 def results_rows(recipe, run: Path) -> list[dict[str, Any]]:
