@@ -102,19 +102,22 @@ def _start(recipe, index: int, run: Path, registry: dict[str, Any]) -> dict[str,
 
 
 def _architecture(meta: dict[str, Any]) -> str:
-    """The name in :data:`~dualpixel.models.spec.ARCHITECTURES` of a file's network."""
+    """The name in :data:`~dualpixel.models.spec.ARCHITECTURES` of a file's network: the one
+    whose model, width, refiner and build options (each at ``build_model``'s default where the
+    architecture does not set it) are the file's."""
     from dualpixel.models.spec import ARCHITECTURES
 
+    options = {"residual": False, "head_relu": True, "conv_bottleneck": False}
     for name, spec in ARCHITECTURES.items():
         if (spec["model"] == meta["model"] and float(spec["width"]) == float(meta["width"])
-                and bool(spec.get("residual", False)) == bool(meta["residual"])
-                and meta.get("head_relu", True) and not meta.get("conv_bottleneck", False)
+                and all(bool(spec.get(key, default)) == bool(meta.get(key, default))
+                        for key, default in options.items())
                 and list(spec.get("refiner", ())) == list(meta.get("refiner") or [])):
             return name
-    described = (f"{meta['model']}, width {meta['width']}, residual {meta['residual']}, "
-                 f"refiner {list(meta.get('refiner') or [])}, head_relu "
-                 f"{meta.get('head_relu', True)}, conv_bottleneck "
-                 f"{meta.get('conv_bottleneck', False)}")
+    described = ", ".join([meta["model"], f"width {meta['width']}",
+                           f"refiner {list(meta.get('refiner') or [])}",
+                           *(f"{key} {meta.get(key, default)}"
+                             for key, default in options.items())])
     raise ParameterError(f"the network ({described}) has no architecture name; add it to "
                          "dualpixel.models.spec.ARCHITECTURES")
 
