@@ -9,9 +9,22 @@ default model deblurs both; per tile (textured ones) its gain over the views' me
 tile's radius and side of the frame, on real and on our views, with the published DPDNet
 output's gain beside (``--toned``, ``--registered``: each image's tone and sub-pixel position
 matched to the target per tile first, so the f/22 target's other exposure and registration
-count against no one). Our views can be coded as the dev views were (``--coded``: the 840-px
-GIF frames' own palettes; ``--h264 CRF``: an H.264 animation, as the 1620-px views), and their
-disparity ratio can change across the frame (``--ratio-profile``).
+count against no one). ``--target-aperture RATIO`` adds columns for both outputs blurred, per
+tile, by the camera's combined kernel at ``RATIO`` times the tile's radius (4/22 = 0.18: the
+DPDD targets are f/22 captures of views taken at f/4, so a target keeps that much of the
+views' defocus): how much of the gap is the target's own depth of field. ``--wiener LAMBDA``
+adds columns for a linear oracle instead of the network: both views deconvolved jointly with
+the camera's left and right kernels at each tile's fitted radius (Wiener, a gradient prior of
+weight ``LAMBDA``, linear light), on the real views and on ours: whether the real views are
+our kernels' blur as far as a linear inverse can tell; and what no sharp image blurred by the
+kernel pair explains (the least over ``--ratio-scales`` times the camera's disparity ratio),
+over the views' detail finer than 4 px (target-free), beside what the target blurred by the
+pair leaves (tone and sub-pixel shift fitted per tile), and the same with each tile's radius
+free (one for all channels, or one per channel: a lens's longitudinal colour). Our views can
+be coded as the dev views were (``--coded``: the 840-px GIF frames' own palettes; ``--h264
+CRF``: an H.264 animation, as the 1620-px views), and their disparity ratio can change across
+the frame (``--ratio-profile``). Any folder of the same layout can stand in for the dev scenes, e.g.
+frames of our full formation written so (their target as ``dpdnet.png``).
 
     python experiments/scripts/formation_radius_map.py ../shared/data/canon-dp-real \
         --coded --toned --registered
@@ -77,6 +90,98 @@ def renders(target: np.ndarray, radii: np.ndarray, camera: str,
                          for v in apply_crosstalk(left, right, ratio, falloff))
         out.append([np.round(np.clip(linear_to_srgb_array(v), 0, 1) * 255) / 255 for v in pair])
     return np.asarray(out, np.float32)
+
+
+def at_aperture(image: np.ndarray, radii: np.ndarray, choice: np.ndarray, tile: int,
+                camera: str, ratio: float) -> np.ndarray:
+    """``image`` (sRGB) blurred in linear light by the camera's combined kernel (the mean of
+    its left and right kernels: the whole aperture) at ``ratio`` times each tile's fitted
+    radius, blended across tiles as :func:`blend` does: what a capture at a ``1 / ratio``
+    times smaller aperture, focused alike, would keep of the blur."""
+    light = srgb_to_linear_array(np.clip(image, 0, 1))
+    psf = load_camera(camera).psf
+    out = []
+    for radius in radii * ratio:
+        if radius < 0.5:
+            out.append(light)
+            continue
+        kernel = sum(view_kernels(radius, psf)) / 2
+        out.append(cv2.filter2D(light, -1, kernel, borderType=cv2.BORDER_REFLECT))
+    return linear_to_srgb_array(blend(np.asarray(out)[:, None], choice, tile, tile / 4)[0])
+
+
+def pair_kernels(radius: float, camera, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(C, k, k)`` left and right kernels per channel (convolution orientation): the
+    camera's kernels at ``radius`` mixed by its per-channel disparity ratio times ``scale``,
+    as :func:`renders` forms the views."""
+    left, right = (k[::-1, ::-1] for k in view_kernels(radius, camera.psf))
+    ratio = np.asarray(camera.disparity_ratio, np.float32)[:, None, None] * scale
+    keep, swap = (1 + ratio) / 2, (1 - ratio) / 2
+    return keep * left + swap * right, keep * right + swap * left
+
+
+def wiener(views: tuple[np.ndarray, np.ndarray], radii: np.ndarray, choice: np.ndarray,
+           tile: int, camera: str, weight: float, scales: tuple[float, ...] = (1.0,),
+           pad: int = 48) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sharp image (sRGB) whose blur by the camera's left and right kernels best explains
+    both ``views`` (sRGB) in linear light, with a gradient prior of ``weight`` (Wiener),
+    solved at every radius of ``radii`` and blended by each tile's ``choice``; and
+    per pixel the squared residual of that explanation (linear light, mean of views and
+    channels), ``(S, H, W)``: with the camera's disparity ratio and that ratio times each of
+    ``scales``: what of the views no sharp image blurred by the kernel pair accounts for,
+    target-free; and ``(R, T, T', C)`` that residual's mean per radius, tile and channel (the
+    camera's ratio), for fits that free each tile's radius."""
+    model = load_camera(camera)
+    light = [np.pad(srgb_to_linear_array(np.clip(v, 0, 1)), ((pad, pad), (pad, pad), (0, 0)),
+                    mode="reflect") for v in views]
+    height, width = light[0].shape[:2]
+    spectra = [np.fft.rfft2(v, axes=(0, 1)) for v in light]
+    fy = np.fft.fftfreq(height)[:, None]
+    fx = np.fft.rfftfreq(width)[None, :]
+    prior = (4 * np.sin(np.pi * fy) ** 2 + 4 * np.sin(np.pi * fx) ** 2)[..., None]
+
+    def otf(kernel: np.ndarray) -> np.ndarray:
+        size = kernel.shape[-1]
+        placed = np.zeros((kernel.shape[0], height, width), np.float32)
+        placed[:, :size, :size] = kernel
+        placed = np.roll(placed, (-(size // 2), -(size // 2)), axis=(1, 2))
+        return np.moveaxis(np.fft.rfft2(placed, axes=(1, 2)), 0, -1)
+
+    inner = (slice(pad, -pad), slice(pad, -pad))
+    scales = (1.0, *(x for x in scales if x != 1.0))  # the image: the camera's own ratio
+    out, residual, free = [], [[] for _ in scales], []
+    for radius in radii:
+        if radius < 0.5:
+            out.append(light[0][inner] / 2 + light[1][inner] / 2)
+            per_channel = (light[0][inner] - light[1][inner]) ** 2 / 4
+            for rows in residual:
+                rows.append(per_channel.mean(axis=-1))
+            free.append(tile_means(per_channel, tile))
+            continue
+        for number, scale in enumerate(scales):
+            left, right = (otf(k) for k in pair_kernels(radius, model, scale))
+            sharp = ((np.conj(left) * spectra[0] + np.conj(right) * spectra[1])
+                     / (np.abs(left) ** 2 + np.abs(right) ** 2 + weight * prior))
+            if number == 0:
+                out.append(np.fft.irfft2(sharp, s=(height, width), axes=(0, 1))[inner]
+                           .astype(np.float32))
+            per_channel = sum(
+                (np.fft.irfft2(spectrum - kernel * sharp, s=(height, width), axes=(0, 1))[inner])
+                ** 2 for spectrum, kernel in zip(spectra, (left, right))) / 2
+            residual[number].append(per_channel.mean(axis=-1))
+            if number == 0:
+                free.append(tile_means(per_channel, tile))
+    # blended sharply: a deconvolution at a neighbour's radius rings where a blur would not
+    blended = blend(np.asarray(out)[:, None], choice, tile, tile / 16)[0]
+    unexplained = np.stack([blend(np.asarray(rows, np.float32)[:, None, ..., None], choice, tile,
+                                  tile / 16)[0, ..., 0] for rows in residual])
+    return linear_to_srgb_array(np.clip(blended, 0, 1)), unexplained, np.asarray(free)
+
+
+def tile_means(image: np.ndarray, tile: int) -> np.ndarray:
+    """``(rows, cols, C)``: ``image`` ``(H, W, C)`` averaged over each whole ``tile``-px tile."""
+    rows, cols = image.shape[0] // tile, image.shape[1] // tile
+    return image[: rows * tile, : cols * tile].reshape(rows, tile, cols, tile, -1).mean(axis=(1, 3))
 
 
 def tile_choice(real: tuple[np.ndarray, np.ndarray], rendered: np.ndarray, tile: int,
@@ -148,6 +253,15 @@ def best_shift(copies: list[np.ndarray], box: tuple[slice, slice],
                target: np.ndarray) -> np.ndarray:
     """The copy whose ``box`` is closest to ``target[box]``: the tile's local registration."""
     return min((c[box] for c in copies), key=lambda c: float(((c - target[box]) ** 2).mean()))
+
+
+def toned_residual(image: np.ndarray, view: np.ndarray) -> float:
+    """Mean square of what is left of ``view`` once ``image`` is fitted to it by a gain and an
+    offset per channel (least squares), over pixels and channels."""
+    x, y = image.reshape(-1, image.shape[-1]), view.reshape(-1, view.shape[-1])
+    x, y = x - x.mean(axis=0), y - y.mean(axis=0)
+    cov = (x * y).mean(axis=0)
+    return float(((y**2).mean(axis=0) - cov**2 / ((x**2).mean(axis=0) + 1e-12)).mean())
 
 
 def jpeg(view: np.ndarray, quality: int) -> np.ndarray:
@@ -296,6 +410,13 @@ def main() -> None:
                         help="fit and render each colour channel's blur on its own")
     parser.add_argument("--registered", action="store_true",
                         help="per tile, move each image by its best sub-pixel shift first")
+    parser.add_argument("--target-aperture", type=float, default=0.0, metavar="RATIO",
+                        help="also score the outputs blurred at RATIO times each tile's radius")
+    parser.add_argument("--wiener", type=float, default=0.0, metavar="LAMBDA",
+                        help="also score a Wiener deconvolution of both views per tile")
+    parser.add_argument("--ratio-scales", type=float, nargs="+", default=[1.0],
+                        help="with --wiener: the unexplained share is the least over the "
+                        "disparity ratio times each of these, per tile")
     parser.add_argument("--toned", action="store_true",
                         help="per tile, match each image's tone to the target before scoring")
     args = parser.parse_args()
@@ -350,15 +471,44 @@ def main() -> None:
         real_out = dualpixel.deblur(left, right, model=args.model, device="cpu")
         ours_out = dualpixel.deblur(ours[0], ours[1], model=args.model, device="cpu")
         real_in, ours_in = (left + right) / 2, (ours[0] + ours[1]) / 2
-        images = (real_out, real_in, ours_out, ours_in, published)
+        images = [real_out, real_in, ours_out, ours_in, published]
+        if args.target_aperture:
+            images += [at_aperture(o, radii, choice, args.tile, args.camera, args.target_aperture)
+                       for o in (real_out, ours_out)]
+        unexplained = []
+        if args.wiener:
+            for pair in ((left, right), ours):
+                image, residual, free = wiener(pair, radii, choice, args.tile, args.camera,
+                                               args.wiener, tuple(args.ratio_scales))
+                # the views' detail finer than 4 px (linear light): what a deconvolution acts on
+                detail = np.mean([((v - cv2.GaussianBlur(v, (0, 0), 4)) ** 2).mean(axis=-1)
+                                  for v in (srgb_to_linear_array(np.clip(w, 0, 1))
+                                            for w in pair)], axis=0)
+                images.append(image)
+                unexplained.append((residual, detail, free))
+            # the target blurred by the pair (our views, uncoded), against the real views
+            our_copies = [shifted_copies(srgb_to_linear_array(np.clip(v, 0, 1)))
+                          for v in (clean if args.jpeg or args.h264 else ours)]
+            real_linear = [srgb_to_linear_array(np.clip(v, 0, 1)) for v in (left, right)]
         copies = [shifted_copies(i) if args.registered else [i] for i in images]
         t = args.tile
-        for _, col, box, radius in scored_tiles(choice, radii, target, t):
-            ro, ri, oo, oi, po = (best_shift(c, box, target) for c in copies)
+        for row, col, box, radius in scored_tiles(choice, radii, target, t):
+            ro, ri, oo, oi, po, *apertured = (best_shift(c, box, target) for c in copies)
             bands = [band_energy(v[box]) for v in (left, ours[0])]
             rows.append((radius, gain(ro, ri, target[box]), gain(oo, oi, target[box]),
                          gain(po, ri, target[box]), number, bands[0] / bands[1],
-                         abs((col + 0.5) * t / target.shape[1] * 2 - 1)))
+                         abs((col + 0.5) * t / target.shape[1] * 2 - 1),
+                         *(gain(a, i, target[box])
+                           for a, i in zip(apertured, itertools.cycle((ri, oi)))),
+                         *(residual[:, box[0], box[1]].mean(axis=(1, 2)).min()
+                           / detail[box].mean() for residual, detail, _ in unexplained),
+                         *([np.mean([min(toned_residual(c[box], view[box]) for c in copies)
+                                     for copies, view in zip(our_copies, real_linear)])
+                            / unexplained[0][1][box].mean()] if args.wiener else []),
+                         # each tile's radius free: one for all channels, one per channel
+                         *(value / detail[box].mean() for _, detail, free in unexplained
+                           for value in (free[:, row, col].mean(axis=-1).min(),
+                                         free[:, row, col].min(axis=0).mean()))))
         whole = [gain(o, i, target) for o, i in ((real_out, real_in), (ours_out, ours_in))]
         print(f"{os.path.basename(scene)}: whole-frame gain real {whole[0]:+.2f}, ours "
               f"{whole[1]:+.2f} dB; views' match rms "
@@ -372,9 +522,16 @@ def main() -> None:
         print_bands(band_rows)
         return
     table = np.asarray(rows)
+    extra = (f" real views, output at {args.target_aperture:g} r | ours, output at "
+             f"{args.target_aperture:g} r |" if args.target_aperture else "")
+    extra += (" real views, Wiener | ours, Wiener | real views unexplained / detail "
+              "| ours | real views, by the target and pair | real views, radius free "
+              "| real, radius free per channel | ours, radius free | ours, per channel |"
+              if args.wiener else "")
+    formats = ["+.2f"] * (2 * bool(args.target_aperture) + 2 * bool(args.wiener)) + [".4f"] * 7
     print("\n| fitted radius | tiles | real views | ours at the fitted blur | DPDNet (published) "
-          "| real / our views' fine detail (median) |")
-    print("|---|---|---|---|---|---|")
+          "| real / our views' fine detail (median) |" + extra)
+    print("|---|---|---|---|---|---|" + "---|" * extra.count("|"))
     for (low, high), (near, far) in itertools.product(BINS, ((0.0, 0.6), (0.6, 1.01))):
         pick = ((table[:, 0] >= low) & (table[:, 0] < high) & (table[:, 6] >= near)
                 & (table[:, 6] < far))
@@ -382,7 +539,9 @@ def main() -> None:
             print(f"| {low:g}-{high:g} px, |x| {near:g}-{min(far, 1):g} | {pick.sum()} | "
                   f"{table[pick, 1].mean():+.2f} | {table[pick, 2].mean():+.2f} | "
                   f"{table[pick, 3].mean():+.2f} | "
-                  f"{np.median(table[pick, 5]):.2f} |")
+                  f"{np.median(table[pick, 5]):.2f} |"
+                  + "".join(f" {table[pick, k].mean():{form}} |"
+                            for k, form in zip(range(7, table.shape[1]), formats)))
 
 
 if __name__ == "__main__":
