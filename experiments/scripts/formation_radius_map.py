@@ -114,10 +114,10 @@ def pair_kernels(radius: float, camera, scale: float = 1.0) -> tuple[np.ndarray,
     """``(C, k, k)`` left and right kernels per channel (convolution orientation): the
     camera's kernels at ``radius`` mixed by its per-channel disparity ratio times ``scale``,
     as :func:`renders` forms the views."""
-    left, right = (k[::-1, ::-1] for k in view_kernels(radius, camera.psf))
-    ratio = np.asarray(camera.disparity_ratio, np.float32)[:, None, None] * scale
-    keep, swap = (1 + ratio) / 2, (1 - ratio) / 2
-    return keep * left + swap * right, keep * right + swap * left
+    ratio = [r * scale for r in camera.disparity_ratio]
+    left, right = (torch.from_numpy(np.ascontiguousarray(k[::-1, ::-1]))[None]
+                   .expand(len(ratio), -1, -1) for k in view_kernels(radius, camera.psf))
+    return tuple(k.numpy() for k in apply_crosstalk(left, right, ratio))
 
 
 def wiener(views: tuple[np.ndarray, np.ndarray], radii: np.ndarray, choice: np.ndarray,
@@ -162,14 +162,13 @@ def wiener(views: tuple[np.ndarray, np.ndarray], radii: np.ndarray, choice: np.n
             left, right = (otf(k) for k in pair_kernels(radius, model, scale))
             sharp = ((np.conj(left) * spectra[0] + np.conj(right) * spectra[1])
                      / (np.abs(left) ** 2 + np.abs(right) ** 2 + weight * prior))
-            if number == 0:
-                out.append(np.fft.irfft2(sharp, s=(height, width), axes=(0, 1))[inner]
-                           .astype(np.float32))
             per_channel = sum(
                 (np.fft.irfft2(spectrum - kernel * sharp, s=(height, width), axes=(0, 1))[inner])
                 ** 2 for spectrum, kernel in zip(spectra, (left, right))) / 2
             residual[number].append(per_channel.mean(axis=-1))
             if number == 0:
+                out.append(np.fft.irfft2(sharp, s=(height, width), axes=(0, 1))[inner]
+                           .astype(np.float32))
                 free.append(tile_means(per_channel, tile))
     # blended sharply: a deconvolution at a neighbour's radius rings where a blur would not
     blended = blend(np.asarray(out)[:, None], choice, tile, tile / 16)[0]
@@ -502,8 +501,8 @@ def main() -> None:
                            for a, i in zip(apertured, itertools.cycle((ri, oi)))),
                          *(residual[:, box[0], box[1]].mean(axis=(1, 2)).min()
                            / detail[box].mean() for residual, detail, _ in unexplained),
-                         *([np.mean([min(toned_residual(c[box], view[box]) for c in copies)
-                                     for copies, view in zip(our_copies, real_linear)])
+                         *([np.mean([min(toned_residual(c[box], view[box]) for c in shifted)
+                                     for shifted, view in zip(our_copies, real_linear)])
                             / unexplained[0][1][box].mean()] if args.wiener else []),
                          # each tile's radius free: one for all channels, one per channel
                          *(value / detail[box].mean() for _, detail, free in unexplained
@@ -522,16 +521,19 @@ def main() -> None:
         print_bands(band_rows)
         return
     table = np.asarray(rows)
-    extra = (f" real views, output at {args.target_aperture:g} r | ours, output at "
-             f"{args.target_aperture:g} r |" if args.target_aperture else "")
-    extra += (" real views, Wiener | ours, Wiener | real views unexplained / detail "
-              "| ours | real views, by the target and pair | real views, radius free "
-              "| real, radius free per channel | ours, radius free | ours, per channel |"
-              if args.wiener else "")
-    formats = ["+.2f"] * (2 * bool(args.target_aperture) + 2 * bool(args.wiener)) + [".4f"] * 7
+    # the optional columns, in the order the rows hold them: (heading, format)
+    columns = [(f"{who}, output at {args.target_aperture:g} r", "+.2f")
+               for who in ("real views", "ours")] if args.target_aperture else []
+    if args.wiener:
+        columns += [(f"{who}, Wiener", "+.2f") for who in ("real views", "ours")]
+        columns += [(f"{who} unexplained / detail", ".4f") for who in ("real views", "ours")]
+        columns += [("real views, by the target and pair", ".4f")]
+        columns += [(f"{who}, radius free{each}", ".4f") for who in ("real views", "ours")
+                    for each in ("", " per channel")]
     print("\n| fitted radius | tiles | real views | ours at the fitted blur | DPDNet (published) "
-          "| real / our views' fine detail (median) |" + extra)
-    print("|---|---|---|---|---|---|" + "---|" * extra.count("|"))
+          "| real / our views' fine detail (median) |"
+          + "".join(f" {heading} |" for heading, _ in columns))
+    print("|---|---|---|---|---|---|" + "---|" * len(columns))
     for (low, high), (near, far) in itertools.product(BINS, ((0.0, 0.6), (0.6, 1.01))):
         pick = ((table[:, 0] >= low) & (table[:, 0] < high) & (table[:, 6] >= near)
                 & (table[:, 6] < far))
@@ -541,7 +543,7 @@ def main() -> None:
                   f"{table[pick, 3].mean():+.2f} | "
                   f"{np.median(table[pick, 5]):.2f} |"
                   + "".join(f" {table[pick, k].mean():{form}} |"
-                            for k, form in zip(range(7, table.shape[1]), formats)))
+                            for k, (_, form) in enumerate(columns, start=7)))
 
 
 if __name__ == "__main__":
