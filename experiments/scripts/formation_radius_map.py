@@ -20,7 +20,10 @@ our kernels' blur as far as a linear inverse can tell; and what no sharp image b
 kernel pair explains (the least over ``--ratio-scales`` times the camera's disparity ratio),
 over the views' detail finer than 4 px (target-free), beside what the target blurred by the
 pair leaves (tone and sub-pixel shift fitted per tile), and the same with each tile's radius
-free (one for all channels, or one per channel: a lens's longitudinal colour). Our views can
+free (one for all channels, or one per channel: a lens's longitudinal colour). ``--swap`` adds
+columns for views rebuilt from the real views' sum and our views' difference and the other way
+round: which half of the real views (their image, or the disparity the network reads from their
+difference) costs the model its gain. Our views can
 be coded as the dev views were (``--coded``: the 840-px GIF frames' own palettes; ``--h264
 CRF``: an H.264 animation, as the 1620-px views), and their disparity ratio can change across
 the frame (``--ratio-profile``). Any folder of the same layout can stand in for the dev scenes, e.g.
@@ -373,6 +376,19 @@ def disparity_across(rows: list[tuple[float, ...]]) -> None:
           f"--ratio-profile {p0:.3f} {p2:.3f}")
 
 
+def swapped(real: tuple[np.ndarray, np.ndarray], ours: np.ndarray
+            ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``--swap``: the views rebuilt from one pair's sum and the other's difference, (L + R) / 2
+    +- (L - R) / 2, clipped to [0, 1]: the real sum with our difference, then ours with the real
+    difference. Which half of the views costs the model its gain on the real ones."""
+    def halves(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return (left + right) / 2, (left - right) / 2
+
+    (real_sum, real_difference), (our_sum, our_difference) = halves(*real), halves(*ours)
+    return [(np.clip(total + difference, 0, 1), np.clip(total - difference, 0, 1))
+            for total, difference in ((real_sum, our_difference), (our_sum, real_difference))]
+
+
 def gain(output: np.ndarray, reference: np.ndarray, target: np.ndarray) -> float:
     """Gain of ``output`` over ``reference`` against ``target`` (dB); both toned first with
     ``--toned``."""
@@ -416,6 +432,9 @@ def main() -> None:
     parser.add_argument("--ratio-scales", type=float, nargs="+", default=[1.0],
                         help="with --wiener: the unexplained share is the least over the "
                         "disparity ratio times each of these, per tile")
+    parser.add_argument("--swap", action="store_true",
+                        help="also score views with the real views' sum and our views' "
+                        "difference, and ours' sum with the real difference")
     parser.add_argument("--toned", action="store_true",
                         help="per tile, match each image's tone to the target before scoring")
     args = parser.parse_args()
@@ -489,6 +508,9 @@ def main() -> None:
             our_copies = [shifted_copies(srgb_to_linear_array(np.clip(v, 0, 1)))
                           for v in (clean if args.jpeg or args.h264 else ours)]
             real_linear = [srgb_to_linear_array(np.clip(v, 0, 1)) for v in (left, right)]
+        if args.swap:
+            images += [dualpixel.deblur(*views, model=args.model, device="cpu")
+                       for views in swapped((left, right), ours)]
         copies = [shifted_copies(i) if args.registered else [i] for i in images]
         t = args.tile
         for row, col, box, radius in scored_tiles(choice, radii, target, t):
@@ -526,6 +548,9 @@ def main() -> None:
                for who in ("real views", "ours")] if args.target_aperture else []
     if args.wiener:
         columns += [(f"{who}, Wiener", "+.2f") for who in ("real views", "ours")]
+    if args.swap:
+        columns += [("real sum, our difference", "+.2f"), ("our sum, real difference", "+.2f")]
+    if args.wiener:
         columns += [(f"{who} unexplained / detail", ".4f") for who in ("real views", "ours")]
         columns += [("real views, by the target and pair", ".4f")]
         columns += [(f"{who}, radius free{each}", ".4f") for who in ("real views", "ours")
