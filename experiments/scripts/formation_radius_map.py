@@ -23,7 +23,9 @@ pair leaves (tone and sub-pixel shift fitted per tile), and the same with each t
 free (one for all channels, or one per channel: a lens's longitudinal colour). ``--swap`` adds
 columns for views rebuilt from the real views' sum and our views' difference and the other way
 round: which half of the real views (their image, or the disparity the network reads from their
-difference) costs the model its gain. Our views can
+difference) costs the model its gain; ``--rescale P0 P2`` adds columns for both pairs with their
+difference divided by ``P0 - P2 x^2`` (``formation_difference_scale.py``): what reading a
+disparity ratio that falls across the frame is worth per tile. Our views can
 be coded as the dev views were (``--coded``: the 840-px GIF frames' own palettes; ``--h264
 CRF``: an H.264 animation, as the 1620-px views), and their disparity ratio can change across
 the frame (``--ratio-profile``). Any folder of the same layout can stand in for the dev scenes, e.g.
@@ -55,6 +57,7 @@ import cv2
 import numpy as np
 import torch
 from coded_views import code  # this folder's GIF and JPEG round trips
+from formation_difference_scale import difference_scaled  # this folder's
 from PIL import Image
 
 import dualpixel
@@ -435,6 +438,9 @@ def main() -> None:
     parser.add_argument("--swap", action="store_true",
                         help="also score views with the real views' sum and our views' "
                         "difference, and ours' sum with the real difference")
+    parser.add_argument("--rescale", type=float, nargs=2, metavar=("P0", "P2"),
+                        help="also score both pairs with their difference divided by P0 - P2 "
+                        "x^2 (x from -1 to 1 across the frame)")
     parser.add_argument("--toned", action="store_true",
                         help="per tile, match each image's tone to the target before scoring")
     args = parser.parse_args()
@@ -511,6 +517,10 @@ def main() -> None:
         if args.swap:
             images += [dualpixel.deblur(*views, model=args.model, device="cpu")
                        for views in swapped((left, right), ours)]
+        if args.rescale:
+            images += [dualpixel.deblur(*difference_scaled(*views, tuple(args.rescale)),
+                                        model=args.model, device="cpu")
+                       for views in ((left, right), ours)]
         copies = [shifted_copies(i) if args.registered else [i] for i in images]
         t = args.tile
         for row, col, box, radius in scored_tiles(choice, radii, target, t):
@@ -550,6 +560,8 @@ def main() -> None:
         columns += [(f"{who}, Wiener", "+.2f") for who in ("real views", "ours")]
     if args.swap:
         columns += [("real sum, our difference", "+.2f"), ("our sum, real difference", "+.2f")]
+    if args.rescale:
+        columns += [(f"{who}, difference / r(x)", "+.2f") for who in ("real views", "ours")]
     if args.wiener:
         columns += [(f"{who} unexplained / detail", ".4f") for who in ("real views", "ours")]
         columns += [("real views, by the target and pair", ".4f")]

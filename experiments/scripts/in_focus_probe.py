@@ -41,7 +41,7 @@ HELD_OUT = ("canon-840", "canon-hd", "phone")
 def make_arm(name: str, base_blur: tuple[float, float], out: Path, data: Path, iterations: int,
              threads: int, **training: object) -> Path:
     """Fine-tune the default on the coded recipe's sources with ``base_blur`` (and any other
-    ``training`` settings); its weights."""
+    ``training`` settings, ``val_data`` included); its weights."""
     recipe = load_recipe(RECIPE)
     index = next(i for i, phase in enumerate(recipe.phases) if phase.name == "coded")
     settings = phase_config(recipe, index, data, str(resolve_tag(START)))
@@ -54,11 +54,12 @@ def make_arm(name: str, base_blur: tuple[float, float], out: Path, data: Path, i
             folder = out / name / "sources" / step.name
             write_on_the_fly(folder, source, fmt, config)
             sources[step.name] = str(folder)
-    settings = dataclasses.replace(
-        settings, synthetic_data=[sources[Path(f).name] for f in settings.synthetic_data],
-        val_data=[str(data / "data" / "canon-hd-test")], val_limit=4, epochs=1,
-        iterations_per_epoch=iterations, learning_rate=5e-5, threads=threads, workers=0,
-        cache=True, tensorboard=False, checkpoint_minutes=10, **training)
+    settings = dataclasses.replace(settings, **{
+        "synthetic_data": [sources[Path(f).name] for f in settings.synthetic_data],
+        "val_data": [str(data / "data" / "canon-hd-test")], "val_limit": 4, "epochs": 1,
+        "iterations_per_epoch": iterations, "learning_rate": 5e-5, "threads": threads,
+        "workers": 0, "cache": True, "tensorboard": False, "checkpoint_minutes": 10,
+        **training})
     run = out / name / "run"
     if not (run / "last.safetensors").is_file():
         train(settings, run, resume=(run / "last_state.pt").is_file(), progress=False)
