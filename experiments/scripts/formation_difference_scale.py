@@ -34,12 +34,16 @@ def scores(image: np.ndarray, target: np.ndarray, side: np.ndarray) -> tuple[flo
             psnr(image[:, ~side], target[:, ~side]))
 
 
+def across(width: int) -> np.ndarray:
+    """``(width,)`` each column's place across the frame, -1 (left edge) to 1 (right edge)."""
+    return (np.arange(width) + 0.5) / width * 2 - 1
+
+
 def difference_scaled(left: np.ndarray, right: np.ndarray, profile: tuple[float, float]
                       ) -> tuple[np.ndarray, np.ndarray]:
     """``(H, W, C)`` views with their half-difference divided by ``r(x) = P0 - P2 x^2`` (x from
     -1 to 1 across the width), their mean kept, clipped to [0, 1]."""
-    width = left.shape[1]
-    x = (np.arange(width) + 0.5) / width * 2 - 1
+    x = across(left.shape[1])
     scale = (1.0 / (profile[0] - profile[1] * x**2))[None, :, None]
     mean, half = (left + right) / 2, (left - right) / 2
     return np.clip(mean + scale * half, 0, 1), np.clip(mean - scale * half, 0, 1)
@@ -56,10 +60,8 @@ def main() -> None:
     for scene in sorted(args.root.glob("scene_*")):
         left, right, target = (read_rgb(scene / f"{name}.png")
                                for name in ("view0", "view1", "target"))
-        width = left.shape[1]
-        x = (np.arange(width) + 0.5) / width * 2 - 1
         scaled = difference_scaled(left, right, tuple(args.profile))
-        side = np.abs(x) >= SIDES
+        side = np.abs(across(left.shape[1])) >= SIDES
         found["input"].append(scores((left + right) / 2, target, side))
         for name, views in (("views", (left, right)), ("scaled", scaled)):
             output = dualpixel.deblur(*views, model=args.model, device="cpu")
