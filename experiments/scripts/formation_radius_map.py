@@ -62,7 +62,7 @@ from PIL import Image
 
 import dualpixel
 from dualpixel.calibration.camera import view_kernels
-from dualpixel.io.images import read_rgb
+from dualpixel.io.images import read_rgb, write_png
 from dualpixel.optics.camera import load_camera
 from dualpixel.optics.crosstalk import apply_crosstalk
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
@@ -443,6 +443,9 @@ def main() -> None:
                         "x^2 (x from -1 to 1 across the frame)")
     parser.add_argument("--toned", action="store_true",
                         help="per tile, match each image's tone to the target before scoring")
+    parser.add_argument("--save", metavar="DIR",
+                        help="only write our views at the fitted blur (coded as asked) as dev "
+                        "scenes under DIR, the target standing in for DPDNet's output")
     args = parser.parse_args()
     global TONED
     TONED = args.toned
@@ -474,6 +477,14 @@ def main() -> None:
             ours = (h264(ours, args.h264) if args.h264
                     else np.stack([jpeg(o, args.jpeg) for o in ours]))
             coding = 10 * np.log10(1 / ((ours - clean) ** 2).mean())
+        if args.save:
+            out = os.path.join(args.save, os.path.basename(scene))
+            os.makedirs(out, exist_ok=True)
+            for name, image in zip(("view0", "view1", "target", "dpdnet"),
+                                   (*ours, target, target)):
+                write_png(os.path.join(out, f"{name}.png"), np.clip(image, 0, 1), bit_depth=8)
+            print(f"{out}: our views at the fitted blur, coding {coding:.1f} dB", flush=True)
+            continue
         if args.disparity:
             grey = target.mean(axis=-1)
             detail = cv2.boxFilter((grey - cv2.GaussianBlur(grey, (0, 0), 2)) ** 2, -1,
@@ -546,6 +557,8 @@ def main() -> None:
               f"{np.sqrt(((ours - np.stack([left, right])) ** 2).mean()) * 255:.2f} levels; "
               f"our views' coding {coding:.1f} dB",
               flush=True)
+    if args.save:
+        return
     if args.disparity:
         disparity_across(disparities)
         return
