@@ -58,6 +58,7 @@ import numpy as np
 import torch
 from coded_views import code  # this folder's GIF and JPEG round trips
 from formation_difference_scale import difference_scaled  # this folder's
+from formation_tone_curve import power_curve  # this folder's
 from PIL import Image
 
 import dualpixel
@@ -74,11 +75,15 @@ BANDS = (0.0, 1.0, 2.0, 4.0, 8.0)
 
 
 def renders(target: np.ndarray, radii: np.ndarray, camera: str,
-            profile: tuple[float, float] = (1.0, 0.0)) -> np.ndarray:
+            profile: tuple[float, float] = (1.0, 0.0),
+            tone: tuple[float, float] | None = None) -> np.ndarray:
     """``(len(radii), 2, H, W, C)`` left and right views (sRGB, 8-bit levels kept as floats):
     the camera's kernels and its per-channel disparity ratio, in linear light; the ratio times
-    ``profile[0] - profile[1] * x**2`` with ``x`` from -1 (left edge) to 1 (right edge)."""
-    light = srgb_to_linear_array(target)
+    ``profile[0] - profile[1] * x**2`` with ``x`` from -1 (left edge) to 1 (right edge).
+    ``tone`` ``(a, b)``: linear light is ``stored ** (a + b * stored)`` instead of sRGB's."""
+    decode, encode = (srgb_to_linear_array, linear_to_srgb_array) if tone is None \
+        else power_curve(*tone)
+    light = decode(target)
     model = load_camera(camera)
     # profile[0] - profile[1] x^2 is the package's falloff f = profile[1] / profile[0] on a ratio
     # scaled by profile[0] (1 - f / 3): the camera's crosstalk, per channel (optics.crosstalk)
@@ -94,7 +99,7 @@ def renders(target: np.ndarray, radii: np.ndarray, camera: str,
                            .permute(2, 0, 1) for k in view_kernels(radius, model.psf))
             pair = tuple(v.permute(1, 2, 0).numpy()
                          for v in apply_crosstalk(left, right, ratio, falloff))
-        out.append([np.round(np.clip(linear_to_srgb_array(v), 0, 1) * 255) / 255 for v in pair])
+        out.append([np.round(np.clip(encode(v), 0, 1) * 255) / 255 for v in pair])
     return np.asarray(out, np.float32)
 
 
@@ -443,6 +448,9 @@ def main() -> None:
                         "x^2 (x from -1 to 1 across the frame)")
     parser.add_argument("--toned", action="store_true",
                         help="per tile, match each image's tone to the target before scoring")
+    parser.add_argument("--tone", type=float, nargs=2, metavar=("A", "B"),
+                        help="render our views in the light stored ** (A + B stored) instead "
+                        "of sRGB-linear")
     parser.add_argument("--save", metavar="DIR",
                         help="only write our views at the fitted blur (coded as asked) as dev "
                         "scenes under DIR, the target standing in for DPDNet's output")
@@ -461,7 +469,8 @@ def main() -> None:
         coding = float("inf")
         left, right, target, published = (read_rgb(os.path.join(scene, f"{n}.png"))
                                           for n in ("view0", "view1", "target", "dpdnet"))
-        rendered = renders(target, radii, args.camera, tuple(args.ratio_profile))
+        rendered = renders(target, radii, args.camera, tuple(args.ratio_profile),
+                           None if args.tone is None else tuple(args.tone))
         choice = tile_choice((left, right), rendered, args.tile, args.margin)
         if args.per_channel:
             ours = np.concatenate([
