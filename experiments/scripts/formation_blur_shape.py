@@ -24,9 +24,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dualpixel.calibration.camera import view_kernels
 from dualpixel.io.images import read_rgb
 from dualpixel.optics.camera import load_camera
+from dualpixel.optics.psf import dp_psf
 from dualpixel.optics.tone import srgb_to_linear_array
 
 ASPECTS = (0.6, 0.7, 0.8, 0.9, 1.0, 1.11, 1.25, 1.43, 1.67)
@@ -60,7 +60,7 @@ def candidate_spectra(radii: np.ndarray, camera: str, size: int) -> tuple[np.nda
         if radius < 0.5:
             base = np.ones((1, 1), np.float32)
         else:
-            base = sum(view_kernels(radius, psf)) / 2
+            base = dp_psf(float(radius), psf).combined.numpy()
         for aspect, angle in itertools.product(ASPECTS, ANGLES):
             if aspect == 1.0 and angle:
                 continue

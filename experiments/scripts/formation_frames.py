@@ -22,9 +22,9 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from formation_radius_map import h264  # the dev views' coding, as that script applies it
+from formation_radius_map import h264, write_dev_scene  # the dev views' coding and layout
 
-from dualpixel.io.images import read_rgb, write_png
+from dualpixel.io.images import read_rgb
 
 
 def main() -> None:
@@ -43,11 +43,7 @@ def main() -> None:
         if args.h264:
             views = h264(views, args.h264)
         target = read_rgb(Path(str(path).replace("_c/source", "_c/target")))
-        scene = args.out / f"scene_{number:02d}"
-        scene.mkdir(parents=True, exist_ok=True)
-        for name, image in (("view0", views[0]), ("view1", views[1]), ("target", target),
-                            ("dpdnet", target)):
-            write_png(scene / f"{name}.png", np.clip(image, 0, 1), bit_depth=8)
+        write_dev_scene(args.out / f"scene_{number:02d}", views, target)
     print(f"{len(combined)} frames -> {args.out}")
 
 

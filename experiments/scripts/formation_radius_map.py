@@ -52,6 +52,7 @@ import argparse
 import glob
 import itertools
 import os
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -66,6 +67,7 @@ from dualpixel.calibration.camera import view_kernels
 from dualpixel.io.images import read_rgb, write_png
 from dualpixel.optics.camera import load_camera
 from dualpixel.optics.crosstalk import apply_crosstalk
+from dualpixel.optics.psf import dp_psf
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 from dualpixel.synthesis.view_coding import h264_round_trip
 
@@ -116,7 +118,7 @@ def at_aperture(image: np.ndarray, radii: np.ndarray, choice: np.ndarray, tile: 
         if radius < 0.5:
             out.append(light)
             continue
-        kernel = sum(view_kernels(radius, psf)) / 2
+        kernel = dp_psf(float(radius), psf).combined.numpy()
         out.append(cv2.filter2D(light, -1, kernel, borderType=cv2.BORDER_REFLECT))
     return linear_to_srgb_array(blend(np.asarray(out)[:, None], choice, tile, tile / 4)[0])
 
@@ -186,6 +188,15 @@ def wiener(views: tuple[np.ndarray, np.ndarray], radii: np.ndarray, choice: np.n
     unexplained = np.stack([blend(np.asarray(rows, np.float32)[:, None, ..., None], choice, tile,
                                   tile / 16)[0, ..., 0] for rows in residual])
     return linear_to_srgb_array(np.clip(blended, 0, 1)), unexplained, np.asarray(free)
+
+
+def write_dev_scene(folder: Path, views: np.ndarray, target: np.ndarray) -> None:
+    """``folder`` laid out as a dev scene, 8-bit: ``views`` ``(2, H, W, C)`` as view0 / view1,
+    ``target``, and the target again standing in for the published DPDNet output."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, image in (("view0", views[0]), ("view1", views[1]), ("target", target),
+                        ("dpdnet", target)):
+        write_png(folder / f"{name}.png", np.clip(image, 0, 1), bit_depth=8)
 
 
 def tile_means(image: np.ndarray, tile: int) -> np.ndarray:
@@ -487,11 +498,8 @@ def main() -> None:
                     else np.stack([jpeg(o, args.jpeg) for o in ours]))
             coding = 10 * np.log10(1 / ((ours - clean) ** 2).mean())
         if args.save:
-            out = os.path.join(args.save, os.path.basename(scene))
-            os.makedirs(out, exist_ok=True)
-            for name, image in zip(("view0", "view1", "target", "dpdnet"),
-                                   (*ours, target, target)):
-                write_png(os.path.join(out, f"{name}.png"), np.clip(image, 0, 1), bit_depth=8)
+            out = Path(args.save) / os.path.basename(scene)
+            write_dev_scene(out, ours, target)
             print(f"{out}: our views at the fitted blur, coding {coding:.1f} dB", flush=True)
             continue
         if args.disparity:

@@ -24,9 +24,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dualpixel.calibration.camera import view_kernels
 from dualpixel.io.images import read_rgb
 from dualpixel.optics.camera import load_camera
+from dualpixel.optics.psf import dp_psf
 from dualpixel.optics.tone import linear_to_srgb_array, srgb_to_linear_array
 
 A_GRID = (0.8, 1.0, 1.2, 1.5, 1.9, 2.2)
@@ -73,12 +73,13 @@ def scene_residuals(scene: Path, camera: str, radii: np.ndarray, tile: int,
     """Per candidate curve, per tile, the least residual share over ``radii``; each tile's
     sRGB-fit radius and the target tile's mean brightness; textured tiles only."""
     psf = load_camera(camera).psf
-    kernels = [None if r < 0.5 else sum(view_kernels(r, psf)) / 2 for r in radii]
+    kernels = [None if r < 0.5 else dp_psf(float(r), psf).combined.numpy() for r in radii]
     left, right, target = (np.clip(read_rgb(scene / f"{n}.png"), 0, 1).astype(np.float32)
                            for n in ("view0", "view1", "target"))
     views = tiled((left + right) / 2, tile)
     centred = views - views.mean(axis=2, keepdims=True)
-    variance = (centred**2).sum(axis=(2, 3))
+    energy = (centred**2).sum(axis=2)  # per tile and channel
+    variance = energy.sum(axis=-1)
     sharp = tiled(target, tile)
     textured = sharp.std(axis=2).mean(axis=-1) > 0.03
     shares, radius = [], None
@@ -91,7 +92,7 @@ def scene_residuals(scene: Path, camera: str, radii: np.ndarray, tile: int,
             b = tiled(encode(blurred), tile)
             b = b - b.mean(axis=2, keepdims=True)
             fit = (centred * b).sum(axis=2) ** 2 / ((b * b).sum(axis=2) + 1e-12)
-            residual.append(((centred**2).sum(axis=2) - fit).sum(axis=-1))
+            residual.append((energy - fit).sum(axis=-1))
         residual = np.asarray(residual)
         if name == "srgb":
             radius = radii[residual.argmin(axis=0)]
