@@ -39,13 +39,19 @@ def across(width: int) -> np.ndarray:
     return (np.arange(width) + 0.5) / width * 2 - 1
 
 
+def halves(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A pair's mean ``(L + R) / 2`` and half-difference ``(L - R) / 2``: the views are
+    ``mean +- half``."""
+    return (left + right) / 2, (left - right) / 2
+
+
 def difference_scaled(left: np.ndarray, right: np.ndarray, profile: tuple[float, float]
                       ) -> tuple[np.ndarray, np.ndarray]:
     """``(H, W, C)`` views with their half-difference divided by ``r(x) = P0 - P2 x^2`` (x from
     -1 to 1 across the width), their mean kept, clipped to [0, 1]."""
     x = across(left.shape[1])
     scale = (1.0 / (profile[0] - profile[1] * x**2))[None, :, None]
-    mean, half = (left + right) / 2, (left - right) / 2
+    mean, half = halves(left, right)
     return np.clip(mean + scale * half, 0, 1), np.clip(mean - scale * half, 0, 1)
 
 

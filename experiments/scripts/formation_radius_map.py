@@ -58,7 +58,7 @@ import cv2
 import numpy as np
 import torch
 from coded_views import code  # this folder's GIF and JPEG round trips
-from formation_difference_scale import difference_scaled  # this folder's
+from formation_difference_scale import difference_scaled, halves  # this folder's
 from formation_tone_curve import power_curve  # this folder's
 from PIL import Image
 
@@ -199,6 +199,12 @@ def write_dev_scene(folder: Path, views: np.ndarray, target: np.ndarray) -> None
         write_png(folder / f"{name}.png", np.clip(image, 0, 1), bit_depth=8)
 
 
+def tile_place(col: int, tile: int, width: int) -> float:
+    """Where the centre of tile column ``col`` lies across a ``width``-px frame: -1 at the left
+    edge, 1 at the right."""
+    return (col + 0.5) * tile / width * 2 - 1
+
+
 def tile_means(image: np.ndarray, tile: int) -> np.ndarray:
     """``(rows, cols, C)``: ``image`` ``(H, W, C)`` averaged over each whole ``tile``-px tile."""
     rows, cols = image.shape[0] // tile, image.shape[1] // tile
@@ -325,7 +331,7 @@ def band_rows_of(views: tuple[np.ndarray, np.ndarray], ours: np.ndarray, target:
                     for op in (np.add, np.subtract)]
         relation.append(float((np.subtract(*detail[0]) ** 2).mean()
                               / ((np.subtract(*detail[1]) ** 2).mean() + 1e-12)))
-        rows.append((radius, abs((col + 0.5) * tile / target.shape[1] * 2 - 1),
+        rows.append((radius, abs(tile_place(col, tile, target.shape[1])),
                      *(r / o for r, o in zip(*energy)), *relation))
     return rows
 
@@ -400,9 +406,6 @@ def swapped(real: tuple[np.ndarray, np.ndarray], ours: np.ndarray
     """``--swap``: the views rebuilt from one pair's sum and the other's difference, (L + R) / 2
     +- (L - R) / 2, clipped to [0, 1]: the real sum with our difference, then ours with the real
     difference. Which half of the views costs the model its gain on the real ones."""
-    def halves(left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return (left + right) / 2, (left - right) / 2
-
     (real_sum, real_difference), (our_sum, our_difference) = halves(*real), halves(*ours)
     return [(np.clip(total + difference, 0, 1), np.clip(total - difference, 0, 1))
             for total, difference in ((real_sum, our_difference), (our_sum, real_difference))]
@@ -513,7 +516,7 @@ def main() -> None:
                 if (row < real.shape[0] and col < real.shape[1] and detail[row, col] > 1e-4
                         and radii[index] >= args.max_radius / 4 and abs(mine[row, col]) > 0.5
                         and real_fit[row, col] < 0.6 and my_fit[row, col] < 0.6):
-                    disparities.append(((col + 0.5) * args.tile / target.shape[1] * 2 - 1,
+                    disparities.append((tile_place(col, args.tile, target.shape[1]),
                                         real[row, col] / mine[row, col]))
             continue
         if args.bands:
@@ -556,7 +559,7 @@ def main() -> None:
             bands = [band_energy(v[box]) for v in (left, ours[0])]
             rows.append((radius, gain(ro, ri, target[box]), gain(oo, oi, target[box]),
                          gain(po, ri, target[box]), number, bands[0] / bands[1],
-                         abs((col + 0.5) * t / target.shape[1] * 2 - 1),
+                         abs(tile_place(col, t, target.shape[1])),
                          *(gain(a, i, target[box])
                            for a, i in zip(apertured, itertools.cycle((ri, oi)))),
                          *(residual[:, box[0], box[1]].mean(axis=(1, 2)).min()
